@@ -1,0 +1,36 @@
+# geosyn: `make run` (set up + flagship experiment) and `make test` (set up + test suite).
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+TSTAMP := $(VENV)/.installed-test
+
+.PHONY: run test lint bench clean
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+$(STAMP): pyproject.toml | $(PY)
+	$(PY) -m pip install --quiet -e .
+	touch $@
+
+$(TSTAMP): pyproject.toml | $(PY)
+	$(PY) -m pip install --quiet -e ".[test,dev,distributed]"
+	touch $@ $(STAMP)
+
+run: $(STAMP)
+	$(VENV)/bin/geosyn robots
+
+test: $(TSTAMP)
+	$(PY) -m pytest -q
+
+lint: $(TSTAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy core robots metrics synergies controllers sim experiments
+
+bench: $(STAMP)
+	$(PY) benchmarks/metric.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info

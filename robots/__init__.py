@@ -1,0 +1,36 @@
+"""Robot descriptions: one description gives a Pinocchio model and a MuJoCo model with
+identical dynamics."""
+
+from geosyn.robots.errors import RobotError, RobotFileError, UnknownFrame, UnknownRobot
+from geosyn.robots.loading import (
+    BUILTINS,
+    example_robot_data_dir,
+    load_file,
+    load_robot,
+    planar2,
+    planar3,
+    planar_arm,
+    robot_from_model,
+)
+from geosyn.robots.mjcf import robot_to_mjcf
+from geosyn.robots.robot import CollisionCapsule, CollisionSphere, Robot, check_vector
+
+__all__ = [
+    "BUILTINS",
+    "CollisionCapsule",
+    "CollisionSphere",
+    "Robot",
+    "RobotError",
+    "RobotFileError",
+    "UnknownFrame",
+    "UnknownRobot",
+    "check_vector",
+    "example_robot_data_dir",
+    "load_file",
+    "load_robot",
+    "planar2",
+    "planar3",
+    "planar_arm",
+    "robot_from_model",
+    "robot_to_mjcf",
+]

@@ -1,0 +1,222 @@
+"""The `Robot` description: one Pinocchio model plus limits and collision geometry.
+
+Everything downstream (metrics, controllers, the MuJoCo plant) is built from a `Robot`, so
+the kinetic-energy metric and the simulated dynamics come from the same parameters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.types import Vector
+from geosyn.robots.errors import UnknownFrame
+
+if TYPE_CHECKING:
+    import mujoco
+
+
+@dataclass(frozen=True)
+class CollisionCapsule:
+    """A capsule rigidly attached to a joint's body (the link moved by that joint).
+
+    Attributes:
+        joint: name of the Pinocchio joint whose body carries the capsule.
+        p0: (3,) first end point in the joint frame [m].
+        p1: (3,) second end point in the joint frame [m]; equal to `p0` for a sphere.
+        radius: capsule radius [m].
+    """
+
+    joint: str
+    p0: tuple[float, float, float]
+    p1: tuple[float, float, float]
+    radius: float
+
+
+@dataclass(frozen=True)
+class CollisionSphere:
+    """A sphere rigidly attached to a joint's body, used by obstacle shaping terms.
+
+    Attributes:
+        joint: name of the Pinocchio joint whose body carries the sphere.
+        center: (3,) centre in the joint frame [m].
+        radius: sphere radius [m].
+    """
+
+    joint: str
+    center: tuple[float, float, float]
+    radius: float
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A fixed-base robot: Pinocchio model, limits and simple collision geometry.
+
+    Invariant: ``nq == nv`` (continuous joints are loaded as plain revolute joints), and
+    ``model.armature`` holds the reflected rotor inertia added to the mass matrix on both
+    the Pinocchio and the MuJoCo side.
+
+    Attributes:
+        name: robot name.
+        model: Pinocchio model (fixed base). Treat as read-only.
+        joint_names: (nv,) names of the actuated joints, in configuration order.
+        q_min: (nq,) lower position limits [rad or m]; ``-inf`` where unlimited.
+        q_max: (nq,) upper position limits [rad or m]; ``+inf`` where unlimited.
+        v_max: (nv,) velocity limits [rad/s or m/s].
+        tau_max: (nv,) torque limits [N m or N].
+        ee_frame: name of the end-effector frame in ``model``.
+        capsules: collision capsules per link.
+        gravity: (3,) gravity vector in the world frame [m/s^2].
+    """
+
+    name: str
+    model: pin.Model
+    joint_names: tuple[str, ...]
+    q_min: Vector
+    q_max: Vector
+    v_max: Vector
+    tau_max: Vector
+    ee_frame: str
+    capsules: tuple[CollisionCapsule, ...] = ()
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    _spheres: tuple[CollisionSphere, ...] = field(default=(), repr=False)
+
+    # -- sizes ------------------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Number of configuration coordinates."""
+        return int(self.model.nq)
+
+    @property
+    def nv(self) -> int:
+        """Number of velocity coordinates (equal to ``nq``)."""
+        return int(self.model.nv)
+
+    @property
+    def armature(self) -> Vector:
+        """(nv,) reflected rotor inertia on each joint [kg m^2 or kg]."""
+        return np.array(self.model.armature, dtype=np.float64)
+
+    @property
+    def total_mass(self) -> float:
+        """Total mass of the moving bodies [kg]."""
+        return float(sum(self.model.inertias[j].mass for j in range(1, self.model.njoints)))
+
+    # -- lookups ----------------------------------------------------------------------
+    def frame_id(self, name: str) -> int:
+        """Index of a Pinocchio frame.
+
+        Args:
+            name: frame name.
+
+        Raises:
+            UnknownFrame: the name is not a frame of the model; the message lists them.
+        """
+        if not isinstance(name, str) or not self.model.existFrame(name):
+            names = ", ".join(f.name for f in self.model.frames)
+            raise UnknownFrame(f"frame {name!r} is not in robot {self.name!r}; available: {names}")
+        return int(self.model.getFrameId(name))
+
+    def joint_id(self, name: str) -> int:
+        """Index of a Pinocchio joint (1-based; 0 is the universe).
+
+        Raises:
+            UnknownFrame: the name is not a joint of the model; the message lists them.
+        """
+        if not isinstance(name, str) or not self.model.existJointName(name):
+            names = ", ".join(self.model.names[1:])
+            raise UnknownFrame(f"joint {name!r} is not in robot {self.name!r}; available: {names}")
+        return int(self.model.getJointId(name))
+
+    def collision_spheres(self, per_capsule: int = 3) -> tuple[CollisionSphere, ...]:
+        """Spheres covering each collision capsule, for obstacle terms.
+
+        Args:
+            per_capsule: spheres per capsule, evenly spaced between its end points (>= 1).
+
+        Returns:
+            The spheres, each with the radius of its capsule.
+        """
+        if self._spheres:
+            return self._spheres
+        if per_capsule < 1:
+            raise InvalidArgument(f"per_capsule must be >= 1, got {per_capsule}")
+        spheres = []
+        for c in self.capsules:
+            p0, p1 = np.asarray(c.p0), np.asarray(c.p1)
+            same = np.allclose(p0, p1)
+            for s in [0.5] if same else np.linspace(0.0, 1.0, per_capsule):
+                ctr = (1.0 - s) * p0 + s * p1
+                spheres.append(CollisionSphere(c.joint, tuple(map(float, ctr)), c.radius))
+        return tuple(spheres)
+
+    # -- validation -------------------------------------------------------------------
+    def check_q(self, q: object, name: str = "q") -> Vector:
+        """Return ``q`` as a float64 (nq,) array, or raise `InvalidArgument`.
+
+        Args:
+            q: candidate joint positions, shape (nq,) [rad or m].
+            name: argument name used in the error message.
+        """
+        return check_vector(q, self.nq, name)
+
+    def random_q(self, rng: np.random.Generator, margin: float = 0.0) -> Vector:
+        """A uniformly random configuration inside the position limits.
+
+        Unlimited joints are drawn in [-pi, pi].
+
+        Args:
+            rng: seeded random generator.
+            margin: distance kept from each limit [rad or m].
+
+        Returns:
+            (nq,) joint positions.
+        """
+        lo = np.where(np.isfinite(self.q_min), self.q_min + margin, -np.pi)
+        hi = np.where(np.isfinite(self.q_max), self.q_max - margin, np.pi)
+        return rng.uniform(lo, hi)
+
+    def neutral(self) -> Vector:
+        """(nq,) a configuration inside the limits: zero, clipped to the limits' middle."""
+        mid = np.where(
+            np.isfinite(self.q_min) & np.isfinite(self.q_max), 0.5 * (self.q_min + self.q_max), 0.0
+        )
+        q = np.zeros(self.nq)
+        outside = (q < self.q_min) | (q > self.q_max)
+        return np.where(outside, mid, q)
+
+    # -- MuJoCo -----------------------------------------------------------------------
+    def mjcf(self, **options: object) -> str:
+        """MJCF text of a MuJoCo model with the same dynamics; see `geosyn.robots.mjcf`."""
+        from geosyn.robots.mjcf import robot_to_mjcf
+
+        return robot_to_mjcf(self, **options)  # type: ignore[arg-type]
+
+    def mj_model(self, **options: object) -> mujoco.MjModel:
+        """A compiled `mujoco.MjModel` with the same dynamics; see `geosyn.robots.mjcf`."""
+        import mujoco
+
+        return mujoco.MjModel.from_xml_string(self.mjcf(**options))
+
+
+def check_vector(x: object, n: int, name: str) -> Vector:
+    """Return ``x`` as a finite float64 (n,) array, or raise `InvalidArgument`.
+
+    Args:
+        x: candidate vector.
+        n: expected length.
+        name: argument name for the error message.
+    """
+    try:
+        arr = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got {x!r}") from err
+    if arr.shape != (n,):
+        raise InvalidArgument(f"{name} must have shape ({n},), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidArgument(f"{name} must be finite, got {arr}")
+    return arr
