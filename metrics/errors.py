@@ -1,0 +1,27 @@
+"""Errors of the metrics layer (metrics, geodesics)."""
+
+from __future__ import annotations
+
+from geosyn.core.errors import GeosynError
+
+
+class MetricError(GeosynError):
+    """Base class of metric-layer errors."""
+
+
+class NoSymbolicForm(MetricError):
+    """A metric has no CasADi symbolic form, so symbolic derivatives are unavailable."""
+
+
+class GeodesicNotFound(MetricError):
+    """The log map (boundary-value problem) did not converge.
+
+    Attributes:
+        residual: final endpoint error ||exp(q0, v0)(1) - q1|| [rad].
+        v0: (n,) best initial velocity found [rad/s].
+    """
+
+    def __init__(self, message: str, residual: float, v0: object = None) -> None:
+        super().__init__(message)
+        self.residual = float(residual)
+        self.v0 = v0

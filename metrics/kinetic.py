@@ -1,0 +1,141 @@
+"""The kinetic-energy metric: G(q) = M(q), the robot's mass-inertia matrix."""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.types import Matrix, Vector
+from geosyn.metrics.base import Metric, MetricFunctions
+from geosyn.robots.robot import Robot
+
+
+class KineticEnergyMetric(Metric):
+    """The kinetic-energy metric of a robot: ``G(q) = M(q)`` (armature included).
+
+    Geodesics of this metric solve ``M(q) qdd + C(q, qd) qd = 0``: passive motions without
+    gravity or torque. Two paths compute it:
+
+    - numeric (fast) on Pinocchio: `G` is ``pin.crba``, `coriolis` is ``pin.rnea`` with
+      zero gravity and zero acceleration, `geodesic_acceleration` is ``pin.aba`` with zero
+      gravity and zero torque;
+    - symbolic on CasADi SX from geosyn's own recursive algorithms (CRBA, RNEA, ABA in
+      `geosyn.metrics.symbolic`), giving dG/dq and the Christoffel symbols, optionally
+      compiled to C and cached on disk (``compile=True``).
+
+    Args:
+        robot: the robot.
+        compile: compile the CasADi functions to C (cached on disk by a hash of the
+            generated code) on first use. Falls back to CasADi's VM, with a warning, when
+            no C compiler is available.
+
+    Methods `G`, `coriolis` and `geodesic_acceleration` allocate only their result.
+    """
+
+    def __init__(self, robot: Robot, *, compile: bool = False) -> None:
+        if not isinstance(robot, Robot):
+            raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
+        self.robot = robot
+        self.n = robot.nv
+        self.compile = bool(compile)
+        self._model = robot.model
+        self._data = robot.model.createData()
+        # A zero-gravity copy: geodesics are passive motions without gravity.
+        self._model0 = pin.Model(robot.model)
+        self._model0.gravity = pin.Motion.Zero()
+        self._data0 = self._model0.createData()
+        self._zero = np.zeros(self.n)
+
+    def __repr__(self) -> str:
+        return f"KineticEnergyMetric({self.robot.name!r}, n={self.n})"
+
+    # -- numeric fast path -----------------------------------------------------------
+    def G(self, q: Vector) -> Matrix:
+        """Mass matrix M(q).
+
+        Args:
+            q: (n,) joint positions [rad].
+
+        Returns:
+            (n, n) symmetric positive-definite mass matrix [kg m^2].
+        """
+        if not (
+            q.__class__ is np.ndarray
+            and q.shape == (self.n,)  # type: ignore[attr-defined]
+            and math.isfinite(np.dot(q, q))
+        ):
+            q = self._check(q, "q")
+        return pin.crba(self._model, self._data, q)
+
+    def coriolis(self, q: Vector, v: Vector) -> Vector:
+        """Coriolis and centrifugal torques ``C(q, v) v`` [N m] (no gravity).
+
+        Args:
+            q: (n,) joint positions [rad].
+            v: (n,) joint velocities [rad/s].
+        """
+        q = self._check(q, "q")
+        v = self._check(v, "v")
+        return pin.rnea(self._model0, self._data0, q, v, self._zero).copy()
+
+    def geodesic_acceleration(self, q: Vector, v: Vector) -> Vector:
+        """``-M(q)^-1 C(q, v) v`` [rad/s^2], by ``pin.aba`` with zero gravity and torque.
+
+        Args:
+            q: (n,) joint positions [rad].
+            v: (n,) joint velocities [rad/s].
+        """
+        if not (
+            q.__class__ is np.ndarray
+            and v.__class__ is np.ndarray
+            and q.shape == (self.n,)  # type: ignore[attr-defined]
+            and v.shape == (self.n,)  # type: ignore[attr-defined]
+            and math.isfinite(np.dot(q, q) + np.dot(v, v))
+        ):
+            q = self._check(q, "q")
+            v = self._check(v, "v")
+        return pin.aba(self._model0, self._data0, q, v, self._zero)
+
+    def gravity_torque(self, q: Vector) -> Vector:
+        """Gravity torques g(q) [N m] for the robot's gravity vector."""
+        q = self._check(q, "q")
+        return pin.computeGeneralizedGravity(self._model, self._data, q).copy()
+
+    # -- symbolic path ---------------------------------------------------------------
+    def symbolic_G(self, q: ca.SX) -> ca.SX:
+        """SX mass matrix from geosyn's recursive CRBA (armature included)."""
+        from geosyn.metrics import symbolic
+
+        return symbolic.crba(self._model, q)
+
+    def symbolic_coriolis(self, q: ca.SX, v: ca.SX) -> ca.SX:
+        """SX ``C(q, v) v`` from the recursive RNEA with zero gravity and acceleration."""
+        from geosyn.metrics import symbolic
+
+        return symbolic.rnea(self._model, q, v, ca.SX.zeros(self.n), np.zeros(3))
+
+    def symbolic_geodesic_acceleration(self, q: ca.SX, v: ca.SX) -> ca.SX:
+        """SX geodesic acceleration from the recursive ABA (no symbolic inverse)."""
+        from geosyn.metrics import symbolic
+
+        return symbolic.aba(self._model, q, v, ca.SX.zeros(self.n), np.zeros(3))
+
+    def symbolic_rnea(self, q: ca.SX, v: ca.SX, a: ca.SX, gravity: bool = True) -> ca.SX:
+        """SX inverse dynamics ``M a + C v + g`` [N m] (``gravity=False`` drops g)."""
+        from geosyn.metrics import symbolic
+
+        g = np.asarray(self.robot.gravity) if gravity else np.zeros(3)
+        return symbolic.rnea(self._model, q, v, a, g)
+
+    def build_functions(self) -> MetricFunctions:
+        """Build (and with ``compile=True`` compile to C, cached on disk) the functions."""
+        funcs = super().build_functions()
+        if not self.compile:
+            return funcs
+        from geosyn.metrics.codegen import compile_function
+
+        return MetricFunctions(*(compile_function(f, fallback=True) for f in funcs))
