@@ -136,6 +136,19 @@ class Metric(ABC):
         """
         raise NoSymbolicForm(f"{type(self).__name__} has no symbolic form")
 
+    def symbolic_parameters(self) -> ca.SX:
+        """SX symbols (p, 1) that the symbolic forms may depend on besides q and v.
+
+        Parameterised metrics (e.g. obstacle poses in a shaped metric) return their
+        parameter symbols here, so compiled functions take them as a last input and
+        changing a parameter never rebuilds anything. Default: no parameters (0, 1).
+        """
+        return ca.SX(0, 1)
+
+    def parameter_values(self) -> np.ndarray:
+        """(p,) current numeric values of `symbolic_parameters` (default: empty)."""
+        return np.zeros(0)
+
     def symbolic_geodesic_acceleration(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """SX expression of the geodesic acceleration -G^-1 c(q, v).
 
@@ -184,6 +197,9 @@ class Metric(ABC):
         n = self.n
         q = ca.SX.sym("q", n)
         v = ca.SX.sym("v", n)
+        p = self.symbolic_parameters()
+        extra = [p] if p.numel() > 0 else []
+        extra_names = ["p"] if extra else []
         Gq = self.symbolic_G(q)
         dG = ca.jacobian(ca.vec(Gq), q)  # (n*n, n), row i + j*n (column-major vec)
         # Reorder to dG[i, j*n + k] = d g_ij / d q_k.
@@ -201,22 +217,29 @@ class Metric(ABC):
             gam_rows.append(ca.horzcat(*row))
         gam = ca.vertcat(*gam_rows)
         opts = {"cse": True}
+        qn, qvn = ["q", *extra_names], ["q", "v", *extra_names]
         return MetricFunctions(
-            G=ca.Function("G", [q], [Gq], ["q"], ["G"], opts),
-            dG=ca.Function("dG", [q], [dG_ijk], ["q"], ["dG"], opts),
-            christoffel=ca.Function("christoffel", [q], [gam], ["q"], ["Gamma"], opts),
+            G=ca.Function("G", [q, *extra], [Gq], qn, ["G"], opts),
+            dG=ca.Function("dG", [q, *extra], [dG_ijk], qn, ["dG"], opts),
+            christoffel=ca.Function("christoffel", [q, *extra], [gam], qn, ["Gamma"], opts),
             coriolis=ca.Function(
-                "coriolis", [q, v], [self.symbolic_coriolis(q, v)], ["q", "v"], ["c"], opts
+                "coriolis", [q, v, *extra], [self.symbolic_coriolis(q, v)], qvn, ["c"], opts
             ),
             geodesic_acceleration=ca.Function(
                 "geodesic_acceleration",
-                [q, v],
+                [q, v, *extra],
                 [self.symbolic_geodesic_acceleration(q, v)],
-                ["q", "v"],
+                qvn,
                 ["a"],
                 opts,
             ),
         )
+
+    def _eval(self, f: ca.Function, *args: np.ndarray) -> np.ndarray:
+        """Evaluate a compiled function, appending the parameter values if it takes them."""
+        if f.n_in() > len(args):
+            args = (*args, self.parameter_values())
+        return np.asarray(f(*args))
 
     @cached_property
     def functions(self) -> MetricFunctions:
@@ -249,7 +272,7 @@ class Metric(ABC):
             (n, n, n) with ``[i, j, k] = d g_ij / d q_k``.
         """
         q = self._check(q, "q")
-        return np.asarray(self.functions.dG(q)).reshape(self.n, self.n, self.n)
+        return self._eval(self.functions.dG, q).reshape(self.n, self.n, self.n)
 
     def christoffel(self, q: Vector) -> np.ndarray:
         """Christoffel symbols of the first kind.
@@ -262,7 +285,7 @@ class Metric(ABC):
             ``c_i = sum_jk Gamma_ijk v_j v_k``.
         """
         q = self._check(q, "q")
-        return np.asarray(self.functions.christoffel(q)).reshape(self.n, self.n, self.n)
+        return self._eval(self.functions.christoffel, q).reshape(self.n, self.n, self.n)
 
     def coriolis(self, q: Vector, v: Vector) -> Vector:
         """Coriolis and centrifugal term ``C(q, v) v``.
@@ -276,7 +299,7 @@ class Metric(ABC):
         """
         q = self._check(q, "q")
         v = self._check(v, "v")
-        return np.asarray(self.functions.coriolis(q, v)).ravel()
+        return self._eval(self.functions.coriolis, q, v).ravel()
 
     def geodesic_acceleration(self, q: Vector, v: Vector) -> Vector:
         """Acceleration of the geodesic through (q, v): ``-G(q)^-1 C(q, v) v``.
@@ -290,7 +313,7 @@ class Metric(ABC):
         """
         q = self._check(q, "q")
         v = self._check(v, "v")
-        return np.asarray(self.functions.geodesic_acceleration(q, v)).ravel()
+        return self._eval(self.functions.geodesic_acceleration, q, v).ravel()
 
     def energy(self, q: Vector, v: Vector) -> float:
         """Kinetic energy 1/2 v^T G(q) v [J for the kinetic-energy metric]."""

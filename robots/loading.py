@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -50,6 +51,19 @@ def example_robot_data_dir() -> Path:
     )
 
 
+def _joint_axis_from_motion(model: pin.Model, jid: int) -> np.ndarray:
+    """(3,) rotation axis of a one-DoF revolute joint, read from its motion subspace.
+
+    Pinocchio does not expose the axis of ``JointModelRevoluteUnboundedUnaligned`` in
+    Python; the joint's spatial velocity for a unit joint rate (all others zero) is it.
+    """
+    data = model.createData()
+    v = np.zeros(model.nv)
+    v[model.joints[jid].idx_v] = 1.0
+    pin.forwardKinematics(model, data, pin.neutral(model), v)
+    return np.array(data.v[jid].angular, dtype=np.float64)
+
+
 def _as_scalar_joints(model: pin.Model) -> pin.Model:
     """Rebuild a model with continuous (unbounded) joints turned into plain revolute joints.
 
@@ -70,7 +84,7 @@ def _as_scalar_joints(model: pin.Model) -> pin.Model:
             new_jm = _UNBOUNDED[kind]()
             lo, hi = np.array([-_NO_LIMIT]), np.array([_NO_LIMIT])
         elif kind == "JointModelRevoluteUnboundedUnaligned":
-            new_jm = pin.JointModelRevoluteUnaligned(np.asarray(jm.extract().axis, dtype=float))
+            new_jm = pin.JointModelRevoluteUnaligned(_joint_axis_from_motion(model, jid))
             lo, hi = np.array([-_NO_LIMIT]), np.array([_NO_LIMIT])
         elif kind in _SCALAR_JOINTS:
             new_jm = jm
@@ -207,10 +221,13 @@ def robot_from_model(
             jm = model.joints[jid]
             n_q = jm.nq
             if model.names[jid] in lock_q:
-                if n_q != 1:
-                    raise InvalidArgument(f"lock_q[{model.names[jid]!r}]: joint has {n_q} coords")
                 val = float(lock_q[model.names[jid]])
-                q_ref[jm.idx_q] = val
+                if not math.isfinite(val):
+                    raise InvalidArgument(f"lock_q[{model.names[jid]!r}] must be finite, got {val}")
+                if n_q == 2:  # continuous joint stored as (cos, sin)
+                    q_ref[jm.idx_q : jm.idx_q + 2] = (math.cos(val), math.sin(val))
+                else:
+                    q_ref[jm.idx_q] = val
             elif n_q == 1:
                 lo, hi = model.lowerPositionLimit[jm.idx_q], model.upperPositionLimit[jm.idx_q]
                 q_ref[jm.idx_q] = float(np.clip(0.0, lo, hi)) if lo <= hi else 0.0

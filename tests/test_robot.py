@@ -1,0 +1,57 @@
+"""The Robot description (robots/robot.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from conftest import get_robot
+from geosyn.core import GeosynError, InvalidArgument
+from geosyn.robots import UnknownFrame
+
+
+def test_check_q_names_expected_shape() -> None:
+    robot = get_robot("panda")
+    with pytest.raises(InvalidArgument, match=r"q must have shape \(7,\), got shape \(6,\)"):
+        robot.check_q(np.zeros(6))
+    with pytest.raises(InvalidArgument, match="finite"):
+        robot.check_q(np.full(7, np.nan))
+    with pytest.raises(InvalidArgument, match="float array"):
+        robot.check_q("seven")
+
+
+def test_unknown_frame_lists_names() -> None:
+    robot = get_robot("planar2")
+    with pytest.raises(UnknownFrame, match="available: .*tip"):
+        robot.frame_id("hand")
+    assert isinstance(UnknownFrame("x"), GeosynError)
+
+
+def test_random_q_within_limits() -> None:
+    robot = get_robot("talos_arm")
+    rng = np.random.default_rng(0)
+    qs = np.array([robot.random_q(rng, margin=0.1) for _ in range(500)])
+    assert np.all(qs >= robot.q_min + 0.1 - 1e-12) and np.all(qs <= robot.q_max - 0.1 + 1e-12)
+    q = robot.neutral()
+    assert np.all(q >= robot.q_min) and np.all(q <= robot.q_max)
+
+
+def test_collision_spheres_lie_on_link_segments() -> None:
+    robot = get_robot("planar2")
+    spheres = robot.collision_spheres(per_capsule=3)
+    assert len(spheres) == 6
+    # Sphere centres of link 2 at 0, l2/2, l2 along its x axis; world positions by FK.
+    data = robot.model.createData()
+    q = np.array([0.3, 0.9])
+    pin.forwardKinematics(robot.model, data, q)
+    s = spheres[5]
+    p = data.oMi[robot.joint_id(s.joint)].act(np.asarray(s.center))
+    tip = np.array([np.cos(0.3) + np.cos(1.2), np.sin(0.3) + np.sin(1.2), 0.0])
+    np.testing.assert_allclose(p, tip, atol=1e-14)
+
+
+def test_total_mass_equals_sum_of_links() -> None:
+    robot = get_robot("panda")
+    mm = robot.mj_model()
+    assert robot.total_mass == pytest.approx(float(np.sum(mm.body_mass)), rel=1e-14)
