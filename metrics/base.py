@@ -315,6 +315,18 @@ class Metric(ABC):
         v = self._check(v, "v")
         return self._eval(self.functions.geodesic_acceleration, q, v).ravel()
 
+    def symbolic_G_numeric(self, q: Vector) -> Matrix:
+        """G(q) evaluated through the symbolic form (a check of `G`'s fast path).
+
+        Args:
+            q: (n,) joint positions [rad].
+
+        Returns:
+            (n, n) metric tensor.
+        """
+        q = self._check(q, "q")
+        return self._eval(self.functions.G, q)
+
     def energy(self, q: Vector, v: Vector) -> float:
         """Kinetic energy 1/2 v^T G(q) v [J for the kinetic-energy metric]."""
         return 0.5 * self.inner(q, v, v)
