@@ -49,6 +49,10 @@ class KineticEnergyMetric(Metric):
         self._model0.gravity = pin.Motion.Zero()
         self._data0 = self._model0.createData()
         self._zero = np.zeros(self.n)
+        roots = [robot.model.joints[j].idx_v for j in range(1, robot.model.njoints)
+                 if robot.model.parents[j] == 0]
+        # One root joint (a serial arm) indexes a scalar; a tree with several roots sums.
+        self._root = roots[0] if len(roots) == 1 else np.array(roots)
 
     def __repr__(self) -> str:
         return f"KineticEnergyMetric({self.robot.name!r}, n={self.n})"
@@ -63,13 +67,18 @@ class KineticEnergyMetric(Metric):
         Returns:
             (n, n) symmetric positive-definite mass matrix [kg m^2].
         """
-        if not (
-            q.__class__ is np.ndarray
-            and q.shape == (self.n,)  # type: ignore[attr-defined]
-            and math.isfinite(np.dot(q, q))
-        ):
-            q = self._check(q, "q")
-        return pin.crba(self._model, self._data, q)
+        # Fast path. Pinocchio itself rejects a wrong size (ValueError). A NaN or inf in
+        # the angle of a non-root joint propagates through the composite inertias into
+        # M[root, root]; only root-joint angles can leave M finite (M does not depend on
+        # them), so checking M[r, r] + q[r] for the root joints r covers every entry
+        # (tests inject NaN/inf into each coordinate of every built-in robot).
+        try:
+            M = pin.crba(self._model, self._data, q)
+            if math.isfinite(M[self._root, self._root] + q[self._root]):  # type: ignore[index]
+                return M
+        except (TypeError, ValueError, IndexError):
+            pass
+        return pin.crba(self._model, self._data, self._check(q, "q"))
 
     def coriolis(self, q: Vector, v: Vector) -> Vector:
         """Coriolis and centrifugal torques ``C(q, v) v`` [N m] (no gravity).
@@ -89,15 +98,13 @@ class KineticEnergyMetric(Metric):
             q: (n,) joint positions [rad].
             v: (n,) joint velocities [rad/s].
         """
-        if not (
-            q.__class__ is np.ndarray
-            and v.__class__ is np.ndarray
-            and q.shape == (self.n,)  # type: ignore[attr-defined]
-            and v.shape == (self.n,)  # type: ignore[attr-defined]
-            and math.isfinite(np.dot(q, q) + np.dot(v, v))
-        ):
-            q = self._check(q, "q")
-            v = self._check(v, "v")
+        try:
+            if math.isfinite(q.dot(q) + v.dot(v)):  # type: ignore[union-attr]
+                return pin.aba(self._model0, self._data0, q, v, self._zero)
+        except (AttributeError, TypeError, ValueError):
+            pass
+        q = self._check(q, "q")
+        v = self._check(v, "v")
         return pin.aba(self._model0, self._data0, q, v, self._zero)
 
     def gravity_torque(self, q: Vector) -> Vector:

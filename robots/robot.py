@@ -182,9 +182,9 @@ class Robot:
 
     def neutral(self) -> Vector:
         """(nq,) a configuration inside the limits: zero, clipped to the limits' middle."""
-        mid = np.where(
-            np.isfinite(self.q_min) & np.isfinite(self.q_max), 0.5 * (self.q_min + self.q_max), 0.0
-        )
+        bounded = np.isfinite(self.q_min) & np.isfinite(self.q_max)
+        mid = np.zeros(self.nq)
+        mid[bounded] = 0.5 * (self.q_min[bounded] + self.q_max[bounded])
         q = np.zeros(self.nq)
         outside = (q < self.q_min) | (q > self.q_max)
         return np.where(outside, mid, q)

@@ -191,3 +191,25 @@ def test_bad_q_raises_clear_errors() -> None:
         metric.christoffel(np.full(7, np.inf))
     with pytest.raises(GeosynError, match="Robot"):
         KineticEnergyMetric("panda")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("name", BUILTIN_NAMES)
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_entry_in_any_coordinate_is_rejected(name: str, bad: float) -> None:
+    """G's fast path checks M[root, root]; a bad value in any coordinate must still raise."""
+    metric = get_metric(name)
+    q0 = get_robot(name).neutral()
+    for k in range(metric.n):
+        q = q0.copy()
+        q[k] = bad
+        with pytest.raises(InvalidArgument, match="q must be finite"):
+            metric.G(q)
+        with pytest.raises(InvalidArgument, match="finite"):
+            metric.geodesic_acceleration(q, np.zeros(metric.n))
+
+
+def test_non_array_inputs_take_the_validating_path() -> None:
+    metric = get_metric("planar2")
+    np.testing.assert_allclose(metric.G([0.1, 0.2]), metric.G(np.array([0.1, 0.2])), atol=0)
+    with pytest.raises(InvalidArgument, match=r"shape \(2,\)"):
+        metric.G(np.zeros((2, 2)))
