@@ -43,11 +43,19 @@ def main() -> None:
     print("panda (7 DoF), time per call, best of 7 [us]")
     print(f"  pin.crba                         {t_crba * 1e6:8.2f}")
     print(f"  pin.aba (zero gravity, torque)   {t_aba * 1e6:8.2f}")
-    print(f"  metric.G                         {t_G * 1e6:8.2f}   {t_G / t_crba:5.2f}x pin.crba  (target <= 1.5x)")
-    print(f"  metric.geodesic_acceleration     {t_acc * 1e6:8.2f}   {t_acc / t_aba:5.2f}x pin.aba   (target <= 1.5x)")
+    print(
+        f"  metric.G                         {t_G * 1e6:8.2f}   {t_G / t_crba:5.2f}x pin.crba  (target <= 1.5x)"
+    )
+    print(
+        f"  metric.geodesic_acceleration     {t_acc * 1e6:8.2f}   {t_acc / t_aba:5.2f}x pin.aba   (target <= 1.5x)"
+    )
     print(f"  metric.coriolis                  {t_cor * 1e6:8.2f}")
-    print(f"  metric.christoffel (compiled C)  {t_gam * 1e6:8.2f}   {t_gam / t_crba:5.2f}x pin.crba")
-    print(f"  symbolic ABA via casadi call     {t_acc_c * 1e6:8.2f}   {t_acc_c / t_aba:5.2f}x pin.aba")
+    print(
+        f"  metric.christoffel (compiled C)  {t_gam * 1e6:8.2f}   {t_gam / t_crba:5.2f}x pin.crba"
+    )
+    print(
+        f"  symbolic ABA via casadi call     {t_acc_c * 1e6:8.2f}   {t_acc_c / t_aba:5.2f}x pin.aba"
+    )
 
 
 if __name__ == "__main__":

@@ -203,17 +203,13 @@ class Metric(ABC):
         Gq = self.symbolic_G(q)
         dG = ca.jacobian(ca.vec(Gq), q)  # (n*n, n), row i + j*n (column-major vec)
         # Reorder to dG[i, j*n + k] = d g_ij / d q_k.
-        dG_ijk = ca.vertcat(
-            *[ca.horzcat(*[dG[i + j * n, :] for j in range(n)]) for i in range(n)]
-        )
+        dG_ijk = ca.vertcat(*[ca.horzcat(*[dG[i + j * n, :] for j in range(n)]) for i in range(n)])
         gam_rows = []
         for i in range(n):
             row = []
             for j in range(n):
                 for k in range(n):
-                    row.append(
-                        0.5 * (dG[i + j * n, k] + dG[i + k * n, j] - dG[j + k * n, i])
-                    )
+                    row.append(0.5 * (dG[i + j * n, k] + dG[i + k * n, j] - dG[j + k * n, i]))
             gam_rows.append(ca.horzcat(*row))
         gam = ca.vertcat(*gam_rows)
         opts = {"cse": True}

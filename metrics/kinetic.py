@@ -49,8 +49,11 @@ class KineticEnergyMetric(Metric):
         self._model0.gravity = pin.Motion.Zero()
         self._data0 = self._model0.createData()
         self._zero = np.zeros(self.n)
-        roots = [robot.model.joints[j].idx_v for j in range(1, robot.model.njoints)
-                 if robot.model.parents[j] == 0]
+        roots = [
+            robot.model.joints[j].idx_v
+            for j in range(1, robot.model.njoints)
+            if robot.model.parents[j] == 0
+        ]
         # One root joint (a serial arm) indexes a scalar; a tree with several roots sums.
         self._root = roots[0] if len(roots) == 1 else np.array(roots)
 

@@ -213,9 +213,7 @@ def robot_from_model(
                 f"keep_joints names unknown joints {unknown}; available: {', '.join(model.names[1:])}"
             )
         lock_q = dict(lock_q or {})
-        to_lock = [
-            model.getJointId(n) for n in model.names[1:] if n not in set(keep_joints)
-        ]
+        to_lock = [model.getJointId(n) for n in model.names[1:] if n not in set(keep_joints)]
         q_ref = pin.neutral(model)
         for jid in to_lock:
             jm = model.joints[jid]
@@ -259,7 +257,9 @@ def robot_from_model(
         v_max=v_max,
         tau_max=tau_max,
         ee_frame=ee_frame,
-        capsules=tuple(capsules) if capsules is not None else _capsules_from_model(model, capsule_radius),
+        capsules=tuple(capsules)
+        if capsules is not None
+        else _capsules_from_model(model, capsule_radius),
         gravity=(float(g[0]), float(g[1]), float(g[2])),
     )
     robot.frame_id(ee_frame)  # validates the name
@@ -462,5 +462,3 @@ def load_robot(name_or_path: str | Path, **options: object) -> Robot:
         f"{key!r} is not a built-in robot; available: {', '.join(sorted(BUILTINS))}"
         " (or give a path to a .urdf/.xml/.mjcf file)"
     )
-
-

@@ -85,7 +85,9 @@ def robot_to_mjcf(
     if not (np.isfinite(timestep) and timestep > 0):
         raise InvalidArgument(f"timestep must be > 0 [s], got {timestep!r}")
     if integrator not in _INTEGRATORS:
-        raise InvalidArgument(f"integrator {integrator!r} unknown; allowed: {', '.join(_INTEGRATORS)}")
+        raise InvalidArgument(
+            f"integrator {integrator!r} unknown; allowed: {', '.join(_INTEGRATORS)}"
+        )
     body_extra = dict(body_extra or {})
     unknown = [k for k in body_extra if not model.existJointName(k)]
     if unknown:

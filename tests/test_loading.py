@@ -53,7 +53,9 @@ def test_builtins_have_expected_dof(name: str, dof: int) -> None:
 def test_panda_matches_pinocchio_with_fingers_locked() -> None:
     """The 7-DoF panda equals the full URDF model with the finger joints held closed."""
     panda = get_robot("panda")
-    full = pin.buildModelFromUrdf(str(example_robot_data_dir() / "panda_description/urdf/panda.urdf"))
+    full = pin.buildModelFromUrdf(
+        str(example_robot_data_dir() / "panda_description/urdf/panda.urdf")
+    )
     assert full.nq == 9
     rng = np.random.default_rng(5)
     q7 = panda.random_q(rng)
