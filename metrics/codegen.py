@@ -1,0 +1,314 @@
+"""C code generation for CasADi functions, with a disk cache of compiled libraries.
+
+:func:`compile_function` turns a ``casadi.Function`` into C with CasADi's code
+generator, compiles it into a shared library and loads it back with
+``casadi.external``. Libraries are cached on disk under a name that contains the sha256
+of the generated C source (and of the compiler command), so the same function is
+compiled once per machine, whichever process asks first; files appear atomically
+(written under a temporary name, then ``os.replace``), so concurrent processes never
+load a half-written library.
+
+Cache location, first that applies: the ``cache_dir`` argument,
+``$GEOSYN_CACHE_DIR/codegen``, ``$XDG_CACHE_HOME/geosyn/codegen``,
+``~/.cache/geosyn/codegen``. :func:`clear_cache` empties it.
+
+Calling from Python: ``fun.call([q])`` is the cheapest plain call (a list of ``DM``),
+``DM.full()`` the cheapest conversion to numpy; :func:`numpy_function` avoids both with
+CasADi's zero-copy buffers and is the fastest way to evaluate a small function per tick.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from geosyn.core import GeosynError, InvalidArgument
+
+__all__ = [
+    "CodegenError",
+    "clear_cache",
+    "compile_function",
+    "default_cache_dir",
+    "find_compiler",
+    "numpy_function",
+]
+
+DEFAULT_FLAGS: tuple[str, ...] = ("-O2",)
+"""Optimisation flags given to the compiler (``-shared -fPIC`` are always added)."""
+
+# <function name>_<24 hex digits of the key>.<so|c>; clear_cache deletes only these.
+_CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c)$")
+_TMP_PREFIX = ".tmp-geosyn-"
+
+
+class CodegenError(GeosynError):
+    """Generating, compiling or loading C code for a CasADi function failed.
+
+    Attributes:
+        command: the compiler command line, if the compiler was run.
+        returncode: the compiler's exit status, if it ran to completion.
+        stderr: the compiler's error output, if any.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        command: Sequence[str] | None = None,
+        returncode: int | None = None,
+        stderr: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.command = list(command) if command is not None else None
+        self.returncode = returncode
+        self.stderr = stderr
+
+
+def default_cache_dir() -> Path:
+    """The cache folder used when none is given (not created here).
+
+    Returns:
+        ``$GEOSYN_CACHE_DIR/codegen`` if the variable is set, else
+        ``$XDG_CACHE_HOME/geosyn/codegen``, else ``~/.cache/geosyn/codegen``.
+    """
+    root = os.environ.get("GEOSYN_CACHE_DIR")
+    if root:
+        return Path(root).expanduser() / "codegen"
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
+    return base / "geosyn" / "codegen"
+
+
+def find_compiler() -> str | None:
+    """Path of the C compiler to use: ``gcc`` on ``PATH``, else ``cc``, else None."""
+    return shutil.which("gcc") or shutil.which("cc")
+
+
+def _resolve_cache_dir(cache_dir: str | os.PathLike[str] | None) -> Path:
+    return Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+
+
+def _generate_source(fun: ca.Function) -> str:
+    try:
+        gen = ca.CodeGenerator(f"{fun.name()}.c", {"with_header": False})
+        gen.add(fun)
+        return gen.dump()
+    except RuntimeError as err:
+        raise CodegenError(
+            f"CasADi could not generate C code for function {fun.name()!r}: {err}"
+        ) from err
+
+
+def _compile(compiler: str, flags: Sequence[str], source: Path, output: Path) -> None:
+    command = [compiler, *flags, "-shared", "-fPIC", "-o", str(output), str(source), "-lm"]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+    except OSError as err:
+        raise CodegenError(
+            f"could not run the C compiler {compiler!r}: {err}", command=command
+        ) from err
+    if done.returncode != 0 or not output.is_file():
+        raise CodegenError(
+            f"the C compiler {compiler!r} failed with exit status {done.returncode} on "
+            f"{source.name}:\n{done.stderr.strip()[-2000:]}",
+            command=command,
+            returncode=done.returncode,
+            stderr=done.stderr,
+        )
+
+
+def _load(name: str, path: Path) -> ca.Function:
+    try:
+        return ca.external(name, str(path))
+    except RuntimeError as err:
+        raise CodegenError(f"could not load compiled function {name!r} from {path}: {err}") from err
+
+
+def compile_function(
+    fun: ca.Function,
+    cache_dir: str | os.PathLike[str] | None = None,
+    *,
+    flags: Sequence[str] = DEFAULT_FLAGS,
+    compiler: str | None = None,
+    fallback: bool = False,
+) -> ca.Function:
+    """Compile a CasADi function to C and load it back, reusing the disk cache.
+
+    Allocates and may take seconds (the compiler runs) on a cache miss; a cache hit only
+    generates the C source to hash it and loads the library (milliseconds).
+
+    Args:
+        fun: the function to compile (SX or MX based); its name must be a C identifier.
+        cache_dir: folder of the compiled libraries; default :func:`default_cache_dir`.
+            Created if missing.
+        flags: compiler flags besides ``-shared -fPIC``, e.g. ``("-O3",)``. Part of the
+            cache key.
+        compiler: C compiler executable; default :func:`find_compiler`.
+        fallback: if True, a missing or failing compiler is reported with a
+            ``RuntimeWarning`` and ``fun`` itself is returned uncompiled, instead of
+            raising.
+
+    Returns:
+        A ``casadi.Function`` with the same name, inputs and outputs as ``fun``, that
+        evaluates the compiled code (or ``fun`` itself when falling back).
+
+    Raises:
+        InvalidArgument: ``fun`` is not a ``casadi.Function`` or its name is not a C
+            identifier.
+        CodegenError: no compiler, compilation or loading failed (unless ``fallback``).
+    """
+    if not isinstance(fun, ca.Function):
+        raise InvalidArgument(f"fun: expected a casadi.Function, got {type(fun).__name__}")
+    name = fun.name()
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+        raise InvalidArgument(
+            f"fun: name {name!r} is not a C identifier; rename the casadi.Function"
+        )
+    try:
+        return _compile_cached(fun, _resolve_cache_dir(cache_dir), tuple(flags), compiler)
+    except CodegenError as err:
+        if not fallback:
+            raise
+        warnings.warn(
+            f"compile_function: falling back to the uncompiled function {name!r}: {err}",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return fun
+
+
+def _compile_cached(
+    fun: ca.Function, cache_dir: Path, flags: tuple[str, ...], compiler: str | None
+) -> ca.Function:
+    name = fun.name()
+    source = _generate_source(fun)
+    cc = compiler if compiler is not None else find_compiler()
+    if cc is None:
+        raise CodegenError(
+            "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
+            f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
+        )
+    key = hashlib.sha256("\0".join([source, cc, *flags]).encode()).hexdigest()[:24]
+    stem = f"{name}_{key}"
+    library = cache_dir / f"{stem}.so"
+    if library.is_file():
+        try:
+            return _load(name, library)
+        except CodegenError as err:
+            # A damaged file (a full disk, a killed copy from elsewhere): build it anew.
+            warnings.warn(f"{err}; recompiling it", RuntimeWarning, stacklevel=3)
+    try:
+        cache_dir.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(prefix=_TMP_PREFIX, dir=cache_dir))
+    except OSError as err:
+        raise CodegenError(f"cannot create the codegen cache folder {cache_dir}: {err}") from err
+    try:
+        c_file = work / f"{stem}.c"
+        c_file.write_text(source)
+        built = work / f"{stem}.so"
+        _compile(cc, flags, c_file, built)
+        # Same folder, so os.replace is an atomic rename: readers see all or nothing.
+        os.replace(c_file, cache_dir / c_file.name)
+        os.replace(built, library)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return _load(name, library)
+
+
+def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:
+    """Delete the compiled libraries and sources of the codegen cache.
+
+    Only files this module writes (``<name>_<24 hex>.so`` / ``.c`` and its temporary
+    folders) are removed, so pointing ``cache_dir`` at a shared folder is safe. Libraries
+    already loaded by a running process stay usable.
+
+    Args:
+        cache_dir: the cache folder; default :func:`default_cache_dir`.
+
+    Returns:
+        Number of files and temporary folders removed.
+    """
+    folder = _resolve_cache_dir(cache_dir)
+    if not folder.is_dir():
+        return 0
+    removed = 0
+    for entry in folder.iterdir():
+        if entry.is_file() and _CACHED_FILE.match(entry.name):
+            entry.unlink(missing_ok=True)
+            removed += 1
+        elif entry.is_dir() and entry.name.startswith(_TMP_PREFIX):
+            shutil.rmtree(entry, ignore_errors=True)
+            removed += 1
+    return removed
+
+
+def numpy_function(fun: ca.Function) -> Callable[..., tuple[np.ndarray, ...]]:
+    """Wrap a function for fast calls with numpy arrays, through zero-copy buffers.
+
+    Allocates the input and output arrays once; each call copies the arguments in,
+    evaluates, and returns the output arrays. The returned arrays are reused by the next
+    call: copy them to keep them. Not thread-safe: make one wrapper per thread.
+
+    Args:
+        fun: a ``casadi.Function`` with dense inputs and outputs.
+
+    Returns:
+        ``call(*args) -> tuple`` of output arrays; an input or output of shape (n, 1) or
+        (1, n) is a (n,) array, an (n, m) one an (n, m) array.
+
+    Raises:
+        InvalidArgument: ``fun`` has a sparse input or output.
+    """
+    if not isinstance(fun, ca.Function):
+        raise InvalidArgument(f"fun: expected a casadi.Function, got {type(fun).__name__}")
+
+    def shape(sp: ca.Sparsity, what: str) -> tuple[int, ...]:
+        if not sp.is_dense():
+            raise InvalidArgument(
+                f"fun: {what} of {fun.name()!r} is sparse ({sp.nnz()} of {sp.numel()}); "
+                "numpy_function needs dense inputs and outputs"
+            )
+        rows, cols = sp.size1(), sp.size2()
+        return (rows * cols,) if 1 in (rows, cols) else (rows, cols)
+
+    in_shapes = [shape(fun.sparsity_in(i), f"input {fun.name_in(i)}") for i in range(fun.n_in())]
+    out_shapes = [
+        shape(fun.sparsity_out(i), f"output {fun.name_out(i)}") for i in range(fun.n_out())
+    ]
+    # CasADi stores matrices column-major: flat buffers, seen through Fortran-order views.
+    flat_in = [np.zeros(int(np.prod(s))) for s in in_shapes]
+    flat_out = [np.zeros(int(np.prod(s))) for s in out_shapes]
+    inputs = [f.reshape(s, order="F") for f, s in zip(flat_in, in_shapes, strict=True)]
+    outputs = [f.reshape(s, order="F") for f, s in zip(flat_out, out_shapes, strict=True)]
+    buffer, evaluate = fun.buffer()
+    # CasADi's stub wants (i, buffer, size); the binding takes the size from the buffer
+    # (and checks it against the function's nonzeros).
+    for i, arr in enumerate(flat_in):
+        buffer.set_arg(i, memoryview(arr))  # type: ignore[call-arg, arg-type]
+    for i, arr in enumerate(flat_out):
+        buffer.set_res(i, memoryview(arr))  # type: ignore[call-arg, arg-type]
+    n_in = len(inputs)
+
+    def call(*args: np.ndarray) -> tuple[np.ndarray, ...]:
+        if len(args) != n_in:
+            raise InvalidArgument(
+                f"{fun.name()}: expected {n_in} arguments ({', '.join(fun.name_in())}), "
+                f"got {len(args)}"
+            )
+        for dst, src in zip(inputs, args, strict=True):
+            dst[...] = src
+        evaluate()
+        return tuple(outputs)
+
+    # Keep the buffer alive as long as the callable.
+    call.buffer = buffer  # type: ignore[attr-defined]
+    return call

@@ -1,0 +1,241 @@
+"""Tests of geosyn.metrics.codegen: compiled functions, the disk cache, failures."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geosyn.core import GeosynError, InvalidArgument
+from geosyn.metrics import codegen, symbolic
+from geosyn.metrics.codegen import CodegenError, clear_cache, compile_function, numpy_function
+
+
+def _tiny() -> ca.Function:
+    """A small function with a vector, a matrix and a scalar output."""
+    x = ca.SX.sym("x", 3)
+    y = ca.SX.sym("y")
+    return ca.Function(
+        "tiny",
+        [x, y],
+        [ca.sin(x) * y, ca.horzcat(x, 2 * x), ca.dot(x, x)],
+        ["x", "y"],
+        ["s", "m", "n"],
+        {"cse": True},
+    )
+
+
+@pytest.fixture(scope="module")
+def sample_dynamics() -> symbolic.DynamicsFunctions:
+    return symbolic.dynamics_functions(
+        pin.buildSampleModelManipulator(), np.array([0.0, 0.0, -9.81])
+    )
+
+
+@pytest.fixture
+def compile_counter(monkeypatch: pytest.MonkeyPatch) -> list[Path]:
+    """Records every compiler run (the C file compiled) while still compiling."""
+    runs: list[Path] = []
+    real = codegen._compile
+
+    def counting(compiler, flags, source, output):
+        runs.append(source)
+        return real(compiler, flags, source, output)
+
+    monkeypatch.setattr(codegen, "_compile", counting)
+    return runs
+
+
+def _cached(cache: Path, suffix: str = ".so") -> list[Path]:
+    return sorted(p for p in cache.iterdir() if p.suffix == suffix)
+
+
+def test_compiled_equals_uncompiled(tmp_path: Path, sample_dynamics) -> None:
+    rng = np.random.default_rng(0)
+    for fun in (sample_dynamics.M, sample_dynamics.aba):
+        compiled = compile_function(fun, tmp_path)
+        assert compiled.name() == fun.name()
+        assert compiled.name_in() == fun.name_in()
+        assert compiled.name_out() == fun.name_out()
+        for _ in range(50):
+            args = [rng.normal(size=fun.size1_in(i)) for i in range(fun.n_in())]
+            expected = fun(*args).full()
+            scale = max(1.0, float(np.max(np.abs(expected))))
+            np.testing.assert_allclose(compiled(*args).full(), expected, rtol=0, atol=1e-14 * scale)
+
+
+def test_second_compile_hits_the_cache(tmp_path: Path, compile_counter: list[Path]) -> None:
+    fun = _tiny()
+    first = compile_function(fun, tmp_path)
+    (library,) = _cached(tmp_path)
+    assert len(_cached(tmp_path, ".c")) == 1
+    stamp = library.stat().st_mtime_ns
+    second = compile_function(_tiny(), tmp_path)  # a new but identical Function
+    assert len(compile_counter) == 1
+    assert library.stat().st_mtime_ns == stamp
+    x = np.array([0.1, -0.2, 0.3])
+    np.testing.assert_array_equal(first(x, 2.0)[1].full(), second(x, 2.0)[1].full())
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".tmp")]
+
+
+def test_cache_is_shared_across_processes(tmp_path: Path) -> None:
+    compile_function(_tiny(), tmp_path)
+    (library,) = _cached(tmp_path)
+    stamp = library.stat().st_mtime_ns
+    script = textwrap.dedent(
+        f"""
+        import casadi as ca
+        from geosyn.metrics import codegen
+
+        def no_compiler(*args):
+            raise SystemExit("the compiler ran despite a cached library")
+
+        codegen._compile = no_compiler
+        x = ca.SX.sym("x", 3)
+        y = ca.SX.sym("y")
+        fun = ca.Function("tiny", [x, y], [ca.sin(x) * y, ca.horzcat(x, 2 * x), ca.dot(x, x)],
+                          ["x", "y"], ["s", "m", "n"], {{"cse": True}})
+        out = codegen.compile_function(fun, {str(tmp_path)!r})
+        print(float(out([1.0, 2.0, 3.0], 1.0)[2]))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert float(done.stdout) == 14.0
+    assert _cached(tmp_path) == [library]
+    assert library.stat().st_mtime_ns == stamp
+
+
+def test_flags_are_part_of_the_key(tmp_path: Path, compile_counter: list[Path]) -> None:
+    compile_function(_tiny(), tmp_path)
+    compile_function(_tiny(), tmp_path, flags=("-O1",))
+    assert len(compile_counter) == 2
+    assert len(_cached(tmp_path)) == 2
+
+
+def test_damaged_library_is_rebuilt(tmp_path: Path, compile_counter: list[Path]) -> None:
+    good = tmp_path / "good"
+    compile_function(_tiny(), good)
+    (library,) = _cached(good)
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    (damaged / library.name).write_bytes(b"not a shared library")
+    with pytest.warns(RuntimeWarning, match="recompiling"):
+        fun = compile_function(_tiny(), damaged)
+    assert len(compile_counter) == 2
+    assert float(fun([1.0, 2.0, 3.0], 1.0)[2]) == 14.0
+
+
+def test_missing_compiler_raises(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(codegen.shutil, "which", lambda name: None)
+    with pytest.raises(CodegenError, match="no C compiler"):
+        compile_function(_tiny(), tmp_path)
+    assert issubclass(CodegenError, GeosynError)
+
+
+def test_missing_compiler_falls_back_with_a_warning(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    fun = _tiny()
+    with pytest.warns(RuntimeWarning, match="falling back.*no C compiler"):
+        out = compile_function(fun, tmp_path, fallback=True)
+    assert out is fun
+
+
+def test_broken_compiler_on_path_raises(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    gcc = bin_dir / "gcc"
+    gcc.write_text("#!/bin/sh\necho 'gcc: internal compiler error' >&2\nexit 4\n")
+    gcc.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}")
+    cache = tmp_path / "cache"
+    with pytest.raises(CodegenError, match="internal compiler error") as info:
+        compile_function(_tiny(), cache)
+    assert info.value.returncode == 4
+    assert info.value.command[0] == str(gcc)
+    # Nothing half-built is left behind.
+    assert list(cache.iterdir()) == []
+    with pytest.warns(RuntimeWarning, match="falling back"):
+        compile_function(_tiny(), cache, fallback=True)
+
+
+def test_compiler_that_cannot_run_raises(tmp_path: Path) -> None:
+    not_executable = tmp_path / "cc"
+    not_executable.write_text("garbage")
+    with pytest.raises(CodegenError, match="could not run"):
+        compile_function(_tiny(), tmp_path / "cache", compiler=str(not_executable))
+
+
+def test_clear_cache_removes_only_its_files(tmp_path: Path) -> None:
+    compile_function(_tiny(), tmp_path)
+    keep = tmp_path / "notes.txt"
+    keep.write_text("not ours")
+    other_so = tmp_path / "libother.so"
+    other_so.write_bytes(b"")
+    assert clear_cache(tmp_path) == 2  # the .so and the .c
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["libother.so", "notes.txt"]
+    assert clear_cache(tmp_path / "missing") == 0
+
+
+def test_default_cache_dir_follows_environment(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, compile_counter: list[Path]
+) -> None:
+    monkeypatch.setenv("GEOSYN_CACHE_DIR", str(tmp_path))
+    assert codegen.default_cache_dir() == tmp_path / "codegen"
+    compile_function(_tiny())
+    assert len(_cached(tmp_path / "codegen")) == 1
+    assert clear_cache() == 2
+    monkeypatch.delenv("GEOSYN_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert codegen.default_cache_dir() == tmp_path / "xdg" / "geosyn" / "codegen"
+
+
+def test_bad_arguments_raise(tmp_path: Path) -> None:
+    with pytest.raises(InvalidArgument, match="casadi.Function"):
+        compile_function("tiny", tmp_path)  # type: ignore[arg-type]
+    with pytest.raises(InvalidArgument, match="casadi.Function"):
+        numpy_function(lambda x: x)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_numpy_function_matches_call(tmp_path: Path, compiled: bool, sample_dynamics) -> None:
+    tiny = compile_function(_tiny(), tmp_path) if compiled else _tiny()
+    call = numpy_function(tiny)
+    x = np.array([0.4, -1.0, 2.5])
+    s, m, n = call(x, 3.0)
+    expected = tiny(x, 3.0)
+    assert s.shape == (3,)
+    assert m.shape == (3, 2)
+    assert n.shape == (1,)
+    np.testing.assert_array_equal(s, expected[0].full().ravel())
+    np.testing.assert_array_equal(m, expected[1].full())
+    np.testing.assert_array_equal(n, expected[2].full().ravel())
+
+    mass = numpy_function(sample_dynamics.M)
+    q = np.random.default_rng(1).normal(size=sample_dynamics.M.size1_in(0))
+    np.testing.assert_array_equal(mass(q)[0], sample_dynamics.M(q).full())
+    with pytest.raises(InvalidArgument, match="expected 2 arguments"):
+        call(x)
+
+
+def test_numpy_function_rejects_sparse_outputs() -> None:
+    x = ca.SX.sym("x", 2)
+    sparse = ca.Function("sparse", [x], [ca.diag(x)])
+    with pytest.raises(InvalidArgument, match="sparse"):
+        numpy_function(sparse)
+
+
+def test_all_names_resolve() -> None:
+    for name in codegen.__all__:
+        assert hasattr(codegen, name), name
