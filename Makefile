@@ -20,7 +20,7 @@ $(TSTAMP): pyproject.toml | $(PY)
 	touch $@ $(STAMP)
 
 run: $(STAMP)
-	$(VENV)/bin/geosyn robots
+	$(VENV)/bin/geosyn run panda_push_recovery
 
 test: $(TSTAMP)
 	$(PY) -m pytest -q
