@@ -1,0 +1,41 @@
+"""Geodesic synergies: combination by parallel transport, orthonormal bases, PGA, reaching."""
+
+from geosyn.synergies.basis import SynergyBasis, g_orthonormalize, orthonormal_synergies
+from geosyn.synergies.errors import (
+    DimensionMismatch,
+    EmptyDemonstrations,
+    InvalidSynergyInput,
+    LinearlyDependentDirections,
+    LogMapFailed,
+    MeanNotConverged,
+    SynergyError,
+    WeightCountMismatch,
+)
+from geosyn.synergies.pga import PCAResult, PGAResult, frechet_mean, pca_synergies, pga
+from geosyn.synergies.reach import ReachResult, frame_position, reach
+from geosyn.synergies.synergy import GeodesicSynergy, combine, transported_velocities
+
+__all__ = [
+    "DimensionMismatch",
+    "EmptyDemonstrations",
+    "GeodesicSynergy",
+    "InvalidSynergyInput",
+    "LinearlyDependentDirections",
+    "LogMapFailed",
+    "MeanNotConverged",
+    "PCAResult",
+    "PGAResult",
+    "ReachResult",
+    "SynergyBasis",
+    "SynergyError",
+    "WeightCountMismatch",
+    "combine",
+    "frame_position",
+    "frechet_mean",
+    "g_orthonormalize",
+    "orthonormal_synergies",
+    "pca_synergies",
+    "pga",
+    "reach",
+    "transported_velocities",
+]
