@@ -1,0 +1,42 @@
+"""Controllers: ``compute(t, q, v) -> tau`` behind one interface, no simulator inside.
+
+Computed torque, a passivity-based Riemannian PD, an inverse-dynamics QP with limits, a
+geodesic-tracking MPC, geodesic references and replanning, and a Pinocchio plant for
+simulator-free tests.
+"""
+
+from geosyn.controllers.base import Controller, ControllerDiagnostics, check_gain
+from geosyn.controllers.computed_torque import ComputedTorque
+from geosyn.controllers.errors import ControllerError, NoReference, SolverFailed
+from geosyn.controllers.mpc import GeodesicMPC
+from geosyn.controllers.plant import Payload, PinocchioPlant, Rollout
+from geosyn.controllers.qp import QPController
+from geosyn.controllers.reference import (
+    GeodesicReference,
+    JointTrajectoryReference,
+    Reference,
+    ReferenceSample,
+)
+from geosyn.controllers.replan import replan_geodesic
+from geosyn.controllers.riemannian_pd import RiemannianPD
+
+__all__ = [
+    "ComputedTorque",
+    "Controller",
+    "ControllerDiagnostics",
+    "ControllerError",
+    "GeodesicMPC",
+    "GeodesicReference",
+    "JointTrajectoryReference",
+    "NoReference",
+    "Payload",
+    "PinocchioPlant",
+    "QPController",
+    "Reference",
+    "ReferenceSample",
+    "RiemannianPD",
+    "Rollout",
+    "SolverFailed",
+    "check_gain",
+    "replan_geodesic",
+]

@@ -1,0 +1,280 @@
+"""Inverse-dynamics QP with torque, joint-position and joint-velocity limits (proxsuite)."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+import proxsuite
+
+from geosyn.controllers.base import Controller, check_gain
+from geosyn.controllers.reference import Reference
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.types import Vector
+from geosyn.robots.robot import Robot
+
+if TYPE_CHECKING:
+    from geosyn.metrics.base import Metric
+
+_STATUS = {
+    "PROXQP_SOLVED": "ok",
+    "PROXQP_MAX_ITER_REACHED": "max_iter",
+    "PROXQP_PRIMAL_INFEASIBLE": "infeasible",
+    "PROXQP_SOLVED_CLOSEST_PRIMAL_FEASIBLE": "infeasible",
+    "PROXQP_DUAL_INFEASIBLE": "dual_infeasible",
+    "PROXQP_NOT_RUN": "failed",
+}
+
+#: Magnitude standing in for "no bound" on the accelerations [rad/s^2].
+_BIG = 1e6
+
+
+def _positive(x: object, name: str) -> float:
+    try:
+        val = float(x)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as err:
+        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}") from err
+    if not (math.isfinite(val) and val > 0.0):
+        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}")
+    return val
+
+
+class QPController(Controller):
+    """Inverse-dynamics QP over ``x = (qdd, tau)`` (2 nv variables), solved by proxsuite.
+
+    .. math::
+        \\min_{\\ddot q, \\tau}\\; \\|\\ddot q - \\ddot q_d\\|^2 + \\epsilon \\|\\tau\\|^2
+        \\quad \\text{s.t.}\\quad M(q)\\ddot q - \\tau = -h(q, \\dot q),\\;
+        -\\tau_{max} \\le \\tau \\le \\tau_{max},\\; \\ddot q_{lo} \\le \\ddot q \\le \\ddot q_{hi}
+
+    with ``h = C(q, v) v + g(q)`` and the computed-torque acceleration
+    ``qdd_d = a_ref + Kd (v_ref - v) + Kp (q_ref - q)``. All inequalities are boxes on
+    ``x`` (proxsuite's box constraints). The acceleration box intersects, per joint:
+
+    - velocity limits one step ahead: ``|v + qdd dt| <= v_max``;
+    - position limits ``position_horizon`` ahead:
+      ``q_min <= q + v T + 1/2 qdd T^2 <= q_max`` (``T = dt`` by default);
+    - with ``braking_acceleration`` ``b`` (horizon-aware braking): the next velocity
+      stays under the braking curve, ``v + qdd dt <= sqrt(2 b (q_max - q - v dt))`` and
+      symmetrically at ``q_min``, so the joint can always stop before the limit with
+      deceleration ``b``. Recommended whenever the reference may hit a limit.
+
+    The QP is built and ``init``-ed once in the constructor (again by `reset`, at the
+    reset state); each tick writes ``M``,
+    ``h`` and the bounds into preallocated arrays, calls ``update`` and solves warm-started
+    from the previous result. When the acceleration box is empty (detected before the
+    solve) or proxsuite does not report ``PROXQP_SOLVED``, the controller returns the
+    computed-torque law ``M qdd_d + h`` (clipped to the torque limits by `compute`),
+    sets ``diagnostics.fallback_used`` and records the status.
+
+    Limitation: the kinematic limits are imposed one step (or ``position_horizon``)
+    ahead, which does not guarantee viability. From a state where the torque limits
+    cannot keep every joint within its velocity or braking bound (e.g. several joints at
+    ``v_max`` with large Coriolis torques under very high gains) the QP is infeasible and
+    the fallback is taken, flagged. Moderate gains and a ``braking_acceleration`` below
+    the deceleration the motors can deliver keep the robot in the viable region.
+
+    Args:
+        robot: the robot (dynamics, limits ``q_min, q_max, v_max, tau_max``).
+        kp: position gain, scalar or (nv,) [1/s^2], >= 0.
+        kd: velocity gain, scalar or (nv,) [1/s], >= 0.
+        dt: control period [s], > 0.
+        eps: torque regularisation weight [(rad/s^2)^2 / (N m)^2], > 0.
+        position_horizon: look-ahead of the position constraint [s], >= dt; None for dt.
+        braking_acceleration: optional scalar or (nv,) deceleration [rad/s^2] of the
+            braking-curve constraint; None disables it.
+        eps_abs: proxsuite absolute tolerance (primal and dual residuals).
+        max_iter: proxsuite iteration limit.
+        metric: optional metric used only for reference generation and replanning.
+        reference: optional reference to track.
+
+    Attributes:
+        qp: the proxsuite ``dense.QP`` (its ``results`` hold the last solve).
+
+    ``compute`` allocates only small temporaries (reference sample, Pinocchio results).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        kp: float | np.ndarray,
+        kd: float | np.ndarray,
+        dt: float,
+        *,
+        eps: float = 1e-6,
+        position_horizon: float | None = None,
+        braking_acceleration: float | np.ndarray | None = None,
+        eps_abs: float = 1e-7,
+        max_iter: int = 1000,
+        metric: Metric | None = None,
+        reference: Reference | None = None,
+    ) -> None:
+        super().__init__(robot, reference)
+        n = self.nv
+        self.kp = check_gain(kp, n, "kp")
+        self.kd = check_gain(kd, n, "kd")
+        self.dt = _positive(dt, "dt")
+        self.eps = _positive(eps, "eps")
+        horizon = (
+            self.dt if position_horizon is None else _positive(position_horizon, "position_horizon")
+        )
+        if horizon < self.dt:
+            raise InvalidArgument(f"position_horizon must be >= dt={self.dt} [s], got {horizon}")
+        self.position_horizon = horizon
+        if braking_acceleration is None:
+            self.braking_acceleration: np.ndarray | None = None
+        else:
+            b = check_gain(braking_acceleration, n, "braking_acceleration")
+            if np.any(b <= 0.0):
+                raise InvalidArgument(f"braking_acceleration must be > 0, got {b}")
+            self.braking_acceleration = b
+        self.eps_abs = _positive(eps_abs, "eps_abs")
+        if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+            raise InvalidArgument(f"max_iter must be an integer >= 1, got {max_iter!r}")
+        self.max_iter = int(max_iter)
+        if metric is not None and getattr(metric, "n", None) != n:
+            raise InvalidArgument(
+                f"metric must have dimension nv={n}, got {getattr(metric, 'n', metric)!r}"
+            )
+        self.metric = metric
+        self._model = robot.model
+        self._data = robot.model.createData()
+        # Bounds are computed for both sides at once on stacked (2 nv,) arrays: the upper
+        # limit as is, the lower one mirrored (distance q - q_min, velocity -v).
+        self._lim = np.concatenate([robot.q_max, -np.asarray(robot.q_min)]).astype(np.float64)
+        self._q_max = self._lim[:n]  # a view (tests move a limit through it)
+        self._v_max2 = np.concatenate([robot.v_max, robot.v_max]).astype(np.float64)
+        self._brake2 = (
+            None
+            if self.braking_acceleration is None
+            else 2.0 * np.concatenate([self.braking_acceleration, self.braking_acceleration])
+        )
+        self._x2 = np.zeros(2 * n)  # (q, -q)
+        self._w2 = np.zeros(2 * n)  # (v, -v)
+        self._d2 = np.zeros(2 * n)
+        self._bound2 = np.zeros(2 * n)
+        self._zero = np.zeros(n)
+        # Preallocated QP data.
+        self._H = np.zeros((2 * n, 2 * n))
+        self._H[:n, :n] = 2.0 * np.eye(n)
+        self._H[n:, n:] = 2.0 * self.eps * np.eye(n)
+        self._g = np.zeros(2 * n)
+        self._A = np.zeros((n, 2 * n))
+        self._A[:, n:] = -np.eye(n)
+        self._b = np.zeros(n)
+        self._lbox = np.zeros(2 * n)
+        self._ubox = np.zeros(2 * n)
+        self._lbox[n:] = -self._tau_max
+        self._ubox[n:] = self._tau_max
+        self._a_des = np.zeros(n)
+        self.qp = proxsuite.proxqp.dense.QP(2 * n, n, 0, True)
+        self._warm = False
+        # init once here (at the neutral configuration); reset() re-inits at its state.
+        self._fill(robot.neutral(), np.zeros(n))
+        self._init_qp()
+
+    # -- building -----------------------------------------------------------------------
+    def _fill(self, q: Vector, v: Vector) -> None:
+        """Write M, h and the bounds at (q, v) into the preallocated arrays."""
+        n = self.nv
+        model, data = self._model, self._data
+        self._A[:, :n] = pin.crba(model, data, q)
+        np.negative(pin.rnea(model, data, q, v, self._zero), out=self._b)
+        dt = self.dt
+        x, w, d, bound = self._x2, self._w2, self._d2, self._bound2
+        x[:n] = q
+        np.negative(q, out=x[n:])
+        w[:n] = v
+        np.negative(v, out=w[n:])
+        # Velocity limits one step ahead: w + qdd dt <= v_max.
+        np.subtract(self._v_max2, w, out=bound)
+        bound *= 1.0 / dt
+        # Position limits T ahead: x + w T + 1/2 qdd T^2 <= lim.
+        T = self.position_horizon
+        np.multiply(w, T, out=d)
+        d += x
+        np.subtract(self._lim, d, out=d)
+        d *= 2.0 / (T * T)
+        np.minimum(bound, d, out=bound)
+        if self._brake2 is not None:
+            # Braking curve: w + qdd dt <= sqrt(2 b (lim - x - w dt)).
+            np.multiply(w, dt, out=d)
+            d += x
+            np.subtract(self._lim, d, out=d)
+            np.maximum(d, 0.0, out=d)
+            d *= self._brake2
+            np.sqrt(d, out=d)
+            d -= w
+            d *= 1.0 / dt
+            np.minimum(bound, d, out=bound)
+        np.minimum(bound, _BIG, out=bound)
+        np.maximum(bound, -_BIG, out=bound)
+        self._ubox[:n] = bound[:n]
+        np.negative(bound[n:], out=self._lbox[:n])
+
+    def _init_qp(self) -> None:
+        s = self.qp.settings
+        s.eps_abs = self.eps_abs
+        s.eps_rel = 0.0
+        s.max_iter = self.max_iter
+        s.verbose = False
+        s.initial_guess = proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+        self.qp.init(self._H, self._g, self._A, self._b, None, None, None, self._lbox, self._ubox)
+        self._warm = False
+        self._guess_is_warm = False
+
+    def _on_reset(self, q: Vector, v: Vector, t: float) -> None:
+        self._fill(q, v)
+        self._init_qp()
+
+    # -- control ----------------------------------------------------------------------
+    def desired_acceleration(self, t: float, q: Vector, v: Vector) -> Vector:
+        """``a_ref + Kd (v_ref - v) + Kp (q_ref - q)`` [rad/s^2] (internal buffer)."""
+        q_ref, v_ref, a_ref = self._reference.sample(t)  # type: ignore[union-attr]
+        a = self._a_des
+        np.subtract(q_ref, q, out=a)
+        a *= self.kp
+        a += a_ref
+        v_ref -= v
+        v_ref *= self.kd
+        a += v_ref
+        return a
+
+    def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
+        n = self.nv
+        a_des = self.desired_acceleration(t, q, v)
+        self._fill(q, v)
+        np.multiply(a_des, -2.0, out=self._g[:n])
+        d = self.diagnostics
+        if np.any(self._lbox[:n] > self._ubox[:n]):
+            d.solver_status = "infeasible"
+            d.extra["empty_acceleration_box"] = 1.0
+            return self._fallback(a_des)
+        qp = self.qp
+        if self._warm != self._guess_is_warm:
+            # Warm start from the previous result only when that result was a solution.
+            qp.settings.initial_guess = (
+                proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+                if self._warm
+                else proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
+            )
+            self._guess_is_warm = self._warm
+        qp.update(g=self._g, A=self._A, b=self._b, l_box=self._lbox, u_box=self._ubox)
+        qp.solve()
+        info = qp.results.info
+        d.iterations = int(info.iter)
+        status = _STATUS.get(info.status.name, "failed")
+        if status != "ok":
+            d.solver_status = status
+            self._warm = False
+            return self._fallback(a_des)
+        self._warm = True
+        d.extra["primal_residual"] = float(info.pri_res)
+        d.extra["dual_residual"] = float(info.dua_res)
+        return qp.results.x[n:].copy()
+
+    def _fallback(self, a_des: Vector) -> Vector:
+        self.diagnostics.fallback_used = True
+        return self._b * -1.0 + self._A[:, : self.nv] @ a_des
