@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml | $(PY)
 	touch $@
 
 $(TSTAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet -e ".[test,dev,distributed]"
+	$(PY) -m pip install --quiet -e ".[test,dev,distributed,video]"
 	touch $@ $(STAMP)
 
 run: $(STAMP)

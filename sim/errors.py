@@ -1,0 +1,30 @@
+"""Errors of the simulation layer (scene building, disturbances, rendering)."""
+
+from __future__ import annotations
+
+from geosyn.core.errors import GeosynError, InvalidArgument
+
+
+class SimError(GeosynError):
+    """Base class of simulation-layer errors."""
+
+
+class UnknownBody(SimError, KeyError):
+    """A body, link, frame or payload name does not resolve to a MuJoCo body.
+
+    The message lists the names that are accepted.
+    """
+
+    def __str__(self) -> str:  # KeyError quotes its message; keep it readable
+        return str(self.args[0]) if self.args else ""
+
+
+class UnsupportedObstacle(SimError, TypeError):
+    """An obstacle object is none of Sphere, Box, Capsule or HalfSpace."""
+
+
+class RenderError(SimError):
+    """A video could not be rendered or written (no OpenGL context, no writer, ...)."""
+
+
+__all__ = ["InvalidArgument", "RenderError", "SimError", "UnknownBody", "UnsupportedObstacle"]

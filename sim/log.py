@@ -1,0 +1,206 @@
+"""The per-tick log of a simulation run: `SimResult`, saved to and loaded from ``.npz``.
+
+Row ``k`` describes control tick ``k``: the true state at ``t[k]`` (before the tick's
+torque acts), what the controller measured and commanded, what was applied during
+``[t[k], t[k] + control_dt)``, and derived quantities at ``t[k]``. A run that stopped early
+(divergence, controller failure) has only the rows of the ticks that ran.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from geosyn.core.errors import InvalidArgument
+
+#: Array fields of `SimResult`, in order.
+ARRAY_FIELDS = (
+    "t",
+    "q",
+    "v",
+    "q_meas",
+    "v_meas",
+    "tau",
+    "tau_applied",
+    "q_ref",
+    "v_ref",
+    "tracking_error",
+    "kinetic_energy",
+    "power",
+    "effort",
+    "saturated",
+    "clearance",
+    "payload_mass",
+    "compute_time",
+    "iterations",
+    "fallback_used",
+    "solver_status",
+    "q_final",
+    "v_final",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class SimResult:
+    """Per-tick log of one run (T ticks; T < planned when the run stopped early).
+
+    Attributes:
+        t: (T,) time of each control tick [s].
+        q: (T, nq) true joint positions [rad].
+        v: (T, nv) true joint velocities [rad/s].
+        q_meas: (T, nq) positions the controller received (after noise and latency) [rad].
+        v_meas: (T, nv) velocities the controller received [rad/s].
+        tau: (T, nv) controller command clipped to the torque limits [N m].
+        tau_applied: (T, nv) torque sent to the motors: command after torque disturbances,
+            clipped [N m]; held during the tick.
+        q_ref: (T, nq) reference positions [rad]; NaN without a reference.
+        v_ref: (T, nv) reference velocities [rad/s]; NaN without a reference.
+        tracking_error: (T, nq) ``q_ref - q`` [rad].
+        kinetic_energy: (T,) 1/2 v^T M(q) v of the simulated plant, payloads included [J].
+        power: (T,) mechanical power of the motors ``tau_applied . v`` [W].
+        effort: (T,) cumulative effort: integral of ``||tau_applied||^2`` up to the end of
+            tick k [N^2 m^2 s].
+        saturated: (T, nv) the torque sent to the motors was clipped on that joint.
+        clearance: (T,) minimum signed distance robot collision spheres to obstacles [m];
+            ``inf`` without obstacles.
+        payload_mass: (T, P) mass of each payload during the tick [kg].
+        compute_time: (T,) wall time of the controller's ``compute`` [s].
+        iterations: (T,) solver iterations reported by the controller (-1: not reported).
+        fallback_used: (T,) the controller reported using its fallback.
+        solver_status: (T,) code of the controller's solver status; the name of code i is
+            ``solver_status_names[i]`` (code 0: none reported).
+        q_final: (nq,) true state at the end of the last tick [rad].
+        v_final: (nv,) [rad/s].
+        solver_status_names: names of the solver-status codes.
+        joint_names: (nv,) joint names.
+        robot_name: name of the robot.
+        control_dt: control period [s].
+        substeps: physics steps per control tick.
+        integrator: MuJoCo integrator.
+        duration: planned duration [s].
+        status: ``"ok"``, ``"diverged: ..."`` or ``"controller failed: ..."``.
+        wall_time: wall time of the run [s].
+        seed: the seed of the run's random generators.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    q_meas: np.ndarray
+    v_meas: np.ndarray
+    tau: np.ndarray
+    tau_applied: np.ndarray
+    q_ref: np.ndarray
+    v_ref: np.ndarray
+    tracking_error: np.ndarray
+    kinetic_energy: np.ndarray
+    power: np.ndarray
+    effort: np.ndarray
+    saturated: np.ndarray
+    clearance: np.ndarray
+    payload_mass: np.ndarray
+    compute_time: np.ndarray
+    iterations: np.ndarray
+    fallback_used: np.ndarray
+    solver_status: np.ndarray
+    q_final: np.ndarray
+    v_final: np.ndarray
+    solver_status_names: tuple[str, ...]
+    joint_names: tuple[str, ...]
+    robot_name: str
+    control_dt: float
+    substeps: int
+    integrator: str
+    duration: float
+    status: str
+    wall_time: float
+    seed: int
+
+    # -- summaries --------------------------------------------------------------------
+    @property
+    def n_ticks(self) -> int:
+        """Number of ticks that ran."""
+        return int(len(self.t))
+
+    @property
+    def ok(self) -> bool:
+        """Whether the run completed without divergence or failure."""
+        return self.status == "ok"
+
+    @property
+    def diverged(self) -> bool:
+        """Whether the run stopped on a divergence."""
+        return self.status.startswith("diverged")
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated time per wall time (> 1: faster than real time)."""
+        return (
+            float(self.n_ticks * self.control_dt / self.wall_time)
+            if self.wall_time > 0
+            else float("inf")
+        )
+
+    @property
+    def total_effort(self) -> float:
+        """Integral of ``||tau_applied||^2`` over the run [N^2 m^2 s]."""
+        return float(self.effort[-1]) if self.n_ticks else 0.0
+
+    def rms_error(self, t_from: float = 0.0, t_to: float = float("inf")) -> float:
+        """RMS tracking error over ticks with ``t_from <= t < t_to`` [rad] (NaN if none).
+
+        The mean is over ticks and joints: ``sqrt(mean(tracking_error**2))``.
+        """
+        sel = (self.t >= t_from) & (self.t < t_to)
+        if not np.any(sel):
+            return float("nan")
+        return float(np.sqrt(np.mean(self.tracking_error[sel] ** 2)))
+
+    def saturation_count(self) -> int:
+        """Number of (tick, joint) pairs whose torque was clipped."""
+        return int(np.count_nonzero(self.saturated))
+
+    # -- persistence ------------------------------------------------------------------
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the log to a compressed ``.npz`` file (suffix added if missing).
+
+        Returns:
+            The path written.
+        """
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        meta = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ARRAY_FIELDS}
+        meta["solver_status_names"] = list(meta["solver_status_names"])
+        meta["joint_names"] = list(meta["joint_names"])
+        arrays: dict[str, Any] = {name: np.asarray(getattr(self, name)) for name in ARRAY_FIELDS}
+        np.savez_compressed(path, __meta__=np.array(json.dumps(meta)), **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> SimResult:
+        """Read a log written by `save`.
+
+        Raises:
+            InvalidArgument: the file is missing or is not a saved `SimResult`.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise InvalidArgument(f"path {str(path)!r} is not a file")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                meta = json.loads(str(data["__meta__"]))
+                arrays: dict[str, Any] = {name: np.array(data[name]) for name in ARRAY_FIELDS}
+        except (KeyError, ValueError, OSError) as err:
+            raise InvalidArgument(f"path {str(path)!r} is not a saved SimResult: {err}") from err
+        meta["solver_status_names"] = tuple(meta["solver_status_names"])
+        meta["joint_names"] = tuple(meta["joint_names"])
+        return cls(**arrays, **meta)
+
+
+__all__ = ["ARRAY_FIELDS", "SimResult"]

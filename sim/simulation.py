@@ -1,0 +1,481 @@
+"""Closed-loop torque control of a `Robot` simulated in MuJoCo, under disturbances.
+
+One control tick of period ``control_dt`` (zero-order hold over ``substeps`` physics steps
+of ``control_dt / substeps``):
+
+1. position- and velocity-dependent quantities of the true state ``(q_k, v_k)`` at
+   ``t_k = k control_dt`` are computed (``mj_step1``; ``mj_forward`` with RK4);
+2. the measurement hooks of the disturbances give the controller's ``(q, v)``
+   (sensor noise, latency);
+3. the controller returns ``tau`` (nv,) [N m] from ``compute(t_k, q, v)``;
+4. torque hooks (torque noise) modify it, the result is clipped to the torque limits
+   (MuJoCo's ctrlrange, recorded as saturation) and sent to the motors;
+5. tick hooks act on the data (pushes, wrenches); model changes (payload masses) are
+   made by the disturbances' ``before_tick`` hooks before step 1;
+6. the physics advances by ``substeps`` steps (``mj_step2`` then ``mj_step``; RK4: ``mj_step``);
+7. the new state is checked: non-finite, a joint speed beyond 3 times its limit, or a
+   MuJoCo instability warning (MuJoCo then resets its state) stop the run with a status
+   ``"diverged: ..."``; the ticks run so far are kept.
+
+The controller never sees MuJoCo: it is any object with ``reset(q, v, t)``,
+``compute(t, q, v) -> tau``, ``set_reference(ref)`` when a reference is passed to `run`,
+and optionally a ``diagnostics`` attribute (``fallback_used``, ``solver_status``,
+``iterations``) that is logged per tick.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from collections.abc import Sequence
+from typing import Any, Protocol
+
+import mujoco
+import numpy as np
+
+from geosyn.core.errors import GeosynError, InvalidArgument
+from geosyn.core.types import Vector
+from geosyn.robots.robot import Robot, check_vector
+from geosyn.sim.disturbances import Disturbance, _overrides
+from geosyn.sim.log import SimResult
+from geosyn.sim.scene import Payload, Scene, build_scene
+
+#: A joint speed beyond this multiple of its limit counts as divergence.
+SPEED_FACTOR = 3.0
+
+_INSTABILITY_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+
+
+class ControllerLike(Protocol):
+    """What the simulation needs from a controller (`geosyn.controllers.Controller` fits)."""
+
+    def reset(self, q: Vector, v: Vector, t: float = 0.0) -> None: ...
+
+    def compute(self, t: float, q: Vector, v: Vector) -> Vector: ...
+
+
+class ReferenceLike(Protocol):
+    """What the simulation needs from a reference (`geosyn.controllers.Reference` fits)."""
+
+    def sample(self, t: float) -> tuple[Vector, Vector, Vector]: ...
+
+
+class Simulation:
+    """Torque control of a robot in MuJoCo, with payloads, obstacles and disturbances.
+
+    Build once (compiles the MuJoCo model, binds the disturbances), then `run` any number
+    of times; each run starts from a reset model and reseeded disturbances, so two runs
+    with the same arguments give identical logs.
+
+    Args:
+        robot: the robot; the MuJoCo model is built from it (`geosyn.sim.build_scene`).
+        controller: the controller (see the module doc).
+        control_dt: control period [s], > 0.
+        substeps: physics steps per control tick, >= 1 (physics time step is
+            ``control_dt / substeps``).
+        integrator: MuJoCo integrator: implicitfast (default), implicit, Euler or RK4.
+        payloads: payload bodies welded to links (`geosyn.sim.Payload`).
+        obstacles: Sphere/Box/Capsule/HalfSpace-like obstacles (see `geosyn.sim.scene`).
+        disturbances: disturbances, applied in order (deep-copied here).
+        gravity: (3,) gravity [m/s^2]; defaults to ``robot.gravity``.
+        seed: seed of the disturbances' random generators (one independent stream each).
+        contact: obstacles collide with the robot (default: visual only, clearance logged).
+        torque_limits: clip torques to the robot's limits (MuJoCo ctrlrange). With False
+            the command is applied as is and no saturation is recorded.
+        position_limits: MuJoCo enforces the finite joint position limits.
+
+    Raises:
+        InvalidArgument: a bad argument; the message names it.
+        UnknownBody: a disturbance or payload names a body that is not in the scene.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        controller: ControllerLike,
+        *,
+        control_dt: float = 1e-3,
+        substeps: int = 1,
+        integrator: str = "implicitfast",
+        payloads: Sequence[Payload] = (),
+        obstacles: Sequence[Any] = (),
+        disturbances: Sequence[Disturbance] = (),
+        gravity: Sequence[float] | None = None,
+        seed: int = 0,
+        contact: bool = False,
+        torque_limits: bool = True,
+        position_limits: bool = True,
+    ) -> None:
+        if not isinstance(robot, Robot):
+            raise InvalidArgument(
+                f"robot must be a geosyn.robots.Robot, got {type(robot).__name__}"
+            )
+        for hook in ("reset", "compute"):
+            if not callable(getattr(controller, hook, None)):
+                raise InvalidArgument(
+                    f"controller must have a {hook}() method (a geosyn Controller), got {type(controller).__name__}"
+                )
+        try:
+            control_dt = float(control_dt)
+        except (TypeError, ValueError) as err:
+            raise InvalidArgument(f"control_dt must be a time > 0 [s], got {control_dt!r}") from err
+        if not (np.isfinite(control_dt) and control_dt > 0):
+            raise InvalidArgument(f"control_dt must be finite and > 0 [s], got {control_dt!r}")
+        if (
+            isinstance(substeps, bool)
+            or not isinstance(substeps, (int, np.integer))
+            or substeps < 1
+        ):
+            raise InvalidArgument(f"substeps must be an int >= 1, got {substeps!r}")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise InvalidArgument(f"seed must be an int >= 0, got {seed!r}")
+        disturbances = tuple(disturbances)
+        for i, d in enumerate(disturbances):
+            if not isinstance(d, Disturbance):
+                raise InvalidArgument(
+                    f"disturbances[{i}] must be a geosyn.sim.Disturbance, got {d!r}"
+                )
+
+        self.robot = robot
+        self.controller = controller
+        self.control_dt = control_dt
+        self.substeps = int(substeps)
+        self.integrator = integrator
+        self.seed = int(seed)
+        self.torque_limits = bool(torque_limits)
+        self.scene: Scene = build_scene(
+            robot,
+            payloads=payloads,
+            obstacles=obstacles,
+            timestep=control_dt / self.substeps,
+            integrator=integrator,
+            gravity=gravity,
+            contact=contact,
+            limits=position_limits,
+        )
+        self.model = self.scene.model
+        self.data = mujoco.MjData(self.model)
+        if not self.torque_limits:
+            self.model.actuator_ctrllimited[:] = 0
+        self.tau_min = np.array(self.model.actuator_ctrlrange[:, 0])
+        self.tau_max = np.array(self.model.actuator_ctrlrange[:, 1])
+        act_joints = [int(self.model.actuator_trnid[a, 0]) for a in range(self.model.nu)]
+        self._act_dof = np.array([self.model.jnt_dofadr[j] for j in act_joints], dtype=np.int64)
+        if not np.array_equal(self._act_dof, self.scene.dof_adr):
+            raise InvalidArgument(
+                "the scene's actuators are not in joint order; check robot.joint_names"
+            )
+
+        self.disturbances = copy.deepcopy(disturbances)
+        for d in self.disturbances:
+            d.bind(self.scene, control_dt)
+        self._measure_hooks = [d for d in self.disturbances if _overrides(d, "modify_measurement")]
+        self._tau_hooks = [d for d in self.disturbances if _overrides(d, "modify_tau")]
+        self._tick_hooks = [d for d in self.disturbances if _overrides(d, "on_tick")]
+        self._pre_hooks = [d for d in self.disturbances if _overrides(d, "before_tick")]
+        self._zero_xfrc = any(d.applies_wrench for d in self.disturbances)
+
+        v_max = np.asarray(robot.v_max, dtype=np.float64)
+        self._speed_limit = np.where(np.isfinite(v_max) & (v_max > 0), SPEED_FACTOR * v_max, np.inf)
+
+    # -- helpers ---------------------------------------------------------------------
+    def _state(self) -> tuple[Vector, Vector]:
+        return self.data.qpos[self.scene.qpos_adr].copy(), self.data.qvel[self.scene.dof_adr].copy()
+
+    def _warnings(self) -> int:
+        return sum(int(self.data.warning[w].number) for w in _INSTABILITY_WARNINGS)
+
+    def _divergence(self, t: float, q: Vector, v: Vector, warnings: int) -> str | None:
+        """Status message if the state ``(q, v)`` at time ``t`` diverged, else None."""
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
+            return f"diverged: non-finite state at t={t:.6g} s"
+        if warnings != self._warn0:
+            return (
+                "diverged: MuJoCo reported an unstable simulation (bad qpos/qvel/qacc) and"
+                f" reset its state at t={t:.6g} s"
+            )
+        if np.any(np.abs(v) > self._speed_limit):
+            j = int(np.argmax(np.abs(v) / self._speed_limit))
+            return (
+                f"diverged: joint {self.robot.joint_names[j]} speed {abs(v[j]):.4g} rad/s exceeds"
+                f" {SPEED_FACTOR:g}x its limit {self.robot.v_max[j]:.4g} rad/s at t={t:.6g} s"
+            )
+        return None
+
+    # -- running ---------------------------------------------------------------------
+    def run(
+        self,
+        q0: Sequence[float] | Vector,
+        v0: Sequence[float] | Vector | None = None,
+        duration: float = 1.0,
+        reference: ReferenceLike | None = None,
+        *,
+        seed: int | None = None,
+    ) -> SimResult:
+        """Simulate ``round(duration / control_dt)`` control ticks from ``(q0, v0)``.
+
+        Allocates the log arrays once; the tick loop allocates only small vectors.
+
+        Args:
+            q0: (nq,) initial joint positions [rad].
+            v0: (nv,) initial joint velocities [rad/s]; zero by default.
+            duration: simulated time [s], at least one control period.
+            reference: passed to ``controller.set_reference`` before the run. The
+                reference logged at each tick is the controller's ``reference`` attribute
+                when it has one (it may replan), else this one.
+            seed: overrides the simulation's seed for this run.
+
+        Returns:
+            The per-tick log; ``status`` says whether the run completed.
+
+        Raises:
+            InvalidArgument: bad initial state, duration or seed, the controller returned
+                an array of the wrong shape or raised `InvalidArgument`. Other geosyn errors
+                of the controller (a failed solve, no reference) end the run with the status
+                ``"controller failed: ..."``.
+        """
+        robot = self.robot
+        nq, nv = robot.nq, robot.nv
+        q0 = check_vector(q0, nq, "q0")
+        v0 = np.zeros(nv) if v0 is None else check_vector(v0, nv, "v0")
+        try:
+            duration = float(duration)
+        except (TypeError, ValueError) as err:
+            raise InvalidArgument(f"duration must be a time [s], got {duration!r}") from err
+        n_ticks = int(round(duration / self.control_dt)) if np.isfinite(duration) else 0
+        if n_ticks < 1:
+            raise InvalidArgument(
+                f"duration must be finite and >= control_dt={self.control_dt} [s], got {duration!r}"
+            )
+        seed = self.seed if seed is None else seed
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise InvalidArgument(f"seed must be an int >= 0, got {seed!r}")
+
+        m, d, sc = self.model, self.data, self.scene
+        children = np.random.SeedSequence(int(seed)).spawn(len(self.disturbances))
+        for dist, child in zip(self.disturbances, children, strict=True):
+            dist.reset(np.random.default_rng(child))
+        mujoco.mj_resetData(m, d)
+        d.qpos[sc.qpos_adr] = q0
+        d.qvel[sc.dof_adr] = v0
+        self._warn0 = self._warnings()
+
+        controller = self.controller
+        if reference is not None:
+            set_ref = getattr(controller, "set_reference", None)
+            if not callable(set_ref):
+                raise InvalidArgument(
+                    f"a reference was given but controller {type(controller).__name__} has no set_reference()"
+                )
+            set_ref(reference)
+        has_ref_attr = hasattr(type(controller), "reference") or hasattr(controller, "reference")
+        controller.reset(q0.copy(), v0.copy(), 0.0)
+
+        # -- log buffers (filled row by row, truncated on early stop)
+        n_pay = len(sc.payload_body_ids)
+        t_log = np.zeros(n_ticks)
+        q_log = np.zeros((n_ticks, nq))
+        v_log = np.zeros((n_ticks, nv))
+        qm_log = np.zeros((n_ticks, nq))
+        vm_log = np.zeros((n_ticks, nv))
+        tau_log = np.zeros((n_ticks, nv))
+        taua_log = np.zeros((n_ticks, nv))
+        qref_log = np.full((n_ticks, nq), np.nan)
+        vref_log = np.full((n_ticks, nv), np.nan)
+        ke_log = np.zeros(n_ticks)
+        sat_log = np.zeros((n_ticks, nv), dtype=bool)
+        clear_log = np.full(n_ticks, np.inf)
+        pay_log = np.zeros((n_ticks, n_pay))
+        ctime_log = np.zeros(n_ticks)
+        iter_log = np.full(n_ticks, -1, dtype=np.int64)
+        fb_log = np.zeros(n_ticks, dtype=bool)
+        st_log = np.zeros(n_ticks, dtype=np.int64)
+
+        status_codes: dict[str, int] = {"": 0}
+        rk4 = self.integrator == "RK4"
+        dt = self.control_dt
+        extra_steps = range(self.substeps if rk4 else self.substeps - 1)
+        clip = self.torque_limits
+        lo, hi = self.tau_min, self.tau_max
+        speed = self._speed_limit
+        qadr, dadr = sc.qpos_adr, sc.dof_adr
+        clearance = sc.clearance if len(sc.obstacles) else None
+        pay_ids = sc.payload_body_ids
+        measure_hooks, tau_hooks, tick_hooks = (
+            self._measure_hooks,
+            self._tau_hooks,
+            self._tick_hooks,
+        )
+        pre_hooks = self._pre_hooks
+        zero_xfrc = self._zero_xfrc
+        h_phys = dt / self.substeps
+        perf = time.perf_counter
+        isfinite = math.isfinite
+        mv = np.zeros(m.nv)
+        ref = reference
+        status = "ok"
+        done = 0
+        wall0 = perf()
+
+        for k in range(n_ticks + 1):
+            t = k * dt
+            q = d.qpos[qadr]
+            v = d.qvel[dadr]
+            # Divergence of the state reached by the previous tick (cheap test first).
+            # MuJoCo resets its data (time 0) on an instability; its counters are read when
+            # the clock shows it, and once after the first tick (a reset there keeps time).
+            reset = abs(d.time - t) > 0.5 * h_phys or k == 1
+            if not (isfinite(float(q @ q)) and (np.abs(v) <= speed).all()) or reset:
+                bad = self._divergence(t, q, v, self._warnings())
+                if bad is not None:
+                    status = bad
+                    break
+            if k == n_ticks:
+                break
+            d.time = t
+            for h in pre_hooks:
+                h.before_tick(t, m, d)
+            if rk4:
+                mujoco.mj_forward(m, d)
+            else:
+                mujoco.mj_step1(m, d)
+            qm, vm = q, v
+            for h in measure_hooks:
+                qm, vm = h.modify_measurement(t, qm, vm)
+
+            c0 = perf()
+            try:
+                out = controller.compute(t, qm, vm)
+            except InvalidArgument:
+                raise  # bad input is a bug in the setup, not an outcome of the run
+            except GeosynError as err:
+                status = f"controller failed: {type(err).__name__}: {err} at t={t:.6g} s"
+                break
+            c1 = perf()
+            tau_cmd = np.asarray(out, dtype=np.float64)
+            if tau_cmd.shape != (nv,):
+                raise InvalidArgument(
+                    f"controller {type(controller).__name__}.compute returned shape"
+                    f" {tau_cmd.shape}, expected ({nv},)"
+                )
+            if not isfinite(float(tau_cmd @ tau_cmd)):
+                status = (
+                    f"diverged: controller returned a non-finite torque {tau_cmd} at t={t:.6g} s"
+                )
+                break
+            if clip:
+                tau_c = np.minimum(np.maximum(tau_cmd, lo), hi)
+                if tau_hooks:
+                    tau_out = tau_cmd
+                    for h in tau_hooks:
+                        tau_out = h.modify_tau(t, tau_out)
+                    tau_a = np.minimum(np.maximum(tau_out, lo), hi)
+                    sat_log[k] = tau_a != tau_out
+                else:
+                    tau_a = tau_c
+                    sat_log[k] = tau_c != tau_cmd
+            else:
+                tau_c = tau_a = tau_cmd
+                for h in tau_hooks:
+                    tau_a = h.modify_tau(t, tau_a)
+            tau_log[k] = tau_c
+
+            if zero_xfrc:
+                d.xfrc_applied[:] = 0.0
+            for h in tick_hooks:
+                h.on_tick(t, m, d)
+            d.ctrl[:] = tau_a
+
+            # -- log row k (kinematics and mass matrix are those of the tick's state)
+            t_log[k] = t
+            q_log[k] = q
+            v_log[k] = v
+            qm_log[k] = qm
+            vm_log[k] = vm
+            taua_log[k] = tau_a
+            if has_ref_attr:
+                ref = controller.reference  # type: ignore[attr-defined]
+            if ref is not None:
+                q_r, v_r, _ = ref.sample(t)
+                qref_log[k] = q_r
+                vref_log[k] = v_r
+            mujoco.mj_mulM(m, d, mv, d.qvel)
+            ke_log[k] = 0.5 * float(d.qvel @ mv)
+            if clearance is not None:
+                clear_log[k] = clearance(d.xpos, d.xmat)
+            if n_pay:
+                pay_log[k] = m.body_mass[pay_ids]
+            ctime_log[k] = c1 - c0
+            diag = getattr(controller, "diagnostics", None)
+            if diag is not None:
+                it = getattr(diag, "iterations", None)
+                if it is not None:
+                    iter_log[k] = it
+                fb_log[k] = getattr(diag, "fallback_used", False)
+                st = getattr(diag, "solver_status", None)
+                if st is not None:
+                    key = str(getattr(st, "name", st))
+                    code = status_codes.get(key)
+                    if code is None:
+                        code = status_codes[key] = len(status_codes)
+                    st_log[k] = code
+            done = k + 1
+
+            # -- physics over the tick
+            if not rk4:
+                mujoco.mj_step2(m, d)
+            for _ in extra_steps:
+                mujoco.mj_step(m, d)
+
+        wall = perf() - wall0
+        q_final, v_final = self._state()
+
+        def cut(a: np.ndarray) -> np.ndarray:
+            return a[:done] if done < n_ticks else a
+
+        q_ref = cut(qref_log)
+        q_true = cut(q_log)
+        v_true = cut(v_log)
+        tau_applied = cut(taua_log)
+        return SimResult(
+            t=cut(t_log),
+            q=q_true,
+            v=v_true,
+            q_meas=cut(qm_log),
+            v_meas=cut(vm_log),
+            tau=cut(tau_log),
+            tau_applied=tau_applied,
+            q_ref=q_ref,
+            v_ref=cut(vref_log),
+            tracking_error=q_ref - q_true,
+            kinetic_energy=cut(ke_log),
+            power=np.einsum("ij,ij->i", tau_applied, v_true),
+            effort=np.cumsum(np.einsum("ij,ij->i", tau_applied, tau_applied)) * dt,
+            saturated=cut(sat_log),
+            clearance=cut(clear_log),
+            payload_mass=cut(pay_log),
+            compute_time=cut(ctime_log),
+            iterations=cut(iter_log),
+            fallback_used=cut(fb_log),
+            solver_status=cut(st_log),
+            q_final=q_final,
+            v_final=v_final,
+            solver_status_names=tuple(status_codes),
+            joint_names=tuple(robot.joint_names),
+            robot_name=robot.name,
+            control_dt=dt,
+            substeps=self.substeps,
+            integrator=self.integrator,
+            duration=float(n_ticks * dt),
+            status=status,
+            wall_time=wall,
+            seed=int(seed),
+        )
+
+
+__all__ = ["SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]

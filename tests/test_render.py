@@ -1,0 +1,164 @@
+"""Rendering: headless frames, GIF with the expected frame count, mp4 or a clear error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from conftest import get_robot
+from geosyn.core.errors import InvalidArgument
+from geosyn.metrics.shaping import Sphere
+from geosyn.sim import Payload, RenderError, Simulation, render_frames, render_video
+from geosyn.sim.render import CameraView, frame_indices
+
+
+class HoldPD:
+    def __init__(self, robot):
+        import pinocchio as pin
+
+        self.pin, self.robot, self.data = pin, robot, robot.model.createData()
+
+    def reset(self, q, v, t=0.0):
+        self.q0 = np.array(q)
+
+    def compute(self, t, q, v):
+        g = self.pin.computeGeneralizedGravity(self.robot.model, self.data, q)
+        return g + 100.0 * (self.q0 - q) - 20.0 * v
+
+
+@pytest.fixture(scope="module")
+def run():
+    robot = get_robot("panda")
+    q0 = robot.neutral()
+    q0[3], q0[5] = -1.5, 1.5
+    res = Simulation(robot, HoldPD(robot)).run(q0, np.full(7, 0.5), 0.3)
+    return robot, res
+
+
+def test_frame_indices():
+    robot = get_robot("planar2")
+    res = Simulation(robot, HoldPD(robot), control_dt=0.01).run(np.zeros(2), None, 1.0)
+    idx = frame_indices(res, fps=4)
+    assert np.array_equal(idx, [0, 25, 50, 75, 100])  # 100 is the final state
+    assert len(frame_indices(res, fps=30)) == 31
+
+
+def test_gif_has_expected_frames(run, tmp_path):
+    robot, res = run
+    obstacles = [Sphere((0.5, 0.3, 0.4), 0.1)]
+    path = render_video(
+        res,
+        tmp_path / "clip.gif",
+        robot,
+        fps=10,
+        width=160,
+        height=120,
+        payloads=[Payload("panda_hand_tcp", 1.0)],
+        obstacles=obstacles,
+    )
+    with Image.open(path) as im:
+        assert im.n_frames == 4  # floor(0.3 s * 10 fps) + 1
+        assert im.size == (160, 120)
+        assert im.info["duration"] == 100
+        im.seek(0)
+        first = np.asarray(im.convert("RGB"), dtype=float)
+        im.seek(3)
+        last = np.asarray(im.convert("RGB"), dtype=float)
+    assert first.std() > 10.0  # something is drawn, not a blank image
+    assert np.abs(first - last).mean() > 0.1  # the robot moved (v0 = 0.5 rad/s)
+
+
+def test_frames_show_the_robot(run):
+    """The robot occupies the centre of the auto-framed view: a view aimed away differs."""
+    robot, res = run
+    frames = render_frames(res, robot, fps=5, width=96, height=72, trail=False)
+    assert frames.shape == (2, 72, 96, 3) and frames.dtype == np.uint8
+    away = render_frames(
+        res,
+        robot,
+        fps=5,
+        width=96,
+        height=72,
+        trail=False,
+        camera=CameraView((10.0, 10.0, 5.0), 1.0, 0.0, 0.0),
+    )
+    assert np.abs(frames.astype(float) - away).mean() > 5.0
+
+
+def test_mp4_has_expected_frames(run, tmp_path):
+    """The ``video`` extra (imageio + its bundled ffmpeg) is installed by ``make test``."""
+    import imageio.v2 as iio
+
+    robot, res = run
+    path = render_video(res, tmp_path / "clip.mp4", robot, fps=10, width=64, height=48)
+    with iio.get_reader(path) as reader:
+        frames = [f for f in reader]
+    expected = int(np.floor(res.n_ticks * res.control_dt * 10 + 1e-9)) + 1  # 0.3 s -> 4
+    assert len(frames) == expected
+    assert frames[0].shape == (48, 64, 3)
+
+
+def test_mp4_without_imageio_is_a_clear_error(run, tmp_path, monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_imageio(name, *args, **kwargs):
+        if name.startswith("imageio"):
+            raise ImportError(name)
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_imageio)
+    robot, res = run
+    with pytest.raises(RenderError, match="imageio"):
+        render_video(res, tmp_path / "clip.mp4", robot, fps=5, width=64, height=48)
+    assert not (tmp_path / "clip.mp4").exists()
+
+
+def test_bad_render_input(run, tmp_path):
+    robot, res = run
+    with pytest.raises(InvalidArgument, match=r"\.gif, \.mp4"):
+        render_video(res, tmp_path / "clip.avi", robot)
+    with pytest.raises(InvalidArgument, match="width"):
+        render_frames(res, robot, width=5000)
+    with pytest.raises(InvalidArgument, match="robot 'panda'"):
+        render_frames(res, get_robot("ur5"))
+    with pytest.raises(InvalidArgument, match="fps"):
+        render_frames(res, robot, fps=0.0)
+
+
+def test_write_frames_streams_and_checks(tmp_path):
+    from geosyn.sim import write_frames
+
+    def gen():
+        for i in range(3):
+            frame = np.zeros((8, 10, 3), dtype=np.uint8)
+            frame[:, i] = 255
+            yield frame
+
+    path = write_frames(gen(), tmp_path / "s.gif", fps=20)
+    with Image.open(path) as im:
+        assert im.n_frames == 3 and im.size == (10, 8) and im.info["duration"] == 50
+        im.seek(2)
+        assert np.asarray(im.convert("RGB"))[0, 2].tolist() == [255, 255, 255]
+    bad = [np.zeros((8, 10, 3), np.uint8), np.zeros((8, 11, 3), np.uint8)]
+    with pytest.raises(InvalidArgument, match="frame 1 must be a"):
+        write_frames(bad, tmp_path / "b.gif")
+    with pytest.raises(InvalidArgument, match="empty"):
+        write_frames([], tmp_path / "e.gif")
+
+
+def test_render_a_run_ending_non_finite():
+    """A log whose final state is not finite renders (the last finite state is shown)."""
+    import dataclasses
+
+    robot = get_robot("planar2")
+    res = Simulation(robot, HoldPD(robot), control_dt=0.01).run(np.zeros(2), [2.0, -1.0], 0.2)
+    broken = dataclasses.replace(res, q_final=np.array([np.nan, 0.0]))
+    view = CameraView((0.0, 0.0, 0.0), 4.0, 90.0, -89.0)
+    frames = render_frames(broken, robot, fps=10, width=64, height=48, camera=view, trail=False)
+    assert frames.shape == (3, 48, 64, 3)
+    full = render_frames(res, robot, fps=10, width=64, height=48, camera=view, trail=False)
+    assert np.array_equal(frames[:2], full[:2])
+    assert frames[-1].std() > 5.0  # a drawn scene, not a blank or broken frame
