@@ -8,7 +8,7 @@ simulator-free tests.
 from geosyn.controllers.base import Controller, ControllerDiagnostics, check_gain
 from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.errors import ControllerError, NoReference, SolverFailed
-from geosyn.controllers.mpc import GeodesicMPC
+from geosyn.controllers.mpc import GeodesicMPC, MPCPlan, OpenLoopSolution
 from geosyn.controllers.plant import Payload, PinocchioPlant, Rollout
 from geosyn.controllers.qp import QPController
 from geosyn.controllers.reference import (
@@ -26,6 +26,8 @@ __all__ = [
     "ControllerDiagnostics",
     "ControllerError",
     "GeodesicMPC",
+    "MPCPlan",
+    "OpenLoopSolution",
     "GeodesicReference",
     "JointTrajectoryReference",
     "NoReference",
