@@ -42,14 +42,14 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import casadi as ca
 import numpy as np
 import pinocchio as pin
 
 from geosyn.controllers.base import Controller, check_gain
-from geosyn.controllers.errors import SolverFailed
+from geosyn.controllers.errors import ControllerError, SolverFailed
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
@@ -69,6 +69,9 @@ _EPS_T = 1e-9  # [s] slack when comparing clock times
 # Default effort weights: [1/(N m)^2] for torque and metric efforts, [s^4/rad^2] for the
 # acceleration effort (tuned on panda: tracking error ~1e-3 rad, ~3 warm iterations).
 _DEFAULT_EFFORT_WEIGHT = {"torque": 1e-3, "metric": 1e-3, "acceleration": 1e-2}
+
+# The symbol type of an NLP graph: SX (exact Hessian) or MX (Gauss-Newton, naive).
+_Sym = TypeVar("_Sym", ca.SX, ca.MX)
 
 
 class MPCPlan(NamedTuple):
@@ -216,6 +219,19 @@ class _NLP:
     ubg: np.ndarray
     g_blocks: list[np.ndarray]  # per stage, indices into g (stage 0 includes the init block)
     tau_fn: ca.Function  # (x, u) -> tau, numeric evaluation of planned torques
+
+    def cold(self) -> ca.Function:
+        """The cold-start solver.
+
+        Raises:
+            ControllerError: this build has none (the naive benchmark build).
+        """
+        if self.solver_cold is None:
+            raise ControllerError(
+                "this MPC build has no cold-start solver (the naive IPOPT benchmark build "
+                "is solved with its only solver, `solver`)"
+            )
+        return self.solver_cold
 
 
 def _weight(x: object, size: int, name: str) -> np.ndarray:
@@ -539,20 +555,12 @@ class GeodesicMPC(Controller):
         # call nodes would be differentiated one direction at a time). Naive: MX with
         # one call per stage, not expanded.
         mapped = use_gn
-        S = ca.MX if (use_gn or naive) else ca.SX
-        X = [S.sym(f"x{k}", nx) for k in range(N + 1)]
-        U = [S.sym(f"u{k}", n) for k in range(N)]
-        x_init = S.sym("x_init", nx)
-        q_goal = S.sym("q_goal", n)
-        qr = S.sym("qr", n, N + 1)
-        vr = S.sym("vr", n, N + 1)
-        tr = S.sym("tr", n, N)
-        mp = S.sym("mp", n_mp)
 
         # Stage cost as one SX function (its Hessian is exact; it is quadratic except for
         # the metric effort).
         xs, us = ca.SX.sym("x", nx), ca.SX.sym("u", n)
         qrs, vrs, trs, taus = (ca.SX.sym(s, n) for s in ("qr", "vr", "tr", "tau"))
+        track: ca.SX | int
         if open_loop:
             track = 0
         else:
@@ -578,13 +586,156 @@ class GeodesicMPC(Controller):
             [0 if open_loop else ca.dot(Wn, (xs - ca.vertcat(qrs, vrs)) ** 2)],
         )
 
-        w, g, eq, lbg, ubg = [], [], [], [], []
+        tau_max = np.asarray(self.robot.tau_max, dtype=np.float64)
+        # One call per symbol type, so that each graph is typed SX or MX throughout.
+        nlp: dict[str, ca.SX] | dict[str, ca.MX]
+        if use_gn or naive:
+            nlp, eq, lbg, ubg, g_blocks = self._nlp_graph(
+                ca.MX,
+                F,
+                TAU,
+                L,
+                Lf,
+                mapped=mapped,
+                open_loop=open_loop,
+                free_v0=free_v0,
+                tau_max=tau_max,
+            )
+        else:
+            nlp, eq, lbg, ubg, g_blocks = self._nlp_graph(
+                ca.SX,
+                F,
+                TAU,
+                L,
+                Lf,
+                mapped=mapped,
+                open_loop=open_loop,
+                free_v0=free_v0,
+                tau_max=tau_max,
+            )
+
+        # Bounds: x_0 is fixed by the initial constraint (no bounds there, so a measured
+        # state slightly outside the limits stays feasible); torques bound u in torque
+        # control.
+        inf = np.inf
+        q_lo = np.where(np.isfinite(self.robot.q_min), self.robot.q_min, -inf)
+        q_hi = np.where(np.isfinite(self.robot.q_max), self.robot.q_max, inf)
+        v_max = np.asarray(self.robot.v_max, dtype=np.float64)
+        u_lo = -tau_max if self.control == "torque" else np.full(n, -inf)
+        u_hi = tau_max if self.control == "torque" else np.full(n, inf)
+        lbx, ubx = [], []
+        for k in range(N + 1):
+            if k == 0:
+                lbx.append(np.full(nx, -inf))
+                ubx.append(np.full(nx, inf))
+            else:
+                lbx.append(np.concatenate([q_lo, -v_max]))
+                ubx.append(np.concatenate([q_hi, v_max]))
+            if k < N:
+                lbx.append(u_lo)
+                ubx.append(u_hi)
+
+        # No SX expansion step: the exact build is SX already, the Gauss-Newton build
+        # calls compiled code (not expandable), the naive build is meant to be MX.
+        common: dict[str, Any] = {"expand": False, "print_time": False, "error_on_fail": False}
+        if naive:
+            opts: dict[str, Any] = {
+                **common,
+                "ipopt": {"print_level": 0, "sb": "yes", "tol": self.tol},
+            }
+            solver = ca.nlpsol("mpc_naive", "ipopt", nlp, opts)
+            solver_cold = None
+        elif self.solver_name == "fatrop":
+
+            def fatrop_opts(mu: float) -> dict[str, Any]:
+                plugin: dict[str, Any] = {
+                    "mu_init": mu,
+                    "print_level": 0,
+                    "tol": self.tol,
+                    "max_iter": self.max_iter,
+                }
+                plugin.update(self.solver_options)
+                return {**common, "structure_detection": "auto", "equality": eq, "fatrop": plugin}
+
+            solver = ca.nlpsol("mpc_warm", "fatrop", nlp, fatrop_opts(self.mu_warm))
+            solver_cold = ca.nlpsol("mpc_cold", "fatrop", nlp, fatrop_opts(self.mu_init))
+        else:
+
+            def ipopt_opts(mu: float, warm: bool) -> dict[str, Any]:
+                plugin: dict[str, Any] = {
+                    "print_level": 0,
+                    "sb": "yes",
+                    "tol": self.tol,
+                    "max_iter": self.max_iter,
+                    "mu_init": mu,
+                }
+                if warm:
+                    plugin.update(
+                        warm_start_init_point="yes",
+                        warm_start_bound_push=1e-6,
+                        warm_start_mult_bound_push=1e-6,
+                        mu_strategy="monotone",
+                    )
+                plugin.update(self.solver_options)
+                return {**common, "ipopt": plugin}
+
+            solver = ca.nlpsol("mpc_warm", "ipopt", nlp, ipopt_opts(self.mu_warm, True))
+            solver_cold = ca.nlpsol("mpc_cold", "ipopt", nlp, ipopt_opts(self.mu_init, False))
+        Ff, TAUf = self._sym_dynamics(gravity)
+        return _NLP(
+            solver=solver,
+            solver_cold=solver_cold,
+            N=N,
+            n=n,
+            lbx=np.concatenate(lbx),
+            ubx=np.concatenate(ubx),
+            lbg=np.asarray(lbg, dtype=np.float64),
+            ubg=np.asarray(ubg, dtype=np.float64),
+            g_blocks=g_blocks,
+            tau_fn=TAUf.map(N),
+        )
+
+    def _nlp_graph(
+        self,
+        S: type[_Sym],
+        F: ca.Function,
+        TAU: ca.Function,
+        L: ca.Function,
+        Lf: ca.Function,
+        *,
+        mapped: bool,
+        open_loop: bool,
+        free_v0: bool,
+        tau_max: np.ndarray,
+    ) -> tuple[dict[str, _Sym], list[bool], list[float], list[float], list[np.ndarray]]:
+        """The NLP graph of `_build_nlp` in symbols of type ``S`` (SX or MX).
+
+        Returns:
+            The nlp dict (``x``, ``f``, ``g``, ``p``), then per constraint row whether it
+            is an equality, its lower and upper bounds, and the per-stage row indices.
+        """
+        n, N = self.nv, self.N
+        nx = 2 * n
+        n_mp = self._metric_p.size
+        X = [S.sym(f"x{k}", nx) for k in range(N + 1)]
+        U = [S.sym(f"u{k}", n) for k in range(N)]
+        x_init = S.sym("x_init", nx)
+        q_goal = S.sym("q_goal", n)
+        qr = S.sym("qr", n, N + 1)
+        vr = S.sym("vr", n, N + 1)
+        tr = S.sym("tr", n, N)
+        mp = S.sym("mp", n_mp)
+
+        w: list[_Sym] = []
+        g: list[_Sym] = []
+        eq: list[bool] = []
+        lbg: list[float] = []
+        ubg: list[float] = []
         g_blocks: list[np.ndarray] = []
         ng = 0
         for k in range(N):
             w += [X[k], U[k]]
         w.append(X[N])
-        tau_max = np.asarray(self.robot.tau_max, dtype=np.float64)
         if mapped:
             Xc, Uc = ca.horzcat(*X[:N]), ca.horzcat(*U)
             x_pred, tau_all = F.map(N)(Xc, Uc), TAU.map(N)(Xc, Uc)
@@ -595,7 +746,7 @@ class GeodesicMPC(Controller):
         else:
             x_next = [F(X[k], U[k]) for k in range(N)]
             taus_k = [TAU(X[k], U[k]) for k in range(N)]
-            J = 0
+            J = S(0)  # what CasADi makes of a Python 0 in `0 + L(...)`
             for k in range(N):
                 J = J + L(X[k], U[k], taus_k[k], qr[:, k], vr[:, k], tr[:, k], mp)
         for k in range(N):
@@ -630,84 +781,7 @@ class GeodesicMPC(Controller):
         J = J + Lf(X[N], qr[:, N], vr[:, N])
         p = ca.vertcat(x_init, q_goal, ca.vec(qr), ca.vec(vr), ca.vec(tr), mp)
         nlp = {"x": ca.vertcat(*w), "f": J, "g": ca.vertcat(*g), "p": p}
-
-        # Bounds: x_0 is fixed by the initial constraint (no bounds there, so a measured
-        # state slightly outside the limits stays feasible); torques bound u in torque
-        # control.
-        inf = np.inf
-        q_lo = np.where(np.isfinite(self.robot.q_min), self.robot.q_min, -inf)
-        q_hi = np.where(np.isfinite(self.robot.q_max), self.robot.q_max, inf)
-        v_max = np.asarray(self.robot.v_max, dtype=np.float64)
-        u_lo = -tau_max if self.control == "torque" else np.full(n, -inf)
-        u_hi = tau_max if self.control == "torque" else np.full(n, inf)
-        lbx, ubx = [], []
-        for k in range(N + 1):
-            if k == 0:
-                lbx.append(np.full(nx, -inf))
-                ubx.append(np.full(nx, inf))
-            else:
-                lbx.append(np.concatenate([q_lo, -v_max]))
-                ubx.append(np.concatenate([q_hi, v_max]))
-            if k < N:
-                lbx.append(u_lo)
-                ubx.append(u_hi)
-
-        # No SX expansion step: the exact build is SX already, the Gauss-Newton build
-        # calls compiled code (not expandable), the naive build is meant to be MX.
-        common = {"expand": False, "print_time": False, "error_on_fail": False}
-        if naive:
-            opts = {**common, "ipopt": {"print_level": 0, "sb": "yes", "tol": self.tol}}
-            solver = ca.nlpsol("mpc_naive", "ipopt", nlp, opts)
-            solver_cold = None
-        elif self.solver_name == "fatrop":
-
-            def fatrop_opts(mu: float) -> dict:
-                plugin = {
-                    "mu_init": mu,
-                    "print_level": 0,
-                    "tol": self.tol,
-                    "max_iter": self.max_iter,
-                }
-                plugin.update(self.solver_options)
-                return {**common, "structure_detection": "auto", "equality": eq, "fatrop": plugin}
-
-            solver = ca.nlpsol("mpc_warm", "fatrop", nlp, fatrop_opts(self.mu_warm))
-            solver_cold = ca.nlpsol("mpc_cold", "fatrop", nlp, fatrop_opts(self.mu_init))
-        else:
-
-            def ipopt_opts(mu: float, warm: bool) -> dict:
-                plugin = {
-                    "print_level": 0,
-                    "sb": "yes",
-                    "tol": self.tol,
-                    "max_iter": self.max_iter,
-                    "mu_init": mu,
-                }
-                if warm:
-                    plugin.update(
-                        warm_start_init_point="yes",
-                        warm_start_bound_push=1e-6,
-                        warm_start_mult_bound_push=1e-6,
-                        mu_strategy="monotone",
-                    )
-                plugin.update(self.solver_options)
-                return {**common, "ipopt": plugin}
-
-            solver = ca.nlpsol("mpc_warm", "ipopt", nlp, ipopt_opts(self.mu_warm, True))
-            solver_cold = ca.nlpsol("mpc_cold", "ipopt", nlp, ipopt_opts(self.mu_init, False))
-        Ff, TAUf = self._sym_dynamics(gravity)
-        return _NLP(
-            solver=solver,
-            solver_cold=solver_cold,
-            N=N,
-            n=n,
-            lbx=np.concatenate(lbx),
-            ubx=np.concatenate(ubx),
-            lbg=np.asarray(lbg, dtype=np.float64),
-            ubg=np.asarray(ubg, dtype=np.float64),
-            g_blocks=g_blocks,
-            tau_fn=TAUf.map(N),
-        )
+        return nlp, eq, lbg, ubg, g_blocks
 
     def _is_kinetic(self) -> bool:
         from geosyn.metrics.kinetic import KineticEnergyMetric
@@ -829,7 +903,7 @@ class GeodesicMPC(Controller):
             x0 = np.hstack([qr, vr])
             x0[0] = x_init
             u0 = tr if self.control == "torque" else ar[:N]
-            solver = nlp.solver_cold
+            solver = nlp.cold()
             args = {"x0": self._pack(x0, u0)}
         start = time.perf_counter()
         status, iters, success = "exception", 0, False
@@ -976,7 +1050,7 @@ class GeodesicMPC(Controller):
         u0 = np.zeros((N, n))
         zero = np.zeros((N + 1, n))
         p = self._params(np.concatenate([q0, v_init]), q_goal, zero, zero, zero[:N])
-        solver = nlp.solver_cold
+        solver = nlp.cold()
         try:
             res = solver(
                 x0=self._pack(x0, u0), p=p, lbx=nlp.lbx, ubx=nlp.ubx, lbg=nlp.lbg, ubg=nlp.ubg

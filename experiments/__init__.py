@@ -1,0 +1,39 @@
+"""Experiments: typed YAML configs, the runner, built-in procedures, sweeps and reports.
+
+The functions ``sweep`` and ``report`` live in the submodules of the same names
+(`geosyn.experiments.sweep.sweep`, `geosyn.experiments.report.report`); they are not
+re-exported here so that the submodules stay importable under their names.
+"""
+
+from geosyn.experiments.errors import (
+    ConfigError,
+    ExperimentError,
+    ProcedureFailed,
+    RunDirectoryExists,
+    SweepError,
+)
+from geosyn.experiments.loader import builtin_names, load_config, validate_config
+from geosyn.experiments.procedures import PROCEDURES, Procedure, RunContext, register
+from geosyn.experiments.runner import RunOutcome, run_experiment
+from geosyn.experiments.schema import ExperimentConfig
+from geosyn.experiments.sweep import SweepResult, parse_grid
+
+__all__ = [
+    "PROCEDURES",
+    "ConfigError",
+    "ExperimentConfig",
+    "ExperimentError",
+    "Procedure",
+    "ProcedureFailed",
+    "RunContext",
+    "RunDirectoryExists",
+    "RunOutcome",
+    "SweepError",
+    "SweepResult",
+    "builtin_names",
+    "load_config",
+    "parse_grid",
+    "register",
+    "run_experiment",
+    "validate_config",
+]

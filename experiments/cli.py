@@ -8,6 +8,7 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Callable, Sequence
 
@@ -37,6 +38,123 @@ def cmd_robots(args: argparse.Namespace) -> int:
     return 0
 
 
+@command("list", "list the built-in experiments and robots")
+def cmd_list(args: argparse.Namespace) -> int:
+    from geosyn.experiments.loader import builtin_names, load_config
+    from geosyn.robots import BUILTINS
+
+    print("experiments:")
+    for name in builtin_names():
+        cfg, _ = load_config(name)
+        first = re.split(r"(?<=\.)\s", " ".join(cfg.description.split()), maxsplit=1)[0]
+        print(f"  {name:<31} {first}")
+    print("robots:")
+    print("  " + ", ".join(BUILTINS))
+    return 0
+
+
+def _run_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "experiment", metavar="NAME|FILE.yaml", help="built-in experiment name or YAML file"
+    )
+    p.add_argument("--out", metavar="DIR", help="run directory (default runs/<name>-<timestamp>)")
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a config field, e.g. --set simulation.duration=1.0 (repeatable)",
+    )
+    p.add_argument("--video", action="store_true", help="also render videos")
+    p.add_argument("--force", action="store_true", help="replace an existing run directory")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+@command("run", "run an experiment (built-in name or YAML file)")
+def cmd_run(args: argparse.Namespace) -> int:
+    from geosyn.experiments.loader import load_config
+    from geosyn.experiments.runner import run_experiment
+
+    cfg, _ = load_config(args.experiment, args.overrides)
+    outcome = run_experiment(
+        cfg, args.out, force=args.force, video=args.video, progress=not args.no_progress
+    )
+    print(f"run directory: {outcome.path}  ({outcome.wall_time:.1f} s)")
+    return 0
+
+
+def _sweep_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "experiment", metavar="NAME|FILE.yaml", help="built-in experiment name or YAML file"
+    )
+    p.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="KEY=V1,V2",
+        help="a swept field and its values (repeatable; the grid is the product)",
+    )
+    p.add_argument(
+        "--seeds", type=int, default=1, metavar="N", help="seeds per grid point (seed, seed+1, ...)"
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="K",
+        help="local worker processes (default 1); with --ray local, Ray CPUs (default all)",
+    )
+    p.add_argument("--ray", metavar="ADDRESS", help="run on Ray: a cluster address, or 'local'")
+    p.add_argument(
+        "--out", metavar="DIR", help="sweep directory (default runs/sweep-<name>-<timestamp>)"
+    )
+    p.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a config field for every run (repeatable)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+@command("sweep", "run an experiment over a grid of settings and seeds")
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from geosyn.experiments.sweep import parse_grid, sweep
+
+    grid = parse_grid(args.grid)
+    result = sweep(
+        args.experiment,
+        grid,
+        seeds=args.seeds,
+        out=args.out,
+        workers=args.workers,
+        ray_address=args.ray,
+        overrides=args.overrides,
+        progress=not args.no_progress,
+    )
+    print(
+        f"sweep directory: {result.path}  ({result.ran} run(s) done now,"
+        f" {result.skipped} already complete)"
+    )
+    return 0
+
+
+def _report_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by geosyn run")
+
+
+@command("report", "regenerate summary.md, summary.json and plots of a run directory")
+def cmd_report(args: argparse.Namespace) -> int:
+    from geosyn.experiments.report import report
+
+    report(args.run_dir)
+    print(f"report regenerated in {args.run_dir}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with one sub-parser per registered command."""
     parser = argparse.ArgumentParser(
@@ -53,18 +171,41 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: Per-command argument set-up, filled by modules that add commands.
-ARGUMENTS: dict[str, Callable[[argparse.ArgumentParser], None]] = {}
+ARGUMENTS: dict[str, Callable[[argparse.ArgumentParser], None]] = {
+    "run": _run_arguments,
+    "sweep": _sweep_arguments,
+    "report": _report_arguments,
+}
+
+
+def _terminate_cleanly() -> None:
+    """Turn SIGTERM into SystemExit(143) so a killed run removes its temporary directory."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+
+    def handler(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    signal.signal(signal.SIGTERM, handler)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``geosyn`` console script; returns the exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
+        return int(exc.code) if isinstance(exc.code, int) else 2
     fn, _ = COMMANDS[args.command]
+    _terminate_cleanly()
     try:
         return fn(args)
     except GeosynError as err:
-        print(f"geosyn {args.command}: error: {type(err).__name__}: {err}", file=sys.stderr)
+        message = " ".join(str(err).split())  # one line, always
+        print(f"geosyn {args.command}: error: {type(err).__name__}: {message}", file=sys.stderr)
         return 2
 
 

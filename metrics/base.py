@@ -221,7 +221,12 @@ class Metric(ABC):
             dG=ca.Function("dG", [q, *extra], [dG_ijk], qn, ["dG"], opts),
             christoffel=ca.Function("christoffel", [q, *extra], [gam], qn, ["Gamma"], opts),
             coriolis=ca.Function(
-                "coriolis", [q, v, *extra], [ca.densify(self.symbolic_coriolis(q, v))], qvn, ["c"], opts
+                "coriolis",
+                [q, v, *extra],
+                [ca.densify(self.symbolic_coriolis(q, v))],
+                qvn,
+                ["c"],
+                opts,
             ),
             geodesic_acceleration=ca.Function(
                 "geodesic_acceleration",

@@ -151,7 +151,11 @@ class Robot:
             same = np.allclose(p0, p1)
             for s in [0.5] if same else np.linspace(0.0, 1.0, per_capsule):
                 ctr = (1.0 - s) * p0 + s * p1
-                spheres.append(CollisionSphere(c.joint, tuple(map(float, ctr)), c.radius))
+                spheres.append(
+                    CollisionSphere(
+                        c.joint, (float(ctr[0]), float(ctr[1]), float(ctr[2])), c.radius
+                    )
+                )
         return tuple(spheres)
 
     # -- validation -------------------------------------------------------------------

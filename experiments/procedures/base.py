@@ -1,0 +1,110 @@
+"""The procedure interface and registry: one registered class per experiment ``kind``.
+
+A procedure computes (``run``), reduces (``summarize``) and draws (``plot``). ``run``
+returns the arrays saved in ``results.npz``; ``summarize`` and ``plot`` read only those
+arrays and the config, so ``geosyn report RUN_DIR`` regenerates summary and plots
+without re-running the experiment.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from geosyn.experiments.schema import ExperimentConfig
+from geosyn.robots import Robot
+
+
+class NoParams(BaseModel):
+    """A procedure without parameters: ``params`` must be empty."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+@dataclass
+class RunContext:
+    """What a procedure receives.
+
+    Attributes:
+        config: the validated config.
+        params: the procedure's validated ``Params``.
+        robot: the robot built from the config.
+        out_dir: where to write extra files (the run's temporary directory).
+        video: render videos (``--video`` or ``outputs.video``).
+        progress: ``progress(description, total) -> advance()``, a progress-bar factory.
+    """
+
+    config: ExperimentConfig
+    params: Any
+    robot: Robot
+    out_dir: Path
+    video: bool = False
+    progress: Callable[[str, int], Callable[[], None]] = field(
+        default=lambda description, total: lambda: None
+    )
+
+
+class Procedure(ABC):
+    """One kind of experiment.
+
+    Class attributes:
+        kind: the name used in configs (``kind: ...``).
+        description: one line for ``geosyn list``.
+        Params: pydantic model of the ``params`` section (unknown keys rejected).
+        units: unit of each summary metric, for the tables.
+    """
+
+    kind: ClassVar[str]
+    description: ClassVar[str]
+    Params: ClassVar[type[BaseModel]] = NoParams
+    #: Unit of each summary metric (the name after the last dot), shown in tables.
+    units: ClassVar[dict[str, str]] = {}
+
+    @classmethod
+    def check(cls, cfg: ExperimentConfig, params: Any, robot: Robot) -> list[tuple[str, str]]:
+        """Procedure-specific config problems as ``(field path, reason)``; none by default."""
+        return []
+
+    @abstractmethod
+    def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
+        """Compute the experiment; returns the arrays saved in ``results.npz``."""
+
+    @abstractmethod
+    def summarize(
+        self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]
+    ) -> dict[str, float]:
+        """Flat scalar summary (``row.metric`` keys make a table in summary.md)."""
+
+    def plot(
+        self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
+    ) -> list[Path]:
+        """Write PNG plots into ``out_dir``; returns their paths (none by default)."""
+        return []
+
+
+#: Registered procedures by kind.
+PROCEDURES: dict[str, type[Procedure]] = {}
+
+
+def register(cls: type[Procedure]) -> type[Procedure]:
+    """Class decorator: register a procedure under ``cls.kind``."""
+    if cls.kind in PROCEDURES and PROCEDURES[cls.kind] is not cls:
+        raise ValueError(f"procedure kind {cls.kind!r} is registered twice")
+    PROCEDURES[cls.kind] = cls
+    return cls
+
+
+def check_required(cfg: ExperimentConfig, *sections: str) -> list[tuple[str, str]]:
+    """``(section, "required by kind ...")`` for each missing/empty config section."""
+    out = []
+    for s in sections:
+        value = getattr(cfg, s)
+        if value is None or (isinstance(value, list) and not value):
+            out.append((s, f"required by kind {cfg.kind!r}"))
+    return out
