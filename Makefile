@@ -30,7 +30,7 @@ lint: $(TSTAMP)
 	$(VENV)/bin/mypy core robots metrics synergies controllers sim experiments
 
 bench: $(STAMP)
-	$(PY) benchmarks/metric.py
+	for b in metric geodesics shaping controllers sim; do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -14,6 +13,7 @@ from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.robots.robot import Robot
+from geosyn.robots.validation import check_positive
 
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
@@ -29,16 +29,6 @@ _STATUS = {
 
 #: Magnitude standing in for "no bound" on the accelerations [rad/s^2].
 _BIG = 1e6
-
-
-def _positive(x: object, name: str) -> float:
-    try:
-        val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}") from err
-    if not (math.isfinite(val) and val > 0.0):
-        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}")
-    return val
 
 
 class QPController(Controller):
@@ -115,10 +105,12 @@ class QPController(Controller):
         n = self.nv
         self.kp = check_gain(kp, n, "kp")
         self.kd = check_gain(kd, n, "kd")
-        self.dt = _positive(dt, "dt")
-        self.eps = _positive(eps, "eps")
+        self.dt = check_positive(dt, "dt")
+        self.eps = check_positive(eps, "eps")
         horizon = (
-            self.dt if position_horizon is None else _positive(position_horizon, "position_horizon")
+            self.dt
+            if position_horizon is None
+            else check_positive(position_horizon, "position_horizon")
         )
         if horizon < self.dt:
             raise InvalidArgument(f"position_horizon must be >= dt={self.dt} [s], got {horizon}")
@@ -130,7 +122,7 @@ class QPController(Controller):
             if np.any(b <= 0.0):
                 raise InvalidArgument(f"braking_acceleration must be > 0, got {b}")
             self.braking_acceleration = b
-        self.eps_abs = _positive(eps_abs, "eps_abs")
+        self.eps_abs = check_positive(eps_abs, "eps_abs")
         if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
             raise InvalidArgument(f"max_iter must be an integer >= 1, got {max_iter!r}")
         self.max_iter = int(max_iter)

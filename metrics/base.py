@@ -16,9 +16,9 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.errors import NoSymbolicForm
+from geosyn.robots.validation import check_vector
 
 
 class MetricFunctions(NamedTuple):
@@ -168,25 +168,8 @@ class Metric(ABC):
 
     # -- input checks ----------------------------------------------------------------
     def _check(self, x: object, name: str) -> np.ndarray:
-        """Fast path for float64 (n,) arrays; full validation otherwise."""
-        if (
-            x.__class__ is np.ndarray
-            and x.shape == (self.n,)  # type: ignore[attr-defined]
-            and x.dtype == np.float64  # type: ignore[attr-defined]
-            and math.isfinite(np.dot(x, x))  # type: ignore[call-overload]
-        ):
-            return x  # type: ignore[return-value]
-        try:
-            arr = np.asarray(x, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise InvalidArgument(
-                f"{name} must be a float array of shape ({self.n},), got {x!r}"
-            ) from err
-        if arr.shape != (self.n,):
-            raise InvalidArgument(f"{name} must have shape ({self.n},), got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise InvalidArgument(f"{name} must be finite, got {arr}")
-        return arr
+        """``x`` as a finite float64 (n,) array (no copy on the fast path), else raise."""
+        return check_vector(x, self.n, name)
 
     # -- compiled symbolic functions -----------------------------------------------------
     def build_functions(self) -> MetricFunctions:

@@ -39,6 +39,7 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.metrics.base import Metric, christoffel_from_dG, sx_cholesky_solve
 from geosyn.metrics.errors import GeodesicNotFound, NoSymbolicForm
+from geosyn.robots.validation import check_positive
 
 __all__ = [
     "Geodesic",
@@ -115,16 +116,6 @@ def _steps(steps: object, name: str = "steps") -> int:
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
         raise InvalidArgument(f"{name} must be an int >= 1, got {steps!r}")
     return int(steps)
-
-
-def _positive(x: object, name: str) -> float:
-    try:
-        val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}") from err
-    if not (math.isfinite(val) and val > 0.0):
-        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}")
-    return val
 
 
 def _metric(metric: object) -> Metric:
@@ -340,7 +331,7 @@ def exp(
     n = metric.n
     q0 = _vector(q0, "q0", n)
     v0 = _vector(v0, "v0", n)
-    duration = _positive(duration, "duration")
+    duration = check_positive(duration, "duration")
     steps = _steps(steps)
     if method not in _METHODS:
         raise InvalidArgument(f"method must be one of {', '.join(_METHODS)}, got {method!r}")
@@ -559,7 +550,7 @@ def log_solve(
     q0 = _vector(q0, "q0", n)
     q1 = _vector(q1, "q1", n)
     steps = _steps(steps)
-    tol = _positive(tol, "tol")
+    tol = check_positive(tol, "tol")
     max_iter = _steps(max_iter, "max_iter")
     if (
         isinstance(multistart, bool)
@@ -711,7 +702,7 @@ def straight_line(q0: Vector, q1: Vector, duration: float = 1.0, steps: int = 10
     """
     q0 = _vector(q0, "q0")
     q1 = _vector(q1, "q1", q0.shape[0])
-    duration = _positive(duration, "duration")
+    duration = check_positive(duration, "duration")
     steps = _steps(steps)
     t = np.linspace(0.0, duration, steps + 1)
     s = (t / duration)[:, None]

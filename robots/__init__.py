@@ -13,7 +13,8 @@ from geosyn.robots.loading import (
     robot_from_model,
 )
 from geosyn.robots.mjcf import robot_to_mjcf
-from geosyn.robots.robot import CollisionCapsule, CollisionSphere, Robot, check_vector
+from geosyn.robots.robot import CollisionCapsule, CollisionSphere, Robot
+from geosyn.robots.validation import check_positive, check_vector
 
 __all__ = [
     "BUILTINS",
@@ -24,6 +25,7 @@ __all__ = [
     "RobotFileError",
     "UnknownFrame",
     "UnknownRobot",
+    "check_positive",
     "check_vector",
     "example_robot_data_dir",
     "load_file",

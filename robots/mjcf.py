@@ -24,12 +24,14 @@ _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 _INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 
 
-def _f(x: float) -> str:
+def mjcf_number(x: float) -> str:
+    """A float in MJCF text at full precision (round-trips exactly)."""
     return repr(float(x))
 
 
-def _vec(v: Sequence[float] | np.ndarray) -> str:
-    return " ".join(_f(x) for x in np.asarray(v, dtype=np.float64).ravel())
+def mjcf_vector(v: Sequence[float] | np.ndarray) -> str:
+    """A vector in MJCF text: space-separated full-precision floats."""
+    return " ".join(mjcf_number(x) for x in np.asarray(v, dtype=np.float64).ravel())
 
 
 def joint_axis(model: pin.Model, jid: int) -> tuple[str, np.ndarray]:
@@ -101,8 +103,8 @@ def robot_to_mjcf(
     caps_by_joint: dict[str, list[str]] = {}
     for i, c in enumerate(robot.capsules):
         geom = (
-            f'<geom name="capsule{i}" type="capsule" fromto="{_vec(c.p0)} {_vec(c.p1)}"'
-            f' size="{_f(c.radius)}" contype="0" conaffinity="0" group="1"'
+            f'<geom name="capsule{i}" type="capsule" fromto="{mjcf_vector(c.p0)} {mjcf_vector(c.p1)}"'
+            f' size="{mjcf_number(c.radius)}" contype="0" conaffinity="0" group="1"'
             ' rgba="0.55 0.6 0.7 1"/>'
         )
         caps_by_joint.setdefault(c.joint, []).append(geom)
@@ -119,21 +121,25 @@ def robot_to_mjcf(
         iq, iv = model.joints[jid].idx_q, model.joints[jid].idx_v
         lo, hi = robot.q_min[iq], robot.q_max[iq]
         limited = limits and np.isfinite(lo) and np.isfinite(hi)
-        rng = f' limited="true" range="{_f(lo)} {_f(hi)}"' if limited else ' limited="false"'
+        rng = (
+            f' limited="true" range="{mjcf_number(lo)} {mjcf_number(hi)}"'
+            if limited
+            else ' limited="false"'
+        )
         lines = [
-            f'{indent}<body name={quoteattr(body_name(model, jid))} pos="{_vec(placement.translation)}"'
-            f' quat="{_vec(wxyz)}">',
-            f'{indent}  <joint name={quoteattr(name)} type="{jtype}" axis="{_vec(axis)}"'
-            f' armature="{_f(model.armature[iv])}" damping="0" frictionloss="0"{rng}/>',
-            f'{indent}  <inertial pos="{_vec(inertia.lever)}" mass="{_f(inertia.mass)}"'
-            f' fullinertia="{_vec([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]])}"/>',
+            f'{indent}<body name={quoteattr(body_name(model, jid))} pos="{mjcf_vector(placement.translation)}"'
+            f' quat="{mjcf_vector(wxyz)}">',
+            f'{indent}  <joint name={quoteattr(name)} type="{jtype}" axis="{mjcf_vector(axis)}"'
+            f' armature="{mjcf_number(model.armature[iv])}" damping="0" frictionloss="0"{rng}/>',
+            f'{indent}  <inertial pos="{mjcf_vector(inertia.lever)}" mass="{mjcf_number(inertia.mass)}"'
+            f' fullinertia="{mjcf_vector([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]])}"/>',
         ]
         lines += [f"{indent}  {g_}" for g_ in caps_by_joint.get(name, [])]
         if ee.parentJoint == jid:
             q_ee = pin.Quaternion(ee.placement.rotation)
             lines.append(
-                f'{indent}  <site name={quoteattr(robot.ee_frame)} pos="{_vec(ee.placement.translation)}"'
-                f' quat="{_vec((q_ee.w, q_ee.x, q_ee.y, q_ee.z))}" size="0.01"/>'
+                f'{indent}  <site name={quoteattr(robot.ee_frame)} pos="{mjcf_vector(ee.placement.translation)}"'
+                f' quat="{mjcf_vector((q_ee.w, q_ee.x, q_ee.y, q_ee.z))}" size="0.01"/>'
             )
         if name in body_extra:
             lines.append(f"{indent}  {body_extra[name]}")
@@ -147,14 +153,14 @@ def robot_to_mjcf(
         tree += body(c, "    ")
     actuators = [
         f'    <motor name={quoteattr(n + "_motor")} joint={quoteattr(n)} gear="1"'
-        f' ctrllimited="true" ctrlrange="{_f(-t)} {_f(t)}"/>'
+        f' ctrllimited="true" ctrlrange="{mjcf_number(-t)} {mjcf_number(t)}"/>'
         for n, t in zip(robot.joint_names, robot.tau_max, strict=True)
     ]
     return "\n".join(
         [
             f"<mujoco model={quoteattr(robot.name)}>",
             '  <compiler angle="radian" inertiafromgeom="false" autolimits="false"/>',
-            f'  <option timestep="{_f(timestep)}" gravity="{_vec(g)}" integrator="{integrator}"/>',
+            f'  <option timestep="{mjcf_number(timestep)}" gravity="{mjcf_vector(g)}" integrator="{integrator}"/>',
             '  <visual><global offwidth="1280" offheight="960"/></visual>',
             "  <worldbody>",
             '    <light pos="0 0 4" dir="0 0 -1" directional="true"/>',

@@ -15,6 +15,7 @@ import pinocchio as pin
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.robots.errors import UnknownFrame
+from geosyn.robots.validation import check_vector
 
 if TYPE_CHECKING:
     import mujoco
@@ -205,22 +206,3 @@ class Robot:
         import mujoco
 
         return mujoco.MjModel.from_xml_string(self.mjcf(**options))
-
-
-def check_vector(x: object, n: int, name: str) -> Vector:
-    """Return ``x`` as a finite float64 (n,) array, or raise `InvalidArgument`.
-
-    Args:
-        x: candidate vector.
-        n: expected length.
-        name: argument name for the error message.
-    """
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got {x!r}") from err
-    if arr.shape != (n,):
-        raise InvalidArgument(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InvalidArgument(f"{name} must be finite, got {arr}")
-    return arr

@@ -43,29 +43,14 @@ import pinocchio as pin
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.robots.mjcf import body_name
+from geosyn.robots.mjcf import mjcf_number as _f
+from geosyn.robots.mjcf import mjcf_vector as _vec
 from geosyn.robots.robot import Robot
+from geosyn.robots.validation import check_vector
 from geosyn.sim.errors import UnknownBody, UnsupportedObstacle
 
 #: Collision bit of the robot's and payloads' geoms when ``contact=True``.
 _ROBOT_BIT = 2
-
-
-def _f(x: float) -> str:
-    return repr(float(x))
-
-
-def _vec(v: Sequence[float] | np.ndarray) -> str:
-    return " ".join(_f(x) for x in np.asarray(v, dtype=np.float64).ravel())
-
-
-def _finite_vector(x: object, n: int, name: str) -> Vector:
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got {x!r}") from err
-    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise InvalidArgument(f"{name} must be a finite array of shape ({n},), got {x!r}")
-    return arr
 
 
 # -- payloads -------------------------------------------------------------------------
@@ -94,7 +79,7 @@ class Payload:
             raise InvalidArgument(f"Payload mass must be finite and >= 0 [kg], got {self.mass!r}")
         if not (np.isfinite(self.radius) and self.radius > 0.0):
             raise InvalidArgument(f"Payload radius must be > 0 [m], got {self.radius!r}")
-        off = _finite_vector(self.offset, 3, "Payload offset")
+        off = check_vector(self.offset, 3, "Payload offset")
         object.__setattr__(self, "offset", tuple(map(float, off)))
 
     def inertia(self, mass: float | None = None) -> Vector:
@@ -202,7 +187,7 @@ def obstacle_geom(obstacle: Any, index: int, contact: bool = False) -> ObstacleG
     head = f"<geom name={quoteattr(name)} {flags} {style}"
     kind_name = type(obstacle).__name__
     if hasattr(obstacle, "normal") and hasattr(obstacle, "offset"):
-        n = _finite_vector(obstacle.normal, 3, f"{name} ({kind_name}) normal")
+        n = check_vector(obstacle.normal, 3, f"{name} ({kind_name}) normal")
         norm = float(np.linalg.norm(n))
         if norm == 0.0:
             raise InvalidArgument(f"{name} ({kind_name}) normal must be non-zero, got {n}")
@@ -213,8 +198,8 @@ def obstacle_geom(obstacle: Any, index: int, contact: bool = False) -> ObstacleG
         xml = f'{head} type="plane" size="1.5 1.5 0.02" pos="{_vec(pos)}" quat="{_vec(_quat_z_to(n))}"/>'
         return ObstacleGeom("halfspace", (n, np.float64(off)), xml)
     if hasattr(obstacle, "half_extents"):
-        c = _finite_vector(obstacle.center, 3, f"{name} ({kind_name}) center")
-        h = _finite_vector(obstacle.half_extents, 3, f"{name} ({kind_name}) half_extents")
+        c = check_vector(obstacle.center, 3, f"{name} ({kind_name}) center")
+        h = check_vector(obstacle.half_extents, 3, f"{name} ({kind_name}) half_extents")
         if np.any(h < 0):
             raise InvalidArgument(f"{name} ({kind_name}) half_extents must be >= 0 [m], got {h}")
         rot = getattr(obstacle, "rotation", None)
@@ -231,8 +216,8 @@ def obstacle_geom(obstacle: Any, index: int, contact: bool = False) -> ObstacleG
         xml = f'{head} type="box" size="{_vec(size)}" pos="{_vec(c)}" quat="{_vec(_rotation_quat(R))}"/>'
         return ObstacleGeom("box", (c, h, R), xml)
     if hasattr(obstacle, "p0") and hasattr(obstacle, "p1") and hasattr(obstacle, "radius"):
-        a = _finite_vector(obstacle.p0, 3, f"{name} ({kind_name}) p0")
-        b = _finite_vector(obstacle.p1, 3, f"{name} ({kind_name}) p1")
+        a = check_vector(obstacle.p0, 3, f"{name} ({kind_name}) p0")
+        b = check_vector(obstacle.p1, 3, f"{name} ({kind_name}) p1")
         r = float(obstacle.radius)
         if not (np.isfinite(r) and r > 0):
             raise InvalidArgument(f"{name} ({kind_name}) radius must be > 0 [m], got {r}")
@@ -242,7 +227,7 @@ def obstacle_geom(obstacle: Any, index: int, contact: bool = False) -> ObstacleG
             xml = f'{head} type="capsule" size="{_f(r)}" fromto="{_vec(a)} {_vec(b)}"/>'
         return ObstacleGeom("capsule", (a, b, np.float64(r)), xml)
     if hasattr(obstacle, "center") and hasattr(obstacle, "radius"):
-        c = _finite_vector(obstacle.center, 3, f"{name} ({kind_name}) center")
+        c = check_vector(obstacle.center, 3, f"{name} ({kind_name}) center")
         r = float(obstacle.radius)
         if not (np.isfinite(r) and r > 0):
             raise InvalidArgument(f"{name} ({kind_name}) radius must be > 0 [m], got {r}")
@@ -373,7 +358,7 @@ class Scene:
         moved by the frame's placement in its joint (= body) frame. ``None`` is the frame
         origin.
         """
-        p = np.zeros(3) if point is None else _finite_vector(point, 3, "point")
+        p = np.zeros(3) if point is None else check_vector(point, 3, "point")
         rmodel = self.robot.model
         if mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name) < 0 and (
             rmodel.existFrame(name) or rmodel.existJointName(name)

@@ -21,7 +21,6 @@ and ``metric.parameter_values()``; both are empty for a metric without parameter
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 
@@ -37,6 +36,7 @@ from geosyn.metrics.shaping.errors import (
     TermNotBound,
 )
 from geosyn.robots.robot import Robot
+from geosyn.robots.validation import check_vector
 
 __all__ = ["MetricTerm", "ShapedMetric"]
 
@@ -53,26 +53,6 @@ def _maybe_compile(fun: ca.Function, compile: bool) -> ca.Function:
     from geosyn.metrics.codegen import compile_function
 
     return compile_function(fun, fallback=True)
-
-
-def _check_vector(x: object, n: int, name: str) -> np.ndarray:
-    """Fast path for float64 (n,) arrays, full validation otherwise."""
-    if (
-        x.__class__ is np.ndarray
-        and x.shape == (n,)  # type: ignore[attr-defined]
-        and x.dtype == np.float64  # type: ignore[attr-defined]
-        and math.isfinite(np.dot(x, x))  # type: ignore[call-overload]
-    ):
-        return x  # type: ignore[return-value]
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got {x!r}") from err
-    if arr.shape != (n,):
-        raise InvalidArgument(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InvalidArgument(f"{name} must be finite, got {arr}")
-    return arr
 
 
 class MetricTerm(ABC):
@@ -206,8 +186,8 @@ class MetricTerm(ABC):
             (n, n) symmetric PSD matrix (a new array).
         """
         n = self.n
-        q = _check_vector(q, n, "q")
-        v = np.zeros(n) if v is None else _check_vector(v, n, "v")
+        q = check_vector(q, n, "q")
+        v = np.zeros(n) if v is None else check_vector(v, n, "v")
         if self._call is None:
             self._call = _numpy_call(self.build_function())
         return self._call(q, v, self.parameter_values())[0].copy()

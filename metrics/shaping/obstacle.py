@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from geosyn.metrics.shaping.base import MetricTerm, _check_vector, _numpy_call
+from geosyn.metrics.shaping.base import MetricTerm, _numpy_call
 from geosyn.metrics.shaping.errors import (
     CapacityExceeded,
     InvalidObstacle,
@@ -43,6 +43,7 @@ from geosyn.metrics.shaping.errors import (
     UnknownObstacleType,
 )
 from geosyn.robots.robot import CollisionSphere, Robot
+from geosyn.robots.validation import check_vector
 
 __all__ = [
     "Box",
@@ -618,7 +619,7 @@ class ObstacleTerm(MetricTerm):
         Returns:
             (n_spheres, n_obstacles) signed clearances [m] (negative: penetration).
         """
-        q = _check_vector(q, self.n, "q")
+        q = check_vector(q, self.n, "q")
         if self._clearance_call is None:
             qs = ca.SX.sym("q", self.n)
             rows = [ca.horzcat(*[d for d, _, _ in pairs]) for _, pairs in self._pairs(qs)]
