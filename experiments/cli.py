@@ -8,6 +8,7 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 from collections.abc import Callable, Sequence
@@ -203,6 +204,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     _terminate_cleanly()
     try:
         return fn(args)
+    except BrokenPipeError:  # output piped into e.g. `head`, which closed early
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except GeosynError as err:
         message = " ".join(str(err).split())  # one line, always
         print(f"geosyn {args.command}: error: {type(err).__name__}: {message}", file=sys.stderr)
