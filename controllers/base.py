@@ -20,6 +20,7 @@ from geosyn.controllers.errors import ControllerError, NoReference
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot, check_vector
 
 
@@ -101,11 +102,19 @@ class Controller(ABC):
 
     saturation_tol: float = 1e-6
 
-    def __init__(self, robot: Robot, reference: Reference | None = None) -> None:
+    def __init__(
+        self, robot: Robot, reference: Reference | None = None, metric: Metric | None = None
+    ) -> None:
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
         self.robot = robot
         self.nv = robot.nv
+        if metric is not None and getattr(metric, "n", None) != self.nv:
+            raise InvalidArgument(
+                f"metric must have dimension nv={self.nv}, got {getattr(metric, 'n', metric)!r}"
+            )
+        #: Metric of the references (shaping, replanning); None when not given.
+        self.metric = metric
         self._tau_max = np.asarray(robot.tau_max, dtype=np.float64).copy()
         self._tau_min = -self._tau_max
         self._tau_raw = np.zeros(self.nv)

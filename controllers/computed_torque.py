@@ -9,12 +9,41 @@ import pinocchio as pin
 
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.reference import Reference
-from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.robots.robot import Robot
 
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
+
+
+def tracking_acceleration(
+    reference: Reference,
+    t: float,
+    q: Vector,
+    v: Vector,
+    kp: Vector,
+    kd: Vector,
+    out: Vector,
+) -> Vector:
+    """PD-corrected reference acceleration ``a_ref + Kd (v_ref - v) + Kp (q_ref - q)``.
+
+    Args:
+        reference: the reference, sampled at ``t``.
+        t: time [s].
+        q: (nv,) joint positions [rad].
+        v: (nv,) joint velocities [rad/s].
+        kp: (nv,) position gains [1/s^2].
+        kd: (nv,) velocity gains [1/s].
+        out: (nv,) buffer written and returned [rad/s^2].
+    """
+    q_ref, v_ref, a_ref = reference.sample(t)
+    np.subtract(q_ref, q, out=out)
+    out *= kp
+    out += a_ref
+    v_err = v_ref - v
+    v_err *= kd
+    out += v_err
+    return out
 
 
 class ComputedTorque(Controller):
@@ -50,29 +79,24 @@ class ComputedTorque(Controller):
         metric: Metric | None = None,
         reference: Reference | None = None,
     ) -> None:
-        super().__init__(robot, reference)
+        super().__init__(robot, reference, metric)
         self.kp = check_gain(kp, self.nv, "kp")
         self.kd = check_gain(kd, self.nv, "kd")
-        if metric is not None and getattr(metric, "n", None) != self.nv:
-            raise InvalidArgument(
-                f"metric must have dimension nv={self.nv}, got {getattr(metric, 'n', metric)!r}"
-            )
-        self.metric = metric
         self._model = robot.model
         self._data = robot.model.createData()
         self._a_des = np.zeros(self.nv)
 
     def desired_acceleration(self, t: float, q: Vector, v: Vector) -> Vector:
         """``a_ref + Kd (v_ref - v) + Kp (q_ref - q)`` [rad/s^2] (into an internal buffer)."""
-        q_ref, v_ref, a_ref = self._reference.sample(t)  # type: ignore[union-attr]
-        a = self._a_des
-        np.subtract(q_ref, q, out=a)
-        a *= self.kp
-        a += a_ref
-        v_ref -= v
-        v_ref *= self.kd
-        a += v_ref
-        return a
+        return tracking_acceleration(
+            self._reference,  # type: ignore[arg-type]
+            t,
+            q,
+            v,
+            self.kp,
+            self.kd,
+            self._a_des,
+        )
 
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
         a_des = self.desired_acceleration(t, q, v)

@@ -9,6 +9,7 @@ import pinocchio as pin
 import proxsuite
 
 from geosyn.controllers.base import Controller, check_gain
+from geosyn.controllers.computed_torque import tracking_acceleration
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
@@ -101,7 +102,7 @@ class QPController(Controller):
         metric: Metric | None = None,
         reference: Reference | None = None,
     ) -> None:
-        super().__init__(robot, reference)
+        super().__init__(robot, reference, metric)
         n = self.nv
         self.kp = check_gain(kp, n, "kp")
         self.kd = check_gain(kd, n, "kd")
@@ -126,11 +127,6 @@ class QPController(Controller):
         if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
             raise InvalidArgument(f"max_iter must be an integer >= 1, got {max_iter!r}")
         self.max_iter = int(max_iter)
-        if metric is not None and getattr(metric, "n", None) != n:
-            raise InvalidArgument(
-                f"metric must have dimension nv={n}, got {getattr(metric, 'n', metric)!r}"
-            )
-        self.metric = metric
         self._model = robot.model
         self._data = robot.model.createData()
         # Bounds are computed for both sides at once on stacked (2 nv,) arrays: the upper
@@ -224,15 +220,15 @@ class QPController(Controller):
     # -- control ----------------------------------------------------------------------
     def desired_acceleration(self, t: float, q: Vector, v: Vector) -> Vector:
         """``a_ref + Kd (v_ref - v) + Kp (q_ref - q)`` [rad/s^2] (internal buffer)."""
-        q_ref, v_ref, a_ref = self._reference.sample(t)  # type: ignore[union-attr]
-        a = self._a_des
-        np.subtract(q_ref, q, out=a)
-        a *= self.kp
-        a += a_ref
-        v_ref -= v
-        v_ref *= self.kd
-        a += v_ref
-        return a
+        return tracking_acceleration(
+            self._reference,  # type: ignore[arg-type]
+            t,
+            q,
+            v,
+            self.kp,
+            self.kd,
+            self._a_des,
+        )
 
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
         n = self.nv

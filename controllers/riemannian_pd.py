@@ -9,7 +9,6 @@ import pinocchio as pin
 
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.reference import Reference
-from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.robots.robot import Robot
 
@@ -72,14 +71,9 @@ class RiemannianPD(Controller):
         metric: Metric | None = None,
         reference: Reference | None = None,
     ) -> None:
-        super().__init__(robot, reference)
+        super().__init__(robot, reference, metric)
         self.lam = check_gain(lam, self.nv, "lam")
         self.k = check_gain(k, self.nv, "k")
-        if metric is not None and getattr(metric, "n", None) != self.nv:
-            raise InvalidArgument(
-                f"metric must have dimension nv={self.nv}, got {getattr(metric, 'n', metric)!r}"
-            )
-        self.metric = metric
         self._model = robot.model
         self._data = robot.model.createData()
         self._e = np.zeros(self.nv)
