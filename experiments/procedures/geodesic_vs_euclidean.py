@@ -18,7 +18,6 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from geosyn.controllers import JointTrajectoryReference
-from geosyn.controllers.reference import GeodesicReference
 from geosyn.experiments import build as B
 from geosyn.experiments.plots import bar_plot, torque_plot, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
@@ -71,7 +70,7 @@ class GeodesicVsEuclidean(Procedure):
             out[f"path_{name}__t"], out[f"path_{name}__q"] = geo.t, geo.q
             out[f"path_{name}__energy"] = np.array(path_energy(metric, geo.t, geo.q))
             ref = (
-                GeodesicReference(geo, metric)
+                B.tracked_reference(geo, metric)
                 if name == "geodesic"
                 else JointTrajectoryReference(geo.t, geo.q, geo.v)
             )
@@ -113,10 +112,9 @@ class GeodesicVsEuclidean(Procedure):
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
-        from geosyn.robots import load_robot
         from geosyn.synergies.figures import figure_configuration_space
 
-        robot = load_robot(cfg.robot.name, **cfg.robot.options.model_dump(exclude_none=True))
+        robot = B.build_robot(cfg)
         metric = B.build_metric(cfg, robot)
         fig = figure_configuration_space(
             metric, params.q0, params.q1, out_dir / "figure1_configuration_space.png", robot

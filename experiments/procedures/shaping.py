@@ -20,7 +20,6 @@ from typing import Any
 
 import numpy as np
 
-from geosyn.controllers.reference import GeodesicReference
 from geosyn.experiments import build as B
 from geosyn.experiments.plots import bar_plot, torque_plot, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
@@ -89,7 +88,7 @@ class _Shaping(Procedure):
                 else np.full(len(geo.t), np.inf)
             )
             out[f"path_{name}__clearance"] = clear
-            ref = GeodesicReference(geo, metrics[name], time_scale=cfg.reference.time_scale)
+            ref = B.tracked_reference(geo, metrics[name], cfg.reference.time_scale)
             q0, v0, _ = ref.sample(0.0)
             for label, ccfg in zip(labels, cfg.controllers, strict=True):
                 ctrl = B.build_controller(

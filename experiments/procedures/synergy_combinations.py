@@ -114,10 +114,9 @@ class SynergyCombinations(Procedure):
     ) -> list[Path]:
         import matplotlib.pyplot as plt
 
-        from geosyn.robots import load_robot
         from geosyn.synergies.figures import figure_synergy_combinations
 
-        robot = load_robot(cfg.robot.name, **cfg.robot.options.model_dump(exclude_none=True))
+        robot = B.build_robot(cfg)
         metric = B.build_metric(cfg, robot)
         syns = B.build_synergies(cfg, metric, robot)
         fig2 = figure_synergy_combinations(
