@@ -149,6 +149,20 @@ class Metric(ABC):
         """(p,) current numeric values of `symbolic_parameters` (default: empty)."""
         return np.zeros(0)
 
+    def parameter_homotopy(self, s: float) -> np.ndarray | None:
+        """Parameter values of an easier metric, for continuation in the log map.
+
+        `geosyn.metrics.geodesic.log_solve` solves at ``s = 0`` first and follows the
+        solution to the current parameters at ``s = 1``. Default: no homotopy (None).
+
+        Args:
+            s: homotopy parameter in [0, 1]; 0 the easiest problem.
+
+        Returns:
+            (p,) parameter values at ``s``, or None when the metric has no homotopy.
+        """
+        return None
+
     def symbolic_geodesic_acceleration(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """SX expression of the geodesic acceleration -G^-1 c(q, v).
 

@@ -87,13 +87,18 @@ class LogResult(NamedTuple):
         iterations: Newton iterations spent in total (all starts and stages).
         method: how the solution was found: ``"newton"`` (from the initial guess),
             ``"newton(straight-line)"`` (v_init failed, the straight-line guess worked),
-            ``"continuation"`` or ``"multistart"``.
+            ``"parameter continuation"``, ``"continuation"`` or ``"multistart"``.
+        discretization_error: ||q(1) with 2 x steps - q1|| [rad]: within ``residual`` of
+            the change of q(1) when the steps double, ~15/16 of the RK4 error; solutions above ``discretization_tol``
+            are rejected (a solution of the discretised shooting map only, e.g. skimming
+            a stiff obstacle barrier).
     """
 
     v0: np.ndarray
     residual: float
     iterations: int
     method: str
+    discretization_error: float = 0.0
 
 
 # --------------------------------------------------------------------------------------
@@ -380,11 +385,24 @@ class _Shooter:
         if self.funcs.symbolic:
             self._one, self._batch = _shoot_functions(self.funcs, steps)
 
+    def set_parameters(self, values: np.ndarray) -> None:
+        """Shoot with these metric parameter values (p,) instead of the metric's own."""
+        self.theta = np.concatenate([[self.dt], values])
+
     def end(self, v0: np.ndarray) -> np.ndarray:
         """q(1) for initial velocity v0 (NaN if the integration blew up)."""
         if self.funcs.symbolic:
             return np.asarray(self._one(np.concatenate([self.q0, v0]), self.theta)).ravel()
         return _numpy_rk4(self.metric, self.q0, v0, self.dt, self.steps)[-1, : self.n]
+
+    def end_fine(self, v0: np.ndarray) -> np.ndarray:
+        """q(1) with twice the steps (for the discretisation check of a solution)."""
+        if not self.funcs.symbolic:
+            return _numpy_rk4(self.metric, self.q0, v0, 0.5 * self.dt, 2 * self.steps)[-1, : self.n]
+        one, _ = _shoot_functions(self.funcs, 2 * self.steps)
+        theta = self.theta.copy()
+        theta[0] = 0.5 * self.dt
+        return np.asarray(one(np.concatenate([self.q0, v0]), theta)).ravel()
 
     def end_and_jacobian(self, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """q(1) and d q(1) / d v0 (n, n) by forward differences."""
@@ -494,6 +512,62 @@ def _continuation(
     return v, _norm(shooter.end(v) - q1), False
 
 
+def _parameter_continuation(
+    shooter: _Shooter,
+    metric: Metric,
+    q1: np.ndarray,
+    guess: np.ndarray,
+    tol: float,
+    budget: _Budget,
+) -> tuple[np.ndarray, float, bool]:
+    """Homotopy on the metric parameters, ``metric.parameter_homotopy(s)``, s: 0 -> 1.
+
+    Solves the easiest problem (s = 0) from ``guess``, then follows the solution with a
+    secant predictor and adaptive stage length; s = 1 uses the metric's own parameters.
+    The shooter is left with the metric's own parameters.
+    """
+    p_final = np.array(metric.parameter_values(), dtype=np.float64)
+
+    def params(s: float) -> np.ndarray:
+        if s >= 1.0:
+            return p_final
+        p = np.asarray(metric.parameter_homotopy(s), dtype=np.float64)
+        if p.shape != p_final.shape or not np.all(np.isfinite(p)):
+            raise InvalidArgument(
+                f"{type(metric).__name__}.parameter_homotopy({s:g}) must return a finite "
+                f"array of shape {p_final.shape}, got shape {p.shape}"
+            )
+        return p
+
+    try:
+        shooter.set_parameters(params(0.0))
+        v, r, ok, _ = _newton(shooter, q1, guess.copy(), max(tol, _STAGE_TOL), budget)
+        if not ok:
+            return v, math.inf, False
+        s, ds = 0.0, 0.25
+        v_prev: np.ndarray | None = None
+        s_prev = 0.0
+        while budget.left > 0:
+            s_new = min(1.0, s + ds)
+            pred = v if v_prev is None else v + (v - v_prev) * (s_new - s) / (s - s_prev)
+            shooter.set_parameters(params(s_new))
+            stage_tol = tol if s_new >= 1.0 else max(tol, _STAGE_TOL)
+            v_new, r, ok, _ = _newton(shooter, q1, pred, stage_tol, budget)
+            if ok:
+                v_prev, s_prev, v, s = v, s, v_new, s_new
+                if s >= 1.0:
+                    return v, r, True
+                ds = min(1.5 * ds, 0.5)
+            else:
+                ds *= 0.5
+                if ds < _MIN_DS:
+                    break
+        shooter.set_parameters(p_final)
+        return v, _norm(shooter.end(v) - q1), False
+    finally:
+        shooter.set_parameters(p_final)
+
+
 def log_solve(
     metric: Metric,
     q0: Vector,
@@ -506,6 +580,7 @@ def log_solve(
     multistart: int = 0,
     seed: int = 0,
     continuation: bool = True,
+    discretization_tol: float = 1e-4,
 ) -> LogResult:
     """Log map with diagnostics: the v0 whose geodesic reaches q1 at t = 1.
 
@@ -518,10 +593,14 @@ def log_solve(
 
     1. Newton from ``v_init`` (default: the straight-line guess ``q1 - q0``);
     2. if ``v_init`` was given: Newton from the straight-line guess;
-    3. (if ``continuation``) continuation on the target ``q1(s) = q0 + s (q1 - q0)``
+    3. (if ``continuation`` and the metric has a `Metric.parameter_homotopy`, e.g. a
+       shaped metric with obstacles, which shrinks them about their centres) continuation
+       on the metric parameters from the easiest problem (s = 0, solved from the first
+       guess) to the metric's own (s = 1), secant predictor, adaptive stage length;
+    4. (if ``continuation``) continuation on the target ``q1(s) = q0 + s (q1 - q0)``
        from s = 0 to 1, each stage warm-started by a tangent predictor, the stage length
        adapted;
-    4. ``multistart`` Newton runs from seeded random perturbations of the straight-line
+    5. ``multistart`` Newton runs from seeded random perturbations of the straight-line
        guess (normal, standard deviation 0.5 |q1 - q0| per component).
 
     Args:
@@ -531,11 +610,15 @@ def log_solve(
         v_init: (n,) initial guess of v0 [rad/s], e.g. the solution of a nearby pair.
         steps: RK4 steps of the shooting integration (as in `exp`), >= 1.
         tol: residual tolerance ||q(1) - q1|| [rad], > 0.
-        max_iter: total budget of Newton iterations (Jacobian evaluations) over all
-            starts and continuation stages, >= 1.
+        max_iter: budget of Newton iterations (Jacobian evaluations) of each strategy
+            (the initial guesses together, each continuation over all its stages, the
+            restarts together), >= 1; `LogResult.iterations` reports the total.
         multistart: number of random restarts, >= 0.
         seed: seed of the restarts' random generator.
-        continuation: try the continuation (step 3) when Newton fails.
+        continuation: try the continuations (steps 3 and 4) when Newton fails.
+        discretization_tol: largest accepted change of q(1) [rad] when the converged v0
+            is integrated with twice the steps; a solution above it is rejected and the
+            next strategy tried (raise ``steps`` for stiff metrics).
 
     Returns:
         The solution and how it was found.
@@ -551,6 +634,7 @@ def log_solve(
     q1 = _vector(q1, "q1", n)
     steps = _steps(steps)
     tol = check_positive(tol, "tol")
+    discretization_tol = check_positive(discretization_tol, "discretization_tol")
     max_iter = _steps(max_iter, "max_iter")
     if (
         isinstance(multistart, bool)
@@ -562,45 +646,80 @@ def log_solve(
         raise InvalidArgument(f"seed must be an int, got {seed!r}")
     straight = q1 - q0
     shooter = _Shooter(metric, q0, steps)
-    budget = _Budget(max_iter)
     best_v, best_r = straight, math.inf
+    spent = 0  # Newton iterations of the finished strategies
 
     def keep(v: np.ndarray, r: float) -> None:
         nonlocal best_v, best_r
         if r < best_r:
             best_v, best_r = v, r
 
+    coarse: list[float] = []  # discretisation errors of rejected solutions
+
+    def accept(v: np.ndarray, r: float, method: str, budget: _Budget) -> LogResult | None:
+        """The result if the converged v0 also solves the finer discretisation."""
+        # |q_fine(1) - q1| differs from the RK4 change |q_fine(1) - q(1)| by at most the
+        # residual r <= tol, and needs one integration fewer.
+        err = _norm(shooter.end_fine(v) - q1)
+        if err <= discretization_tol:
+            return LogResult(v, r, spent + budget.used, method, err)
+        coarse.append(err)
+        return None
+
+    # Each strategy has its own budget of max_iter Newton iterations, so a failing one
+    # never starves the next.
     starts: list[tuple[np.ndarray, str]] = []
     if v_init is not None:
         starts.append((_vector(v_init, "v_init", n), "newton"))
         starts.append((straight, "newton(straight-line)"))
     else:
         starts.append((straight, "newton"))
+    budget = _Budget(max_iter)
     for guess, label in starts:
         v, r, ok, _ = _newton(shooter, q1, guess.copy(), tol, budget)
         keep(v, r)
-        if ok:
-            return LogResult(v, r, budget.used, label)
-    if continuation and budget.left > 0:
-        v, r, ok = _continuation(shooter, q1, tol, budget)
-        if ok:
-            return LogResult(v, r, budget.used, "continuation")
+        if ok and (res := accept(v, r, label, budget)) is not None:
+            return res
+    spent += budget.used
+    if continuation and metric.parameter_homotopy(0.0) is not None:
+        budget = _Budget(max_iter)
+        v, r, ok = _parameter_continuation(shooter, metric, q1, starts[0][0], tol, budget)
+        if ok and (res := accept(v, r, "parameter continuation", budget)) is not None:
+            return res
         if math.isfinite(r):
             keep(v, r)
+        spent += budget.used
+    if continuation:
+        budget = _Budget(max_iter)
+        v, r, ok = _continuation(shooter, q1, tol, budget)
+        if ok and (res := accept(v, r, "continuation", budget)) is not None:
+            return res
+        if math.isfinite(r):
+            keep(v, r)
+        spent += budget.used
     rng = np.random.default_rng(seed)
     scale = 0.5 * max(float(np.linalg.norm(straight)), 1e-3)
+    budget = _Budget(max_iter)
     for _ in range(int(multistart)):
         if budget.left <= 0:
             break
         guess = straight + scale * rng.standard_normal(n)
         v, r, ok, _ = _newton(shooter, q1, guess, tol, budget)
         keep(v, r)
-        if ok:
-            return LogResult(v, r, budget.used, "multistart")
+        if ok and (res := accept(v, r, "multistart", budget)) is not None:
+            return res
+    spent += budget.used
     raise GeodesicNotFound(
         f"log: no geodesic from q0={q0.tolist()} to q1={q1.tolist()} found with "
         f"steps={steps}, tol={tol:g}, max_iter={max_iter}, multistart={multistart}: "
-        f"best residual {best_r:.3e} rad after {budget.used} Newton iterations",
+        f"best residual {best_r:.3e} rad after {spent} Newton iterations"
+        + (
+            f"; {len(coarse)} converged solution(s) rejected: their end point moved by "
+            f"{min(coarse):.1e} rad or more with 2 x steps (discretization_tol="
+            f"{discretization_tol:g}): raise steps"
+            if coarse
+            else ""
+        ),
         residual=best_r,
         v0=best_v,
     )
@@ -618,6 +737,7 @@ def log(
     multistart: int = 0,
     seed: int = 0,
     continuation: bool = True,
+    discretization_tol: float = 1e-4,
 ) -> Vector:
     """Log map: the (n,) initial velocity v0 [rad/s] with exp(q0, v0, 1.0, steps) = q1.
 
@@ -634,6 +754,7 @@ def log(
         multistart=multistart,
         seed=seed,
         continuation=continuation,
+        discretization_tol=discretization_tol,
     ).v0
 
 

@@ -377,3 +377,19 @@ def test_parameters_change_geodesics_without_rebuild() -> None:
     np.testing.assert_allclose(v_back, v0, atol=1e-8)
     u = geodesic.parallel_transport(metric, curved.t, curved.q, v0, qdot=curved.v)
     np.testing.assert_allclose(u, curved.v[-1], atol=1e-8)
+
+
+def test_log_reports_and_enforces_its_discretization_error() -> None:
+    """discretization_error is |q(1) with 2 x steps - q(1)|, checked by exp; a solution
+    above discretization_tol is rejected with a message that says to raise steps."""
+    metric = get_metric("planar2")
+    q0, q1 = np.array([0.2, 0.3]), np.array([0.9, -0.4])
+    res = geodesic.log_solve(metric, q0, q1, steps=50)
+    coarse = geodesic.exp(metric, q0, res.v0, 1.0, 50).q[-1]
+    fine = geodesic.exp(metric, q0, res.v0, 1.0, 100).q[-1]
+    assert res.discretization_error == pytest.approx(np.linalg.norm(fine - coarse), rel=1e-6)
+    assert 0.0 < res.discretization_error < 1e-4
+    with pytest.raises(GeodesicNotFound, match="raise steps"):
+        geodesic.log_solve(
+            metric, q0, q1, steps=50, discretization_tol=1e-3 * res.discretization_error
+        )

@@ -21,6 +21,7 @@ from geosyn.metrics.shaping import (
     Sphere,
     UnknownObstacleType,
 )
+from geosyn.metrics.shaping.obstacle import HOMOTOPY_RADIUS, PARAMS_PER_OBSTACLE
 
 # -- numpy reference ------------------------------------------------------------------
 
@@ -275,35 +276,6 @@ AVOID_STEPS = 200
 AVOID_RADIUS = {"planar2": 0.10, "panda": 0.08}  # obstacle radius [m]
 
 
-def _solve_around(shaped, term, q0, q1, v_free, center, radius):
-    """Shaped log by continuation on the obstacle radius (1 mm -> radius).
-
-    Each stage only rewrites the obstacle parameters (nothing is rebuilt) and warm-starts
-    `log_solve` from a linear extrapolation of the previous stages' solutions.
-    """
-    from geosyn.metrics.errors import GeodesicNotFound
-    from geosyn.metrics.geodesic import log_solve
-
-    rho0 = 1e-3
-    s, ds, v, v_prev, s_prev = 0.0, 0.25, v_free, None, None
-    while s < 1.0:
-        s_new = min(1.0, s + ds)
-        guess = v if v_prev is None else v + (v - v_prev) * (s_new - s) / (s - s_prev)
-        term.set_obstacle(0, Sphere(center, rho0 + s_new * (radius - rho0)))
-        try:
-            res = log_solve(
-                shaped, q0, q1, v_init=guess, steps=AVOID_STEPS, max_iter=50, continuation=False
-            )
-        except GeodesicNotFound:
-            ds /= 2.0
-            if ds < 1.0 / 256.0:
-                raise
-            continue
-        v_prev, s_prev, v, s = v, s, res.v0, s_new
-        ds = min(1.5 * ds, 0.5)
-    return v
-
-
 def _avoidance_case(robot, base, shaped, term, rng):
     """One well-posed start/goal pair and obstacle, or None to draw again.
 
@@ -346,7 +318,7 @@ def _avoidance_case(robot, base, shaped, term, rng):
 def test_shaped_geodesics_keep_clear_of_a_sphere_obstacle(name: str) -> None:
     """20 seeded pairs whose unshaped geodesic passes through a sphere: log under the
     shaped metric keeps every collision sphere clear, checked on a 4x finer integration."""
-    from geosyn.metrics.geodesic import exp, path_energy
+    from geosyn.metrics.geodesic import exp, log_solve, path_energy
 
     robot = get_robot(name)
     base = get_metric(name)
@@ -354,14 +326,18 @@ def test_shaped_geodesics_keep_clear_of_a_sphere_obstacle(name: str) -> None:
     shaped = ShapedMetric(base, [term])
     rng = np.random.default_rng(60)
     clearances, extra, free_clearances = [], [], []
+    methods: dict[str, int] = {}
     builds = None
     while len(clearances) < AVOID_PAIRS:
         case = _avoidance_case(robot, base, shaped, term, rng)
         if case is None:
             continue
         q0, q1, v_free, free, center, radius, free_clearance = case
-        v = _solve_around(shaped, term, q0, q1, v_free, center, radius)
-        fine = exp(shaped, q0, v, 1.0, 4 * AVOID_STEPS)
+        # Plain log under the shaped metric, warm-started from the unshaped geodesic; where
+        # Newton alone fails it follows the obstacles grown from points (parameter homotopy).
+        res = log_solve(shaped, q0, q1, v_init=v_free, steps=AVOID_STEPS, max_iter=200)
+        methods[res.method] = methods.get(res.method, 0) + 1
+        fine = exp(shaped, q0, res.v0, 1.0, 4 * AVOID_STEPS)
         # The log's solution is a geodesic: a 4x finer integration lands on the goal.
         assert np.abs(fine.q[-1] - q1).max() < 1e-3
         clearances.append(min(term.min_clearance(q) for q in fine.q))
@@ -377,8 +353,28 @@ def test_shaped_geodesics_keep_clear_of_a_sphere_obstacle(name: str) -> None:
         f"\n{name}: {AVOID_PAIRS} pairs, unshaped min clearance {min(free_clearances):.4f} m, "
         f"shaped min clearance {min(clearances):.4f} m (median {np.median(clearances):.4f}); "
         f"extra energy under the unshaped metric: median {np.median(extra):.3f}, "
-        f"max {max(extra):.3f} (relative)"
+        f"max {max(extra):.3f} (relative); log methods {methods}"
     )
+
+
+def test_parameter_homotopy_shrinks_obstacles_about_their_centres() -> None:
+    """s = 0: every obstacle a 1 mm ball at its centre; s = 1: the obstacles themselves."""
+    term = ObstacleTerm(
+        [Sphere((1.0, 0.5, 0.2), 0.1), Box((0.3, -0.2, 0.4), (0.1, 0.2, 0.05))], capacity=3
+    )
+    shaped = ShapedMetric(get_metric("panda"), [term])
+    now = shaped.parameter_values().copy()
+    np.testing.assert_array_equal(shaped.parameter_homotopy(1.0), now)
+    at0 = shaped.parameter_homotopy(0.0).reshape(3, PARAMS_PER_OBSTACLE)
+    slots = now.reshape(3, PARAMS_PER_OBSTACLE)
+    np.testing.assert_array_equal(at0[:, :12], slots[:, :12])  # centres and rotations kept
+    np.testing.assert_array_equal(at0[:, 12:15], 0.0)
+    np.testing.assert_allclose(at0[:, 15], HOMOTOPY_RADIUS, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(at0[:, 16], slots[:, 16])  # active flags kept
+    half = shaped.parameter_homotopy(0.5).reshape(3, PARAMS_PER_OBSTACLE)
+    np.testing.assert_allclose(half[0, 15], 0.5 * 0.1 + 0.5 * HOMOTOPY_RADIUS, rtol=1e-15)
+    np.testing.assert_array_equal(shaped.parameter_values(), now)  # the metric is unchanged
+    assert get_metric("panda").parameter_homotopy(0.0) is None  # unshaped: no homotopy
 
 
 def test_exp_sees_moved_obstacle_without_rebuild() -> None:

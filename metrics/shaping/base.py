@@ -154,6 +154,10 @@ class MetricTerm(ABC):
         """(p,) current parameter values (empty by default). Not a copy: do not modify."""
         return np.zeros(0)
 
+    def parameter_homotopy(self, s: float) -> np.ndarray:
+        """(p,) parameters of an easier term at ``s`` in [0, 1] (default: unchanged)."""
+        return self.parameter_values()
+
     # -- numeric ---------------------------------------------------------------------
     def build_function(self) -> ca.Function:
         """CasADi function ``(q, v, p) -> G_term`` (allocates; called once by `G`)."""
@@ -288,6 +292,13 @@ class ShapedMetric(Metric):
         if len(self._param_terms) == 1:
             return self._param_terms[0].parameter_values()
         return np.concatenate([t.parameter_values() for t in self._param_terms])
+
+    def parameter_homotopy(self, s: float) -> np.ndarray | None:
+        """Each parameterised term's easier parameters at ``s`` (e.g. obstacles shrunk
+        towards their centres), stacked in term order; None without parameters."""
+        if not self._param_terms:
+            return None
+        return np.concatenate([np.asarray(t.parameter_homotopy(s)) for t in self._param_terms])
 
     # -- symbolic --------------------------------------------------------------------
     def symbolic_terms_G(self, q: ca.SX, v: ca.SX | None = None) -> ca.SX:

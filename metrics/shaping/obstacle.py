@@ -61,6 +61,9 @@ __all__ = [
 HALFSPACE_EXTENT = 100.0
 """Half-extent [m] of the cube that represents a `HalfSpace`."""
 
+HOMOTOPY_RADIUS = 1e-3
+"""Radius [m] of the ball each obstacle shrinks to at the start of a log-map homotopy."""
+
 PARAMS_PER_OBSTACLE = 17
 """Parameters per obstacle slot: centre (3), rotation (9, row-major), half-extents (3),
 rounding radius (1), active flag (1)."""
@@ -546,6 +549,27 @@ class ObstacleTerm(MetricTerm):
     def symbolic_parameters(self) -> ca.SX:
         """(capacity * 17, 1) SX parameter symbol (see `PARAMS_PER_OBSTACLE`)."""
         return self._p
+
+    def parameter_homotopy(self, s: float) -> np.ndarray:
+        """Obstacles shrunk about their centres: sizes scaled by ``s`` in [0, 1].
+
+        Half-extents become ``s h`` and the rounding radius ``s r + (1 - s) HOMOTOPY_RADIUS``,
+        so at ``s = 0`` every obstacle is a 1 mm ball at its centre and at ``s = 1`` it is
+        itself. A half-space's far-away cube grows until its face reaches the plane. Used by
+        `log_solve` to follow a geodesic from around points to around the real obstacles.
+
+        Args:
+            s: homotopy parameter in [0, 1].
+
+        Returns:
+            (capacity * 17,) parameters (a new array).
+        """
+        s = float(np.clip(s, 0.0, 1.0))
+        values = self._values.copy()
+        slots = values.reshape(self.capacity, PARAMS_PER_OBSTACLE)
+        slots[:, 12:15] *= s
+        slots[:, 15] = s * slots[:, 15] + (1.0 - s) * HOMOTOPY_RADIUS
+        return values
 
     def parameter_values(self) -> np.ndarray:
         """(capacity * 17,) current parameters (the live array: do not modify)."""
