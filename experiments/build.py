@@ -9,6 +9,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 
 from geosyn.controllers import Controller, GeodesicReference
 from geosyn.experiments import schema as S
@@ -62,7 +63,7 @@ def build_payloads(cfg: S.ExperimentConfig, robot: Robot) -> list[Payload]:
 
 OBSTACLES: dict[str, Callable[[Any], Any]] = {
     "sphere": lambda o: Sphere(tuple(o.center), o.radius),
-    "box": lambda o: Box(tuple(o.center), tuple(o.half_extents)),
+    "box": lambda o: Box(tuple(o.center), tuple(o.half_extents), pin.rpy.rpyToMatrix(*o.rpy)),
     "capsule": lambda o: Capsule(tuple(o.p0), tuple(o.p1), o.radius),
     "halfspace": lambda o: HalfSpace(tuple(o.normal), o.offset),
 }

@@ -98,6 +98,9 @@ class BoxConfig(Strict):
     type: Literal["box"]
     center: Vec3
     half_extents: Annotated[list[PositiveFloat], Field(min_length=3, max_length=3)]
+    #: orientation as roll, pitch, yaw [rad] about the world's x, y, z (URDF convention:
+    #: R = Rz(yaw) Ry(pitch) Rx(roll)).
+    rpy: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
 class CapsuleConfig(Strict):
