@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from geosyn.core.errors import GeosynError
+from geosyn.experiments import termination
 
 COMMANDS: dict[str, tuple[Callable[[argparse.Namespace], int], str]] = {}
 
@@ -179,20 +180,6 @@ ARGUMENTS: dict[str, Callable[[argparse.ArgumentParser], None]] = {
 }
 
 
-def _terminate_cleanly() -> None:
-    """Turn SIGTERM into SystemExit(143) so a killed run removes its temporary directory."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return
-
-    def handler(signum: int, frame: object) -> None:
-        raise SystemExit(128 + signum)
-
-    signal.signal(signal.SIGTERM, handler)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``geosyn`` console script; returns the exit code."""
     parser = build_parser()
@@ -201,7 +188,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
         return int(exc.code) if isinstance(exc.code, int) else 2
     fn, _ = COMMANDS[args.command]
-    _terminate_cleanly()
+    termination.install()
     try:
         return fn(args)
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early

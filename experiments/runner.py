@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from geosyn.experiments import termination
 from geosyn.experiments.errors import RunDirectoryExists
 from geosyn.experiments.loader import dump_config
 from geosyn.experiments.report import clean_summary, print_summary, write_summary
@@ -162,6 +163,7 @@ def run_experiment(
         }
         (tmp / "run.json").write_text(json.dumps(meta, indent=1) + "\n")
         write_summary(tmp, cfg.name, cfg.description, summary, proc.units)
+        termination.raise_if_terminated()  # never commit a run whose SIGTERM was swallowed
         if out.exists():  # force=True
             shutil.rmtree(out)
         os.replace(tmp, out)

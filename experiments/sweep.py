@@ -29,6 +29,7 @@ import numpy as np
 import yaml
 
 from geosyn.core.errors import GeosynError
+from geosyn.experiments import termination
 from geosyn.experiments.errors import ConfigError, SweepError
 from geosyn.experiments.loader import load_config
 from geosyn.experiments.report import fmt
@@ -126,6 +127,7 @@ def _is_complete(run_dir: Path) -> bool:
 def _run_local(jobs: Sequence[SweepJob], workers: int, advance: Any) -> None:
     if workers == 1:
         for job in jobs:
+            termination.raise_if_terminated()
             _job_by_name(job)
             advance()
         return
@@ -145,6 +147,7 @@ def _run_local(jobs: Sequence[SweepJob], workers: int, advance: Any) -> None:
         try:
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                termination.raise_if_terminated()
                 for fut in done:
                     job = pending.pop(fut)
                     try:

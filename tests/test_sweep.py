@@ -176,8 +176,8 @@ def test_sweep_killed_by_sigterm_then_resumed(tmp_path, monkeypatch):
     while len(list(out.glob("*/seed*/summary.json"))) < 2 and time.monotonic() < deadline:
         time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)
-    proc.wait(timeout=60)
-    assert proc.returncode != 0
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode != 0, f"sweep exited {proc.returncode} after SIGTERM; stderr:\n{err}"
     done = {p.parent for p in out.glob("*/seed*/summary.json")}
     assert 2 <= len(done) < 8
     assert not list(out.glob("*/.*partial*"))  # the killed run cleaned up after itself

@@ -1,0 +1,60 @@
+"""SIGTERM ends a run or sweep even when Python swallows the handler's exception
+(experiments/termination.py)."""
+
+from __future__ import annotations
+
+import signal
+import weakref
+
+import pytest
+
+from geosyn.experiments import termination
+from geosyn.experiments.loader import load_config
+from geosyn.experiments.runner import run_experiment
+
+
+@pytest.fixture(autouse=True)
+def _clean_state():
+    termination._received = None
+    yield
+    termination._received = None
+
+
+def _swallowed_sigterm() -> None:
+    """Deliver the handler inside a finaliser, where Python discards its SystemExit."""
+
+    class Thing:
+        pass
+
+    thing = Thing()
+    weakref.finalize(thing, termination._handler, signal.SIGTERM, None)
+    del thing  # prints "Exception ignored ... SystemExit: 143" and carries on
+
+
+# The swallowed SystemExit is reported by Python as an unraisable exception: expected here.
+swallowed = pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+
+
+@swallowed
+def test_swallowed_sigterm_is_remembered() -> None:
+    _swallowed_sigterm()
+    with pytest.raises(SystemExit) as info:
+        termination.raise_if_terminated()
+    assert info.value.code == 128 + signal.SIGTERM
+
+
+@swallowed
+def test_run_after_a_swallowed_sigterm_commits_nothing(tmp_path) -> None:
+    cfg, _ = load_config(
+        "planar2_geodesic_vs_euclidean", ["simulation.duration=0.2", "outputs.plots=false"]
+    )
+    _swallowed_sigterm()
+    with pytest.raises(SystemExit):
+        run_experiment(cfg, tmp_path / "run", progress=False, quiet=True)
+    assert list(tmp_path.iterdir()) == [], "no run directory and no temporary left behind"
+
+
+def test_install_resets_the_state() -> None:
+    termination._received = signal.SIGTERM
+    termination.install()
+    termination.raise_if_terminated()  # nothing pending after a fresh install
