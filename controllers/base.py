@@ -21,7 +21,8 @@ from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.metrics.base import Metric
-from geosyn.robots.robot import Robot, check_vector
+from geosyn.robots.robot import Robot
+from geosyn.robots.validation import check_vector
 
 
 @dataclass

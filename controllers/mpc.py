@@ -55,7 +55,8 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.metrics.base import Metric, sx_cholesky_solve
 from geosyn.metrics.codegen import CodegenError, default_cache_dir, find_compiler
-from geosyn.robots.robot import Robot, check_vector
+from geosyn.robots.robot import Robot
+from geosyn.robots.validation import check_vector
 
 __all__ = ["GeodesicMPC", "MPCPlan", "OpenLoopSolution", "SOLVERS"]
 
@@ -234,25 +235,6 @@ class _NLP:
         return self.solver_cold
 
 
-def _weight(x: object, size: int, name: str) -> np.ndarray:
-    """A weight as a (size,) non-negative finite float64 array (scalars broadcast)."""
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(
-            f"{name} must be a scalar or an array of shape ({size},), got {x!r}"
-        ) from err
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    if arr.shape != (size,):
-        raise InvalidArgument(
-            f"{name} must be a scalar or an array of shape ({size},), got shape {arr.shape}"
-        )
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
-        raise InvalidArgument(f"{name} must be finite and >= 0, got {arr}")
-    return arr.copy()
-
-
 def _choice(x: object, allowed: tuple[str, ...], name: str) -> str:
     if not isinstance(x, str) or x not in allowed:
         raise InvalidArgument(f"{name} {x!r} is not supported; allowed: {', '.join(allowed)}")
@@ -402,12 +384,12 @@ class GeodesicMPC(Controller):
         if rk4_steps not in (1, 2):
             raise InvalidArgument(f"rk4_steps must be 1 or 2, got {rk4_steps!r}")
         self.rk4_steps = int(rk4_steps)
-        self.q_weight = _weight(q_weight, n, "q_weight")
-        self.v_weight = _weight(v_weight, n, "v_weight")
+        self.q_weight = check_gain(q_weight, n, "q_weight")
+        self.v_weight = check_gain(v_weight, n, "v_weight")
         if tau_weight is None:
             tau_weight = _DEFAULT_EFFORT_WEIGHT[self.effort]
-        self.tau_weight = _weight(tau_weight, n, "tau_weight")
-        self.terminal_weight = _weight(terminal_weight, 2 * n, "terminal_weight")
+        self.tau_weight = check_gain(tau_weight, n, "tau_weight")
+        self.terminal_weight = check_gain(terminal_weight, 2 * n, "terminal_weight")
         self.kp = check_gain(kp, n, "kp")
         self.kd = check_gain(kd, n, "kd")
         if (

@@ -10,7 +10,7 @@ from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.metrics.base import Metric
-from geosyn.robots.robot import check_vector
+from geosyn.robots.validation import check_vector
 
 
 def replan_geodesic(

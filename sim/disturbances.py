@@ -32,21 +32,12 @@ import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.robots.validation import check_vector
 from geosyn.sim.errors import UnknownBody
 from geosyn.sim.scene import Scene
 
 #: Tolerance on event times [s]: an event at ``t0`` fires on the first tick with t >= t0 - eps.
 _TIME_EPS = 1e-9
-
-
-def _vector3(x: object, name: str) -> Vector:
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a finite (3,) vector, got {x!r}") from err
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise InvalidArgument(f"{name} must be a finite (3,) vector, got {x!r}")
-    return arr
 
 
 def _std(x: object, name: str) -> np.ndarray:
@@ -165,9 +156,9 @@ class _BodyWrench(Disturbance):
         if not isinstance(body, str):
             raise InvalidArgument(f"body must be a body, link or frame name, got {body!r}")
         self.body = body
-        self.force = _vector3(force, "force [N]")
-        self.torque = _vector3(torque, "torque [N m]")
-        self.point = None if point is None else _vector3(point, "point [m]")
+        self.force = check_vector(force, 3, "force [N]")
+        self.torque = check_vector(torque, 3, "torque [N m]")
+        self.point = None if point is None else check_vector(point, 3, "point [m]")
         self._bid = -1
         self._point_body: Vector | None = None
 
