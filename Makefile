@@ -27,7 +27,7 @@ test: $(TSTAMP)
 
 lint: $(TSTAMP)
 	$(VENV)/bin/ruff check .
-	$(VENV)/bin/mypy core robots metrics synergies controllers sim experiments
+	$(VENV)/bin/mypy
 
 bench: $(STAMP)
 	for b in metric geodesics shaping controllers sim; do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done

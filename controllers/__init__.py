@@ -5,6 +5,10 @@ geodesic-tracking MPC, geodesic references and replanning, and a Pinocchio plant
 simulator-free tests.
 """
 
+if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
+    raise ImportError(f"import geosyn.controllers, not {__name__}: one module, one name")
+
+
 from geosyn.controllers.base import Controller, ControllerDiagnostics, check_gain
 from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.errors import ControllerError, NoReference, SolverFailed

@@ -20,9 +20,9 @@ from geosyn.controllers.errors import ControllerError, NoReference
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_vector
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
-from geosyn.robots.validation import check_vector
 
 
 @dataclass

@@ -15,7 +15,7 @@ derivative (CasADi picks up ``jac_F`` and ``jac_jac_F`` from the same library), 
 Lagrangian Hessian keeps only the cost's own curvature: a generalised Gauss-Newton
 Hessian, exact for the quadratic tracking costs. The whole NLP is never JIT-compiled
 (a gcc run on the full NLP takes minutes); only these small per-stage functions are,
-and they are cached on disk (see `geosyn.metrics.codegen`). The NLP is an MX graph with
+and they are cached on disk (see `geosyn.core.codegen`). The NLP is an MX graph with
 one mapped call per stage function (so each Jacobian is evaluated once per stage); with
 ``hessian="exact"`` it is a plain SX graph instead.
 
@@ -51,12 +51,12 @@ import pinocchio as pin
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import ControllerError, SolverFailed
 from geosyn.controllers.reference import Reference
+from geosyn.core.codegen import CodegenError, default_cache_dir, find_compiler
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_vector
 from geosyn.metrics.base import Metric, sx_cholesky_solve
-from geosyn.metrics.codegen import CodegenError, default_cache_dir, find_compiler
 from geosyn.robots.robot import Robot
-from geosyn.robots.validation import check_vector
 
 __all__ = ["GeodesicMPC", "MPCPlan", "OpenLoopSolution", "SOLVERS"]
 
@@ -434,7 +434,7 @@ class GeodesicMPC(Controller):
         """SX functions F(x, u) -> x_next and TAU(x, u) -> tau for one stage."""
         n, h = self.nv, self.dt
         g = self._gravity if gravity else np.zeros(3)
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         x = ca.SX.sym("x", 2 * n)
         u = ca.SX.sym("u", n)
@@ -461,8 +461,8 @@ class GeodesicMPC(Controller):
 
     def _metric_effort(self, q: ca.SX, tau: ca.SX, gravity: bool) -> ca.SX:
         """``(tau - g)^T G^-1 (tau - g)`` as SX; ABA for the kinetic-energy metric."""
-        from geosyn.metrics import symbolic
         from geosyn.metrics.kinetic import KineticEnergyMetric
+        from geosyn.robots import symbolic
 
         n = self.nv
         g = self._gravity if gravity else np.zeros(3)

@@ -13,8 +13,8 @@ from geosyn.controllers.computed_torque import tracking_acceleration
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_positive
 from geosyn.robots.robot import Robot
-from geosyn.robots.validation import check_positive
 
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric

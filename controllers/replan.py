@@ -9,8 +9,8 @@ import numpy as np
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_vector
 from geosyn.metrics.base import Metric
-from geosyn.robots.validation import check_vector
 
 
 def replan_geodesic(

@@ -5,6 +5,10 @@ The functions ``sweep`` and ``report`` live in the submodules of the same names
 re-exported here so that the submodules stay importable under their names.
 """
 
+if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
+    raise ImportError(f"import geosyn.experiments, not {__name__}: one module, one name")
+
+
 from geosyn.experiments.errors import (
     ConfigError,
     ExperimentError,

@@ -1,6 +1,10 @@
 """Riemannian metrics on configuration space: kinetic energy, shaping terms, geodesics."""
 
-from geosyn.metrics import codegen, geodesic, symbolic
+if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
+    raise ImportError(f"import geosyn.metrics, not {__name__}: one module, one name")
+
+
+from geosyn.metrics import geodesic
 from geosyn.metrics.base import Metric, MetricFunctions, christoffel_from_dG, sx_cholesky_solve
 from geosyn.metrics.errors import GeodesicNotFound, MetricError, NoSymbolicForm
 from geosyn.metrics.geodesic import (
@@ -36,7 +40,5 @@ __all__ = [
     "MetricFunctions",
     "NoSymbolicForm",
     "christoffel_from_dG",
-    "codegen",
-    "symbolic",
     "sx_cholesky_solve",
 ]

@@ -17,8 +17,8 @@ import casadi as ca
 import numpy as np
 
 from geosyn.core.types import Matrix, Vector
+from geosyn.core.validation import check_vector
 from geosyn.metrics.errors import NoSymbolicForm
-from geosyn.robots.validation import check_vector
 
 
 class MetricFunctions(NamedTuple):
@@ -189,7 +189,7 @@ class Metric(ABC):
     def build_functions(self) -> MetricFunctions:
         """Build the CasADi functions from the symbolic form (allocates; called once).
 
-        Subclasses may override to compile them to C (see `geosyn.metrics.codegen`).
+        Subclasses may override to compile them to C (see `geosyn.core.codegen`).
         """
         n = self.n
         q = ca.SX.sym("q", n)
@@ -239,14 +239,14 @@ class Metric(ABC):
         """Evaluate one of `functions` on numpy arrays, appending the parameter values if
         it takes them; returns a new array (the first output, column vectors flattened).
 
-        Calls go through CasADi's zero-copy buffers (`geosyn.metrics.codegen.numpy_function`),
+        Calls go through CasADi's zero-copy buffers (`geosyn.core.codegen.numpy_function`),
         one wrapper per function, made on first use: ~1 us instead of ~20 us of DM
         conversion. Not thread-safe: use one metric object per thread.
         """
         wrappers = self.__dict__.setdefault("_numpy_wrappers", {})
         call = wrappers.get(id(f))
         if call is None:
-            from geosyn.metrics.codegen import numpy_function
+            from geosyn.core.codegen import numpy_function
 
             call = wrappers[id(f)] = numpy_function(f)
         if f.n_in() > len(args):

@@ -10,7 +10,7 @@ A geodesic of the metric G(q) solves
 - `exp` integrates it from (q0, v0) with a fixed-step RK4 whose whole loop runs in
   compiled code: one RK4 step of the state ``x = (q, v)`` is built as a CasADi SX function
   from ``metric.symbolic_geodesic_acceleration``, compiled to C with
-  `geosyn.metrics.codegen.compile_function` (cached on disk) and repeated with
+  `geosyn.core.codegen.compile_function` (cached on disk) and repeated with
   ``mapaccum``. Metrics without a symbolic form fall back to a numpy RK4 loop.
   ``method="dop853"`` integrates with SciPy's DOP853 at rtol = atol = 1e-12 instead.
 - `log` / `log_solve` solve the boundary-value problem exp(q0, v0)(1) = q1 by damped
@@ -37,9 +37,9 @@ import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_positive
 from geosyn.metrics.base import Metric, christoffel_from_dG, sx_cholesky_solve
 from geosyn.metrics.errors import GeodesicNotFound, NoSymbolicForm
-from geosyn.robots.validation import check_positive
 
 __all__ = [
     "Geodesic",
@@ -174,7 +174,7 @@ def clear_geodesic_cache(metric: Metric | None = None) -> None:
     """Forget the functions built for ``metric`` (all metrics when None).
 
     The compiled C libraries stay in the codegen disk cache
-    (`geosyn.metrics.codegen.clear_cache` removes them).
+    (`geosyn.core.codegen.clear_cache` removes them).
     """
     if metric is None:
         _CACHE.clear()
@@ -197,7 +197,7 @@ def _functions(metric: Metric) -> _Functions:
 
 
 def _compile(fun: ca.Function) -> ca.Function:
-    from geosyn.metrics.codegen import compile_function
+    from geosyn.core.codegen import compile_function
 
     return compile_function(fun, fallback=True)
 

@@ -24,7 +24,7 @@ class KineticEnergyMetric(Metric):
       zero gravity and zero acceleration, `geodesic_acceleration` is ``pin.aba`` with zero
       gravity and zero torque;
     - symbolic on CasADi SX from geosyn's own recursive algorithms (CRBA, RNEA, ABA in
-      `geosyn.metrics.symbolic`), giving dG/dq and the Christoffel symbols, optionally
+      `geosyn.robots.symbolic`), giving dG/dq and the Christoffel symbols, optionally
       compiled to C and cached on disk (``compile=True``).
 
     Args:
@@ -118,25 +118,25 @@ class KineticEnergyMetric(Metric):
     # -- symbolic path ---------------------------------------------------------------
     def symbolic_G(self, q: ca.SX) -> ca.SX:
         """SX mass matrix from geosyn's recursive CRBA (armature included)."""
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         return symbolic.crba(self._model, q)
 
     def symbolic_coriolis(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """SX ``C(q, v) v`` from the recursive RNEA with zero gravity and acceleration."""
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         return symbolic.rnea(self._model, q, v, ca.SX.zeros(self.n), np.zeros(3))
 
     def symbolic_geodesic_acceleration(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """SX geodesic acceleration from the recursive ABA (no symbolic inverse)."""
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         return symbolic.aba(self._model, q, v, ca.SX.zeros(self.n), np.zeros(3))
 
     def symbolic_rnea(self, q: ca.SX, v: ca.SX, a: ca.SX, gravity: bool = True) -> ca.SX:
         """SX inverse dynamics ``M a + C v + g`` [N m] (``gravity=False`` drops g)."""
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         g = np.asarray(self.robot.gravity) if gravity else np.zeros(3)
         return symbolic.rnea(self._model, q, v, a, g)
@@ -146,6 +146,6 @@ class KineticEnergyMetric(Metric):
         funcs = super().build_functions()
         if not self.compile:
             return funcs
-        from geosyn.metrics.codegen import compile_function
+        from geosyn.core.codegen import compile_function
 
         return MetricFunctions(*(compile_function(f, fallback=True) for f in funcs))

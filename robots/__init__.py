@@ -1,6 +1,10 @@
 """Robot descriptions: one description gives a Pinocchio model and a MuJoCo model with
 identical dynamics."""
 
+if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
+    raise ImportError(f"import geosyn.robots, not {__name__}: one module, one name")
+
+
 from geosyn.robots.errors import RobotError, RobotFileError, UnknownFrame, UnknownRobot
 from geosyn.robots.loading import (
     BUILTINS,
@@ -14,7 +18,6 @@ from geosyn.robots.loading import (
 )
 from geosyn.robots.mjcf import robot_to_mjcf
 from geosyn.robots.robot import CollisionCapsule, CollisionSphere, Robot
-from geosyn.robots.validation import check_positive, check_vector
 
 __all__ = [
     "BUILTINS",
@@ -25,8 +28,6 @@ __all__ = [
     "RobotFileError",
     "UnknownFrame",
     "UnknownRobot",
-    "check_positive",
-    "check_vector",
     "example_robot_data_dir",
     "load_file",
     "load_robot",

@@ -14,8 +14,8 @@ import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_vector
 from geosyn.robots.errors import UnknownFrame
-from geosyn.robots.validation import check_vector
 
 if TYPE_CHECKING:
     import mujoco

@@ -8,6 +8,10 @@ under `Disturbance`s (`Push`, `Wrench`, `PayloadChange`, `TorqueNoise`, `SensorN
 result headless (EGL) to .gif (Pillow) or .mp4 (imageio + ffmpeg).
 """
 
+if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
+    raise ImportError(f"import geosyn.sim, not {__name__}: one module, one name")
+
+
 # render first: it sets MUJOCO_GL=egl (headless) before anything imports mujoco.
 from geosyn.sim.render import (  # isort: skip
     CameraView,

@@ -32,7 +32,7 @@ import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.robots.validation import check_vector
+from geosyn.core.validation import check_vector
 from geosyn.sim.errors import UnknownBody
 from geosyn.sim.scene import Scene
 

@@ -42,11 +42,11 @@ import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_vector
 from geosyn.robots.mjcf import body_name
 from geosyn.robots.mjcf import mjcf_number as _f
 from geosyn.robots.mjcf import mjcf_vector as _vec
 from geosyn.robots.robot import Robot
-from geosyn.robots.validation import check_vector
 from geosyn.sim.errors import UnknownBody, UnsupportedObstacle
 
 #: Collision bit of the robot's and payloads' geoms when ``contact=True``.

@@ -36,8 +36,8 @@ import numpy as np
 
 from geosyn.core.errors import GeosynError, InvalidArgument
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_vector
 from geosyn.robots.robot import Robot
-from geosyn.robots.validation import check_vector
 from geosyn.sim.disturbances import Disturbance, _overrides
 from geosyn.sim.log import SimResult
 from geosyn.sim.scene import Payload, Scene, build_scene

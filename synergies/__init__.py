@@ -1,5 +1,9 @@
 """Geodesic synergies: combination by parallel transport, orthonormal bases, PGA, reaching."""
 
+if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
+    raise ImportError(f"import geosyn.synergies, not {__name__}: one module, one name")
+
+
 from geosyn.synergies.basis import SynergyBasis, g_orthonormalize, orthonormal_synergies
 from geosyn.synergies.errors import (
     DimensionMismatch,

@@ -1,4 +1,4 @@
-"""Tests of geosyn.metrics.codegen: compiled functions, the disk cache, failures."""
+"""Tests of geosyn.core.codegen: compiled functions, the disk cache, failures."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geosyn.core import GeosynError, InvalidArgument
-from geosyn.metrics import codegen, symbolic
-from geosyn.metrics.codegen import CodegenError, clear_cache, compile_function, numpy_function
+from geosyn.core import GeosynError, InvalidArgument, codegen
+from geosyn.core.codegen import CodegenError, clear_cache, compile_function, numpy_function
+from geosyn.robots import symbolic
 
 
 def _tiny() -> ca.Function:
@@ -92,7 +92,7 @@ def test_cache_is_shared_across_processes(tmp_path: Path) -> None:
     script = textwrap.dedent(
         f"""
         import casadi as ca
-        from geosyn.metrics import codegen
+        from geosyn.core import codegen
 
         def no_compiler(*args):
             raise SystemExit("the compiler ran despite a cached library")

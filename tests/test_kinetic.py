@@ -12,7 +12,8 @@ import pytest
 
 from conftest import BUILTIN_NAMES, get_metric, get_robot
 from geosyn.core import GeosynError, InvalidArgument
-from geosyn.metrics import KineticEnergyMetric, symbolic
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.robots import symbolic
 
 N_SAMPLES = 200
 

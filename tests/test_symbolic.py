@@ -1,4 +1,4 @@
-"""Tests of geosyn.metrics.symbolic: the SX rigid-body algorithms against Pinocchio."""
+"""Tests of geosyn.robots.symbolic: the SX rigid-body algorithms against Pinocchio."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 
 from geosyn.core import GeosynError, InvalidArgument
-from geosyn.metrics import symbolic
+from geosyn.robots import symbolic
 
 N_SAMPLES = 200
 TOL = 1e-12

@@ -29,6 +29,7 @@ import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
+from geosyn.core.validation import check_vector
 from geosyn.metrics.base import Metric, MetricFunctions, sx_cholesky_solve
 from geosyn.metrics.shaping.errors import (
     InvalidTermArgument,
@@ -36,13 +37,12 @@ from geosyn.metrics.shaping.errors import (
     TermNotBound,
 )
 from geosyn.robots.robot import Robot
-from geosyn.robots.validation import check_vector
 
 __all__ = ["MetricTerm", "ShapedMetric"]
 
 
 def _numpy_call(fun: ca.Function) -> Callable[..., tuple[np.ndarray, ...]]:
-    from geosyn.metrics.codegen import numpy_function
+    from geosyn.core.codegen import numpy_function
 
     return numpy_function(fun)
 
@@ -50,7 +50,7 @@ def _numpy_call(fun: ca.Function) -> Callable[..., tuple[np.ndarray, ...]]:
 def _maybe_compile(fun: ca.Function, compile: bool) -> ca.Function:
     if not compile:
         return fun
-    from geosyn.metrics.codegen import compile_function
+    from geosyn.core.codegen import compile_function
 
     return compile_function(fun, fallback=True)
 
@@ -229,7 +229,7 @@ class ShapedMetric(Metric):
             `KineticEnergyMetric`) and a symbolic form for derivatives.
         terms: shaping terms; each is bound to ``base.robot``.
         compile: compile the CasADi functions to C (cached on disk, see
-            `geosyn.metrics.codegen`) when they are first built.
+            `geosyn.core.codegen`) when they are first built.
 
     `G` uses the base metric's numeric fast path plus one compiled function for the sum of
     the terms; it allocates only its result. `build_count` counts builds of the compiled

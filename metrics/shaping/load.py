@@ -118,7 +118,7 @@ class LoadTerm(MetricTerm):
 
     def symbolic_G(self, q: ca.SX, v: ca.SX | None = None) -> ca.SX:
         """SX ``J^T Lambda J`` with J the local-frame Jacobian (see the class docstring)."""
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         robot = self.robot
         jac = symbolic.frame_jacobian(robot.model, q, self.frame_index, reference="local")

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from geosyn.core.validation import check_vector
 from geosyn.metrics.shaping.base import MetricTerm, _numpy_call
 from geosyn.metrics.shaping.errors import (
     CapacityExceeded,
@@ -43,7 +44,6 @@ from geosyn.metrics.shaping.errors import (
     UnknownObstacleType,
 )
 from geosyn.robots.robot import CollisionSphere, Robot
-from geosyn.robots.validation import check_vector
 
 __all__ = [
     "Box",
@@ -586,7 +586,7 @@ class ObstacleTerm(MetricTerm):
         self.spheres = tuple(spheres)
 
     def _sphere_centers(self, q: ca.SX) -> list[ca.SX]:
-        from geosyn.metrics import symbolic
+        from geosyn.robots import symbolic
 
         oMi = symbolic.joint_placements(self.robot.model, q)
         out = []

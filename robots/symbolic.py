@@ -970,7 +970,7 @@ class DynamicsFunctions(NamedTuple):
     """Compiled-on-demand CasADi functions of one model (SX graphs, built once).
 
     Each is a ``casadi.Function``; call it with numpy arrays, it returns ``casadi.DM``
-    (see :mod:`geosyn.metrics.codegen` for C code generation).
+    (see :mod:`geosyn.core.codegen` for C code generation).
     """
 
     M: ca.Function  # q (nq,) -> M (nv, nv) mass matrix

@@ -1,0 +1,1 @@
+"""Built-in experiment configurations (YAML files shipped as package data)."""
