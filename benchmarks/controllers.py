@@ -14,9 +14,10 @@ on every joint, slowed by 1.5 (1.5 s of motion), on a Pinocchio plant (pin.aba +
   Variants: fatrop with acceleration control, fatrop with torque control (RK4 on the
   ABA), IPOPT with torque control; all with Gauss-Newton Hessians of compiled per-stage
   dynamics (see `geosyn.controllers.mpc`).
-- Naive reference, same OCP: CasADi + IPOPT on the MX graph without SX expansion, exact
-  Hessian, cold start from the current state (no warm start), solved at a few states of
-  the closed loop; printed with the ratio naive / warm-started solve tick.
+- Naive reference, same OCP (`build_naive_ipopt`, `solve_naive`): CasADi + IPOPT on the
+  MX graph without SX expansion, exact Hessian, cold start from the current state (no
+  warm start), solved at a few states of the closed loop; printed with the ratio
+  naive / warm-started solve tick.
 """
 
 from __future__ import annotations
@@ -24,10 +25,12 @@ from __future__ import annotations
 import sys
 import time
 
+import casadi as ca
 import numpy as np
 
 from geosyn.controllers.computed_torque import ComputedTorque
-from geosyn.controllers.mpc import GeodesicMPC
+from geosyn.controllers.mpc import GeodesicMPC, MPCPlan
+from geosyn.controllers.mpc.problem import ShootingNLP, transcribe
 from geosyn.controllers.plant import PinocchioPlant
 from geosyn.controllers.qp import QPController
 from geosyn.controllers.reference import GeodesicReference
@@ -48,6 +51,39 @@ def scenario():
         GeodesicSynergy(metric, q0, v0), time_scale=1.5, duration=1.0, steps=200
     )
     return robot, metric, ref, q0, v0 / 1.5
+
+
+def build_naive_ipopt(mpc: GeodesicMPC) -> ShootingNLP:
+    """The tracking OCP of ``mpc`` for IPOPT on an MX graph, not expanded, exact Hessian.
+
+    The same problem (dynamics, costs, bounds) as the controller's, transcribed with one
+    plain call per stage and solved cold with IPOPT's defaults besides the tolerance: the
+    reference point of the benchmark.
+    """
+    ocp = mpc.ocp
+    problem = ocp.problem(ocp.dynamics(gravity=True), effort=mpc.effort, gravity=True)
+    graph = transcribe(problem, ca.MX, mapped=False)
+    opts = {
+        "expand": False,
+        "print_time": False,
+        "error_on_fail": False,
+        "ipopt": {"print_level": 0, "sb": "yes", "tol": mpc.solver_settings.tol},
+    }
+    solver = ca.nlpsol("mpc_naive", "ipopt", graph.nlp, opts)
+    return ShootingNLP.from_problem(problem, graph, solver, None)
+
+
+def solve_naive(
+    mpc: GeodesicMPC, nlp: ShootingNLP, t: float, q: np.ndarray, v: np.ndarray
+) -> MPCPlan:
+    """Cold solve of the naive build from the state ``(q, v)`` [rad, rad/s] at ``t`` [s]."""
+    x_init = np.concatenate([q, v])
+    p, _ = mpc.problem_parameters(t, x_init)
+    guess = {"x0": nlp.pack(np.tile(x_init, (mpc.N + 1, 1)), np.zeros((mpc.N, mpc.nv)))}
+    start = time.perf_counter()
+    res = nlp.run(nlp.solver, p, guess)
+    elapsed = time.perf_counter() - start
+    return MPCPlan(t, res.x, res.u, res.tau, res.status, res.iterations, res.success, elapsed)
 
 
 def run(controller, robot, ref, q0, v0):
@@ -132,12 +168,12 @@ def main() -> None:
         picks = np.linspace(0, len(states) - 1, n_naive + 2).astype(int)[1:-1]
         picks = (picks // 20) * 20  # solve ticks
         t0 = time.perf_counter()
-        mpc.build_naive_ipopt()
+        naive_nlp = build_naive_ipopt(mpc)
         naive_build = time.perf_counter() - t0
         naive = []
         for i in picks:
             t, q, v = states[i]
-            plan = mpc.solve_naive(t, q, v)
+            plan = solve_naive(mpc, naive_nlp, t, q, v)
             naive.append((plan.solve_time, plan.iterations, plan.success))
         nt = np.array([x[0] for x in naive])
         print(

@@ -18,8 +18,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _timing import per_call  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
-from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric, Sphere  # noqa: E402
+from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric  # noqa: E402
 from geosyn.robots import load_robot  # noqa: E402
+from geosyn.world import Sphere  # noqa: E402
 
 COUNTS = (0, 4, 16)
 

@@ -9,11 +9,11 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
     raise ImportError(f"import geosyn.controllers, not {__name__}: one module, one name")
 
 
-from geosyn.controllers.base import Controller, ControllerDiagnostics, check_gain
+from geosyn.controllers.base import Controller, ControllerDiagnostics
 from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.errors import ControllerError, NoReference, SolverFailed
 from geosyn.controllers.mpc import GeodesicMPC, MPCPlan, OpenLoopSolution
-from geosyn.controllers.plant import Payload, PinocchioPlant, Rollout
+from geosyn.controllers.plant import PinocchioPlant, Rollout
 from geosyn.controllers.qp import QPController
 from geosyn.controllers.reference import (
     GeodesicReference,
@@ -35,7 +35,6 @@ __all__ = [
     "GeodesicReference",
     "JointTrajectoryReference",
     "NoReference",
-    "Payload",
     "PinocchioPlant",
     "QPController",
     "Reference",
@@ -43,6 +42,5 @@ __all__ = [
     "RiemannianPD",
     "Rollout",
     "SolverFailed",
-    "check_gain",
     "replan_geodesic",
 ]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -33,7 +34,9 @@ class ControllerDiagnostics:
     ``fallback_used`` to False and ``extra`` to empty before calling `_compute`; a
     subclass sets them when it runs a solver or takes a fallback. ``fallback_count`` is
     incremented by `compute` whenever ``fallback_used`` ends up True, and reset by
-    `Controller.reset`.
+    `Controller.reset`. ``notes`` records settings a controller changed when it was
+    built (e.g. a solver option it could not honour); neither `compute` nor `reset`
+    clears it.
 
     Attributes:
         compute_time: wall-clock duration of the last `compute` [s].
@@ -43,6 +46,7 @@ class ControllerDiagnostics:
         fallback_used: the last torque came from a fallback law.
         fallback_count: number of calls that used the fallback since the last reset.
         extra: controller-specific scalars (e.g. a Lyapunov value, a cost).
+        notes: ``{setting: what was used instead and why}`` for build-time changes.
     """
 
     compute_time: float = 0.0
@@ -52,6 +56,7 @@ class ControllerDiagnostics:
     fallback_used: bool = False
     fallback_count: int = 0
     extra: dict[str, float] = field(default_factory=dict)
+    notes: dict[str, str] = field(default_factory=dict)
 
 
 def check_gain(x: object, n: int, name: str) -> Vector:
@@ -116,6 +121,9 @@ class Controller(ABC):
             )
         #: Metric of the references (shaping, replanning); None when not given.
         self.metric = metric
+        # The controller's model of the plant and its own Pinocchio workspace.
+        self._model = robot.model
+        self._data = robot.model.createData()
         self._tau_max = np.asarray(robot.tau_max, dtype=np.float64).copy()
         self._tau_min = -self._tau_max
         self._tau_raw = np.zeros(self.nv)
@@ -151,6 +159,16 @@ class Controller(ABC):
 
     def _on_reference_changed(self) -> None:  # noqa: B027 (optional hook)
         """Hook called after `set_reference` (default: nothing)."""
+
+    def _note(self, setting: str, message: str) -> None:
+        """Record a setting changed at build time in ``diagnostics.notes``, and warn.
+
+        Args:
+            setting: the argument that was not honoured, e.g. ``"hessian"``.
+            message: what is used instead and why.
+        """
+        self.diagnostics.notes[setting] = message
+        warnings.warn(f"{type(self).__name__}: {setting}: {message}", RuntimeWarning, stacklevel=3)
 
     # -- state ------------------------------------------------------------------------
     def reset(self, q: Vector, v: Vector, t: float = 0.0) -> None:

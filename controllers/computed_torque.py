@@ -16,36 +16,6 @@ if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
 
 
-def tracking_acceleration(
-    reference: Reference,
-    t: float,
-    q: Vector,
-    v: Vector,
-    kp: Vector,
-    kd: Vector,
-    out: Vector,
-) -> Vector:
-    """PD-corrected reference acceleration ``a_ref + Kd (v_ref - v) + Kp (q_ref - q)``.
-
-    Args:
-        reference: the reference, sampled at ``t``.
-        t: time [s].
-        q: (nv,) joint positions [rad].
-        v: (nv,) joint velocities [rad/s].
-        kp: (nv,) position gains [1/s^2].
-        kd: (nv,) velocity gains [1/s].
-        out: (nv,) buffer written and returned [rad/s^2].
-    """
-    q_ref, v_ref, a_ref = reference.sample(t)
-    np.subtract(q_ref, q, out=out)
-    out *= kp
-    out += a_ref
-    v_err = v_ref - v
-    v_err *= kd
-    out += v_err
-    return out
-
-
 class ComputedTorque(Controller):
     """Computed torque: feedback linearisation plus PD on the tracking error.
 
@@ -82,21 +52,28 @@ class ComputedTorque(Controller):
         super().__init__(robot, reference, metric)
         self.kp = check_gain(kp, self.nv, "kp")
         self.kd = check_gain(kd, self.nv, "kd")
-        self._model = robot.model
-        self._data = robot.model.createData()
         self._a_des = np.zeros(self.nv)
 
     def desired_acceleration(self, t: float, q: Vector, v: Vector) -> Vector:
-        """``a_ref + Kd (v_ref - v) + Kp (q_ref - q)`` [rad/s^2] (into an internal buffer)."""
-        return tracking_acceleration(
-            self._reference,  # type: ignore[arg-type]
-            t,
-            q,
-            v,
-            self.kp,
-            self.kd,
-            self._a_des,
-        )
+        """PD-corrected reference acceleration ``a_ref + Kd (v_ref - v) + Kp (q_ref - q)``.
+
+        Args:
+            t: time [s] (a reference must be set).
+            q: (nv,) joint positions [rad].
+            v: (nv,) joint velocities [rad/s].
+
+        Returns:
+            (nv,) acceleration [rad/s^2], in an internal buffer overwritten by the next call.
+        """
+        q_ref, v_ref, a_ref = self._reference.sample(t)  # type: ignore[union-attr]
+        out = self._a_des
+        np.subtract(q_ref, q, out=out)
+        out *= self.kp
+        out += a_ref
+        v_err = v_ref - v
+        v_err *= self.kd
+        out += v_err
+        return out
 
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
         a_des = self.desired_acceleration(t, q, v)

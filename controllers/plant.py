@@ -1,14 +1,13 @@
 """A Pinocchio plant: forward dynamics (``pin.aba``) integrated by RK4, for tests.
 
 Controllers are tested against it without MuJoCo. The torque is held constant over a
-step (zero-order hold, as a digital controller applies it). An optional payload, rigidly
-attached to a frame of a copy of the model, gives the plant dynamics the controller does
-not know about.
+step (zero-order hold, as a digital controller applies it). An optional payload
+(`geosyn.world.Payload`), rigidly attached to a frame of a copy of the model, gives the
+plant dynamics the controller does not know about.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -17,28 +16,12 @@ import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_positive, check_vector
 from geosyn.robots.robot import Robot
+from geosyn.world.payload import Payload
 
 if TYPE_CHECKING:
     from geosyn.controllers.base import Controller
-
-
-class Payload(NamedTuple):
-    """A rigid payload attached to a frame.
-
-    Attributes:
-        frame: name of the frame it is attached to.
-        mass: mass [kg], > 0.
-        com: (3,) centre of mass in the frame [m].
-        inertia: (3, 3) rotational inertia about the centre of mass, in the frame's
-            axes [kg m^2]; None for a point mass.
-    """
-
-    frame: str
-    mass: float
-    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    inertia: np.ndarray | None = None
 
 
 class Rollout(NamedTuple):
@@ -63,8 +46,9 @@ class PinocchioPlant:
     Args:
         robot: the robot (its model, with armature and gravity, is the plant).
         dt: integration step [s], > 0 (1 kHz by default).
-        payload: optional `Payload` (or a tuple ``(frame, mass[, com[, inertia]])``)
-            added to the plant only, not to ``robot``.
+        payload: optional `geosyn.world.Payload` (or the tuple of its first fields,
+            ``(frame, mass[, com[, inertia[, radius]]])``) added to the plant only, not to
+            ``robot``.
 
     Attributes:
         model: the plant's Pinocchio model (a copy of ``robot.model`` with the payload).
@@ -78,9 +62,7 @@ class PinocchioPlant:
     ) -> None:
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
-        dt = float(dt)
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise InvalidArgument(f"dt must be a finite step > 0 [s], got {dt!r}")
+        dt = check_positive(dt, "dt", "s")
         self.robot = robot
         self.dt = dt
         self.model = pin.Model(robot.model)
@@ -95,27 +77,15 @@ class PinocchioPlant:
             p = payload if isinstance(payload, Payload) else Payload(*payload)
         except TypeError as err:
             raise InvalidArgument(
-                f"payload must be a Payload or (frame, mass[, com[, inertia]]), got {payload!r}"
+                "payload must be a geosyn.world.Payload or (frame, mass[, com[, inertia]]),"
+                f" got {payload!r}"
             ) from err
-        fid = self.robot.frame_id(p.frame)
-        mass = float(p.mass)
-        if not (math.isfinite(mass) and mass > 0.0):
-            raise InvalidArgument(f"payload mass must be finite and > 0 [kg], got {p.mass!r}")
-        com = check_vector(p.com, 3, "payload com")
-        if p.inertia is None:
-            inertia = np.zeros((3, 3))
-        else:
-            inertia = np.asarray(p.inertia, dtype=np.float64)
-            if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)):
-                raise InvalidArgument(
-                    f"payload inertia must be a finite (3, 3) array [kg m^2], got {p.inertia!r}"
-                )
-        frame = self.model.frames[fid]
-        body = pin.Inertia(mass, com, inertia)
+        frame = self.model.frames[self.robot.frame_id(p.frame)]
+        body = pin.Inertia(p.mass, np.array(p.com), p.rotational_inertia())
         jid = frame.parentJoint
         # Express the payload in the parent joint's frame and lump it into that body.
         self.model.inertias[jid] = self.model.inertias[jid] + frame.placement.act(body)
-        return Payload(p.frame, mass, (float(com[0]), float(com[1]), float(com[2])), inertia)
+        return p
 
     # -- state ------------------------------------------------------------------------
     @property

@@ -8,12 +8,12 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
-from geosyn.controllers.base import Controller, check_gain
-from geosyn.controllers.computed_torque import tracking_acceleration
+from geosyn.controllers.base import check_gain
+from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_positive
+from geosyn.core.validation import check_int, check_positive
 from geosyn.robots.robot import Robot
 
 if TYPE_CHECKING:
@@ -32,8 +32,11 @@ _STATUS = {
 _BIG = 1e6
 
 
-class QPController(Controller):
+class QPController(ComputedTorque):
     """Inverse-dynamics QP over ``x = (qdd, tau)`` (2 nv variables), solved by proxsuite.
+
+    The computed-torque law (`ComputedTorque`) under torque, position and velocity limits:
+    its desired acceleration is the QP's target, and its torque the fallback.
 
     .. math::
         \\min_{\\ddot q, \\tau}\\; \\|\\ddot q - \\ddot q_d\\|^2 + \\epsilon \\|\\tau\\|^2
@@ -102,10 +105,8 @@ class QPController(Controller):
         metric: Metric | None = None,
         reference: Reference | None = None,
     ) -> None:
-        super().__init__(robot, reference, metric)
+        super().__init__(robot, kp, kd, metric, reference)
         n = self.nv
-        self.kp = check_gain(kp, n, "kp")
-        self.kd = check_gain(kd, n, "kd")
         self.dt = check_positive(dt, "dt")
         self.eps = check_positive(eps, "eps")
         horizon = (
@@ -124,11 +125,7 @@ class QPController(Controller):
                 raise InvalidArgument(f"braking_acceleration must be > 0, got {b}")
             self.braking_acceleration = b
         self.eps_abs = check_positive(eps_abs, "eps_abs")
-        if not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-            raise InvalidArgument(f"max_iter must be an integer >= 1, got {max_iter!r}")
-        self.max_iter = int(max_iter)
-        self._model = robot.model
-        self._data = robot.model.createData()
+        self.max_iter = check_int(max_iter, "max_iter", low=1)
         # Bounds are computed for both sides at once on stacked (2 nv,) arrays: the upper
         # limit as is, the lower one mirrored (distance q - q_min, velocity -v).
         self._lim = np.concatenate([robot.q_max, -np.asarray(robot.q_min)]).astype(np.float64)
@@ -156,7 +153,6 @@ class QPController(Controller):
         self._ubox = np.zeros(2 * n)
         self._lbox[n:] = -self._tau_max
         self._ubox[n:] = self._tau_max
-        self._a_des = np.zeros(n)
         self.qp = proxsuite.proxqp.dense.QP(2 * n, n, 0, True)
         self._warm = False
         # init once here (at the neutral configuration); reset() re-inits at its state.
@@ -218,18 +214,6 @@ class QPController(Controller):
         self._init_qp()
 
     # -- control ----------------------------------------------------------------------
-    def desired_acceleration(self, t: float, q: Vector, v: Vector) -> Vector:
-        """``a_ref + Kd (v_ref - v) + Kp (q_ref - q)`` [rad/s^2] (internal buffer)."""
-        return tracking_acceleration(
-            self._reference,  # type: ignore[arg-type]
-            t,
-            q,
-            v,
-            self.kp,
-            self.kd,
-            self._a_des,
-        )
-
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
         n = self.nv
         a_des = self.desired_acceleration(t, q, v)

@@ -13,7 +13,6 @@ start time ``t0``.
 from __future__ import annotations
 
 import bisect
-import math
 from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -21,7 +20,9 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from geosyn.core.errors import InvalidArgument
+from geosyn.core.interpolation import hermite_cubic_coefficients, hermite_quintic_coefficients
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_float, check_int, check_positive
 
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
@@ -90,48 +91,6 @@ class _Piecewise:
         return out[0], out[1], out[2]
 
 
-def _hermite_cubic(t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(T-1, 4, n) monomial coefficients of the C1 cubic Hermite interpolant."""
-    h = np.diff(t)[:, None]
-    dq = np.diff(q, axis=0)
-    v0, v1 = v[:-1], v[1:]
-    c2 = (3.0 * dq / h - 2.0 * v0 - v1) / h
-    c3 = (-2.0 * dq / h + v0 + v1) / h**2
-    return np.stack([q[:-1], v0, c2, c3], axis=1)
-
-
-def _hermite_quintic(t: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """(T-1, 6, n) monomial coefficients of the C2 quintic Hermite interpolant."""
-    h = np.diff(t)
-    q0, v0, a0 = q[:-1], v[:-1], a[:-1]
-    c2 = 0.5 * a0
-    # Remaining coefficients (c3, c4, c5) match position, velocity, acceleration at h.
-    A = np.stack(
-        [
-            np.stack([h**3, h**4, h**5], axis=-1),
-            np.stack([3 * h**2, 4 * h**3, 5 * h**4], axis=-1),
-            np.stack([6 * h, 12 * h**2, 20 * h**3], axis=-1),
-        ],
-        axis=1,
-    )  # (K, 3, 3)
-    hh = h[:, None]
-    rhs = np.stack(
-        [q[1:] - (q0 + v0 * hh + c2 * hh**2), v[1:] - (v0 + 2 * c2 * hh), a[1:] - 2 * c2], axis=1
-    )  # (K, 3, n)
-    c345 = np.linalg.solve(A, rhs)
-    return np.concatenate([np.stack([q0, v0, c2], axis=1), c345], axis=1)
-
-
-def _check_time(x: object, name: str) -> float:
-    try:
-        val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a finite time [s], got {x!r}") from err
-    if not math.isfinite(val):
-        raise InvalidArgument(f"{name} must be a finite time [s], got {x!r}")
-    return val
-
-
 def _check_samples(t: object, q: object, name_q: str = "q") -> tuple[np.ndarray, np.ndarray]:
     try:
         t_arr = np.asarray(t, dtype=np.float64)
@@ -195,8 +154,8 @@ class GeodesicReference(_SampledReference):
     derivative. The acceleration, when the metric is known, is the exact geodesic
     acceleration at the interpolated state, ``a = -G(q)^-1 C(q, v) v`` (one metric call
     per `sample`); without a metric it is the spline's second derivative (piecewise
-    linear). For metrics whose geodesic acceleration is too slow for a control tick (a
-    shaped metric evaluated by CasADi's VM costs ~0.3-1 ms), ``exact_acceleration=False``
+    linear). For metrics whose geodesic acceleration is too slow for a control tick (e.g.
+    a shaped metric evaluated by CasADi's virtual machine), ``exact_acceleration=False``
     evaluates it once per sample at construction and interpolates ``(q_k, v_k, a_k)`` by
     a C2 quintic Hermite spline instead (no metric call per `sample`).
 
@@ -223,14 +182,14 @@ class GeodesicReference(_SampledReference):
             and ``trajectory(duration, steps)`` returning such a geodesic).
         metric: the metric whose geodesic this is (for the exact acceleration); taken
             from the synergy when ``source`` is one.
-        time_scale: time scale ``s > 0`` (``s > 1`` is slower).
-        duration: geodesic time [s] to sample when ``source`` is a synergy (ignored for
-            a ``Geodesic``, which carries its own time stamps).
-        steps: number of integration steps when ``source`` is a synergy.
         t0: controller time [s] at which the reference starts.
+        time_scale: time scale ``s > 0`` (``s > 1`` is slower).
         rest_to_rest: traverse the path with the quintic rest-to-rest time law.
         exact_acceleration: with a metric, evaluate the geodesic acceleration at each
             `sample` (True) or only at the knots, interpolated (False).
+        duration: geodesic time [s] to sample when ``source`` is a synergy (ignored for
+            a ``Geodesic``, which carries its own time stamps).
+        steps: number of integration steps when ``source`` is a synergy.
 
     `sample` allocates its three result arrays and calls the metric once.
     """
@@ -240,22 +199,18 @@ class GeodesicReference(_SampledReference):
         source: Any,
         metric: Metric | None = None,
         *,
-        time_scale: float = 1.0,
-        duration: float = 1.0,
-        steps: int = 100,
         t0: float = 0.0,
+        time_scale: float = 1.0,
         rest_to_rest: bool = False,
         exact_acceleration: bool = True,
+        duration: float = 1.0,
+        steps: int = 100,
     ) -> None:
         if hasattr(source, "trajectory") and hasattr(source, "metric"):
             if metric is None:
                 metric = source.metric
-            duration = _check_time(duration, "duration")
-            if duration <= 0.0:
-                raise InvalidArgument(f"duration must be > 0 [s], got {duration}")
-            if not isinstance(steps, (int, np.integer)) or steps < 1:
-                raise InvalidArgument(f"steps must be an integer >= 1, got {steps!r}")
-            geo = source.trajectory(duration, int(steps))
+            duration = check_positive(duration, "duration", "s")
+            geo = source.trajectory(duration, check_int(steps, "steps", low=1))
         elif all(hasattr(source, name) for name in ("t", "q", "v")):
             geo = source
         else:
@@ -265,9 +220,7 @@ class GeodesicReference(_SampledReference):
             )
         t, q = _check_samples(geo.t, geo.q)
         v = _check_like(geo.v, q.shape, "source.v")
-        scale = _check_time(time_scale, "time_scale")
-        if scale <= 0.0:
-            raise InvalidArgument(f"time_scale must be > 0, got {time_scale}")
+        scale = check_positive(time_scale, "time_scale")
         if metric is not None and getattr(metric, "n", q.shape[1]) != q.shape[1]:
             raise InvalidArgument(
                 f"metric has dimension {metric.n}, but the geodesic has n={q.shape[1]}"
@@ -275,7 +228,7 @@ class GeodesicReference(_SampledReference):
         self.n = int(q.shape[1])
         self.metric = metric
         self.time_scale = scale
-        self.t0 = _check_time(t0, "t0")
+        self.t0 = check_float(t0, "t0", unit="s")
         self.geodesic_duration = float(t[-1] - t[0])
         self.duration = self.geodesic_duration * scale
         self._exact = metric is not None and bool(exact_acceleration)
@@ -283,9 +236,9 @@ class GeodesicReference(_SampledReference):
             a = np.array(
                 [metric.geodesic_acceleration(qk, vk) for qk, vk in zip(q, v, strict=True)]
             )
-            coef = _hermite_quintic(t, q, v, a)
+            coef = hermite_quintic_coefficients(t, q, v, a)
         else:
-            coef = _hermite_cubic(t, q, v)
+            coef = hermite_cubic_coefficients(t, q, v)
         self._spline = _Piecewise(t - t[0], coef)
         self._q_start = q[0].copy()
         self._q_goal = q[-1].copy()
@@ -362,10 +315,10 @@ class JointTrajectoryReference(_SampledReference):
         else:
             v_arr = _check_like(v, q_arr.shape, "v")
             if a is None:
-                coef = _hermite_cubic(t_arr, q_arr, v_arr)
+                coef = hermite_cubic_coefficients(t_arr, q_arr, v_arr)
             else:
                 a_arr = _check_like(a, q_arr.shape, "a")
-                coef = _hermite_quintic(t_arr, q_arr, v_arr, a_arr)
+                coef = hermite_quintic_coefficients(t_arr, q_arr, v_arr, a_arr)
         self.n = int(q_arr.shape[1])
         self.t0 = float(t_arr[0])
         self.duration = float(t_arr[-1] - t_arr[0])

@@ -9,7 +9,7 @@ import numpy as np
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_int, check_positive, check_vector
 from geosyn.metrics.base import Metric
 
 
@@ -67,13 +67,10 @@ def replan_geodesic(
     q = check_vector(q, n, "q")
     check_vector(v, n, "v")
     goal = check_vector(goal, n, "goal")
-    duration = float(duration)
-    if not (np.isfinite(duration) and duration > 0.0):
-        raise InvalidArgument(f"duration must be a finite time > 0 [s], got {duration!r}")
-    if not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise InvalidArgument(f"steps must be an integer >= 1, got {steps!r}")
-    v0 = log(metric, q, goal, steps=int(steps), **log_options)
-    geodesic = exp(metric, q, np.asarray(v0, dtype=np.float64), duration=1.0, steps=int(steps))
+    duration = check_positive(duration, "duration", "s")
+    steps = check_int(steps, "steps", low=1)
+    v0 = log(metric, q, goal, steps=steps, **log_options)
+    geodesic = exp(metric, q, np.asarray(v0, dtype=np.float64), duration=1.0, steps=steps)
     return GeodesicReference(
         geodesic,
         metric,

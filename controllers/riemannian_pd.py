@@ -74,8 +74,6 @@ class RiemannianPD(Controller):
         super().__init__(robot, reference, metric)
         self.lam = check_gain(lam, self.nv, "lam")
         self.k = check_gain(k, self.nv, "k")
-        self._model = robot.model
-        self._data = robot.model.createData()
         self._e = np.zeros(self.nv)
         self._s = np.zeros(self.nv)
 

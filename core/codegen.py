@@ -6,7 +6,8 @@ generator, compiles it into a shared library and loads it back with
 of the generated C source (and of the compiler command), so the same function is
 compiled once per machine, whichever process asks first; files appear atomically
 (written under a temporary name, then ``os.replace``), so concurrent processes never
-load a half-written library.
+load a half-written library. :func:`compile_library` compiles several functions into one
+library through the same cache (e.g. a function with hand-made derivatives).
 
 Cache location, first that applies: the ``cache_dir`` argument,
 ``$GEOSYN_CACHE_DIR/codegen``, ``$XDG_CACHE_HOME/geosyn/codegen``,
@@ -38,6 +39,7 @@ __all__ = [
     "CodegenError",
     "clear_cache",
     "compile_function",
+    "compile_library",
     "default_cache_dir",
     "find_compiler",
     "numpy_function",
@@ -45,10 +47,19 @@ __all__ = [
 
 DEFAULT_FLAGS: tuple[str, ...] = ("-O2",)
 """Optimisation flags given to the compiler (``-shared -fPIC`` are always added)."""
+LARGE_SOURCE_FLAGS: tuple[str, ...] = ("-O1",)
+"""Flags of :func:`compile_library` for long sources: megabytes of straight-line code
+(e.g. the Jacobian of an RK4 step) take far longer to compile at ``-O2`` for little gain."""
+LARGE_SOURCE_CHARS = 500_000
+"""Source length [characters] from which :func:`compile_library` uses LARGE_SOURCE_FLAGS."""
+_C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 # <function name>_<24 hex digits of the key>.<so|c>; clear_cache deletes only these.
 _CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c)$")
 _TMP_PREFIX = ".tmp-geosyn-"
+# Temporary folders clear_cache removes: this module's, and those of the MPC's former
+# private copy of this cache (left behind by a compile killed midway).
+_TMP_PREFIXES = (_TMP_PREFIX, "geosyn-mpc-")
 
 
 class CodegenError(GeosynError):
@@ -97,15 +108,16 @@ def _resolve_cache_dir(cache_dir: str | os.PathLike[str] | None) -> Path:
     return Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
 
 
-def _generate_source(fun: ca.Function) -> str:
+def _generate_source(name: str, functions: Sequence[ca.Function]) -> str:
+    """C source of ``functions`` in one file named after ``name``."""
     try:
-        gen = ca.CodeGenerator(f"{fun.name()}.c", {"with_header": False})
-        gen.add(fun)
+        gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+        for fun in functions:
+            gen.add(fun)
         return gen.dump()
     except RuntimeError as err:
-        raise CodegenError(
-            f"CasADi could not generate C code for function {fun.name()!r}: {err}"
-        ) from err
+        names = ", ".join(repr(f.name()) for f in functions)
+        raise CodegenError(f"CasADi could not generate C code for function {names}: {err}") from err
 
 
 def _compile(compiler: str, flags: Sequence[str], source: Path, output: Path) -> None:
@@ -169,7 +181,7 @@ def compile_function(
     if not isinstance(fun, ca.Function):
         raise InvalidArgument(f"fun: expected a casadi.Function, got {type(fun).__name__}")
     name = fun.name()
-    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+    if not _C_IDENTIFIER.fullmatch(name):
         raise InvalidArgument(
             f"fun: name {name!r} is not a C identifier; rename the casadi.Function"
         )
@@ -190,7 +202,19 @@ def _compile_cached(
     fun: ca.Function, cache_dir: Path, flags: tuple[str, ...], compiler: str | None
 ) -> ca.Function:
     name = fun.name()
-    source = _generate_source(fun)
+    source = _generate_source(name, [fun])
+    return _build_cached(name, source, [name], cache_dir, flags, compiler)[name]
+
+
+def _build_cached(
+    name: str,
+    source: str,
+    load: Sequence[str],
+    cache_dir: Path,
+    flags: tuple[str, ...],
+    compiler: str | None,
+) -> dict[str, ca.Function]:
+    """Compile ``source`` into ``<name>_<key>.so`` unless cached; load the names ``load``."""
     cc = compiler if compiler is not None else find_compiler()
     if cc is None:
         raise CodegenError(
@@ -202,10 +226,10 @@ def _compile_cached(
     library = cache_dir / f"{stem}.so"
     if library.is_file():
         try:
-            return _load(name, library)
+            return {n: _load(n, library) for n in load}
         except CodegenError as err:
             # A damaged file (a full disk, a killed copy from elsewhere): build it anew.
-            warnings.warn(f"{err}; recompiling it", RuntimeWarning, stacklevel=3)
+            warnings.warn(f"{err}; recompiling it", RuntimeWarning, stacklevel=4)
     try:
         cache_dir.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=_TMP_PREFIX, dir=cache_dir))
@@ -221,7 +245,71 @@ def _compile_cached(
         os.replace(built, library)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return _load(name, library)
+    return {n: _load(n, library) for n in load}
+
+
+def compile_library(
+    name: str,
+    functions: Sequence[ca.Function],
+    cache_dir: str | os.PathLike[str] | None = None,
+    *,
+    load: Sequence[str] | None = None,
+    flags: Sequence[str] | None = None,
+    compiler: str | None = None,
+) -> dict[str, ca.Function]:
+    """Compile several CasADi functions into one library and load some of them back.
+
+    Functions of one library see each other by name: ``casadi.external`` takes
+    ``jac_<f>`` from the same library as the Jacobian of ``f`` and ``jac_jac_<f>`` as
+    the Jacobian of that Jacobian, so a library can carry hand-made derivatives (e.g. a
+    structurally zero second derivative, for Gauss-Newton Hessians). The library goes
+    through the same disk cache as :func:`compile_function` (file
+    ``<name>_<24 hex>.so``, removed by :func:`clear_cache`).
+
+    Allocates and may take minutes (the compiler runs) on a cache miss; a cache hit only
+    generates the C source to hash it and loads the library.
+
+    Args:
+        name: library name, a C identifier (the cache file starts with it).
+        functions: the functions to compile, each named by a C identifier.
+        cache_dir: folder of the compiled libraries; default :func:`default_cache_dir`.
+        load: names of the functions to load back; default all of ``functions``.
+        flags: compiler flags besides ``-shared -fPIC`` (part of the cache key); None for
+            :data:`DEFAULT_FLAGS`, or :data:`LARGE_SOURCE_FLAGS` when the generated source
+            has at least :data:`LARGE_SOURCE_CHARS` characters.
+        compiler: C compiler executable; default :func:`find_compiler`.
+
+    Returns:
+        ``{function name: casadi.Function}`` for the names in ``load``, evaluating the
+        compiled code.
+
+    Raises:
+        InvalidArgument: a name is not a C identifier, ``functions`` is empty or holds
+            something else than ``casadi.Function``, or ``load`` names a function that is
+            not in ``functions``.
+        CodegenError: no compiler, compilation or loading failed.
+    """
+    if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
+        raise InvalidArgument(f"name: {name!r} is not a C identifier")
+    funs = list(functions)
+    if not funs or not all(isinstance(f, ca.Function) for f in funs):
+        raise InvalidArgument(
+            f"functions: expected a non-empty sequence of casadi.Function, got {functions!r}"
+        )
+    names = [f.name() for f in funs]
+    bad = [n for n in names if not _C_IDENTIFIER.fullmatch(n)]
+    if bad:
+        raise InvalidArgument(f"functions: names {bad} are not C identifiers")
+    wanted = names if load is None else list(load)
+    unknown = sorted(set(wanted) - set(names))
+    if unknown:
+        raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
+    source = _generate_source(name, funs)
+    if flags is None:
+        flags = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
+    return _build_cached(
+        name, source, wanted, _resolve_cache_dir(cache_dir), tuple(flags), compiler
+    )
 
 
 def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:
@@ -245,7 +333,7 @@ def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:
         if entry.is_file() and _CACHED_FILE.match(entry.name):
             entry.unlink(missing_ok=True)
             removed += 1
-        elif entry.is_dir() and entry.name.startswith(_TMP_PREFIX):
+        elif entry.is_dir() and entry.name.startswith(_TMP_PREFIXES):
             shutil.rmtree(entry, ignore_errors=True)
             removed += 1
     return removed

@@ -14,7 +14,6 @@ from geosyn.experiments.errors import (
     ExperimentError,
     ProcedureFailed,
     RunDirectoryExists,
-    SweepError,
 )
 from geosyn.experiments.loader import builtin_names, load_config, validate_config
 from geosyn.experiments.procedures import PROCEDURES, Procedure, RunContext, register
@@ -32,7 +31,6 @@ __all__ = [
     "RunContext",
     "RunDirectoryExists",
     "RunOutcome",
-    "SweepError",
     "SweepResult",
     "builtin_names",
     "load_config",

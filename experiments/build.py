@@ -1,6 +1,7 @@
 """Building library objects from a validated config: robot, metric, synergies, reference,
 controllers, disturbances, simulations. Each config ``type`` maps to a builder through a
-registry dict (no string if/elif factories, no code in configs).
+registry dict (no string if/elif factories, no code in configs); a section's settings
+reach their class as `Section.kwargs` (the fields named like the class's parameters).
 """
 
 from __future__ import annotations
@@ -9,28 +10,29 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
-from geosyn.controllers import Controller, GeodesicReference
+from geosyn.controllers import (
+    ComputedTorque,
+    Controller,
+    GeodesicMPC,
+    GeodesicReference,
+    QPController,
+    RiemannianPD,
+)
 from geosyn.experiments import schema as S
 from geosyn.metrics import KineticEnergyMetric, Metric
 from geosyn.metrics.geodesic import Geodesic, exp, log
 from geosyn.metrics.shaping import (
-    Box,
-    Capsule,
-    HalfSpace,
     JointLimitTerm,
     LoadTerm,
     MetricTerm,
     ObstacleTerm,
     ShapedMetric,
-    Sphere,
 )
 from geosyn.robots import Robot, load_robot
 from geosyn.sim import (
     Disturbance,
     Latency,
-    Payload,
     PayloadChange,
     Push,
     SensorNoise,
@@ -39,7 +41,9 @@ from geosyn.sim import (
     TorqueNoise,
     Wrench,
 )
+from geosyn.sim.log import ARRAY_FIELDS
 from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies, pga
+from geosyn.world import Box, Capsule, HalfSpace, Payload, Shape, Sphere, rotation_from_rpy
 
 
 def build_robot(cfg: S.ExperimentConfig) -> Robot:
@@ -48,52 +52,40 @@ def build_robot(cfg: S.ExperimentConfig) -> Robot:
 
 
 def build_payloads(cfg: S.ExperimentConfig, robot: Robot) -> list[Payload]:
-    """Payload bodies of the scene (frame defaults to the robot's end effector)."""
+    """Payloads of the scene as `geosyn.world.Payload` (frame defaults to the robot's end
+    effector)."""
     return [
-        Payload(
-            frame=p.frame or robot.ee_frame,
-            mass=p.mass,
-            offset=tuple(p.offset),  # type: ignore[arg-type]
-            radius=p.radius,
-            name=p.name,
-        )
-        for p in cfg.scene.payloads
+        Payload(**(p.kwargs() | {"frame": p.frame or robot.ee_frame})) for p in cfg.scene.payloads
     ]
 
 
-OBSTACLES: dict[str, Callable[[Any], Any]] = {
+OBSTACLES: dict[str, Callable[[Any], Shape]] = {
     "sphere": lambda o: Sphere(tuple(o.center), o.radius),
-    "box": lambda o: Box(tuple(o.center), tuple(o.half_extents), pin.rpy.rpyToMatrix(*o.rpy)),
+    "box": lambda o: Box(
+        tuple(o.center), tuple(o.half_extents), tuple(map(tuple, rotation_from_rpy(o.rpy)))
+    ),
     "capsule": lambda o: Capsule(tuple(o.p0), tuple(o.p1), o.radius),
     "halfspace": lambda o: HalfSpace(tuple(o.normal), o.offset),
 }
 
 
-def build_obstacles(cfg: S.ExperimentConfig) -> list[Any]:
-    """Obstacles of the scene as `geosyn.metrics.shaping` shapes."""
+def build_obstacles(cfg: S.ExperimentConfig) -> list[Shape]:
+    """Obstacles of the scene as `geosyn.world` shapes."""
     return [OBSTACLES[o.type](o) for o in cfg.scene.obstacles]
 
 
 def _load_term(t: S.LoadTermConfig, cfg: S.ExperimentConfig, robot: Robot) -> MetricTerm:
     if t.payload is not None:
-        p = cfg.scene.payloads[t.payload]
-        inertia = np.eye(3) * 0.4 * p.mass * p.radius**2
-        return LoadTerm(p.frame or robot.ee_frame, p.mass, p.offset, inertia)
-    return LoadTerm(t.frame or robot.ee_frame, float(t.mass), t.com)  # type: ignore[arg-type]
+        return LoadTerm.from_payload(build_payloads(cfg, robot)[t.payload])
+    return LoadTerm(**(t.kwargs() | {"frame": t.frame or robot.ee_frame}))
 
 
 TERMS: dict[str, Callable[[Any, S.ExperimentConfig, Robot], MetricTerm]] = {
     "load": _load_term,
     "obstacle": lambda t, cfg, robot: ObstacleTerm(
-        build_obstacles(cfg),
-        capacity=max(1, len(cfg.scene.obstacles)),
-        profile=t.profile,
-        gain=t.gain,
-        cutoff=t.cutoff,
-        d_min=t.d_min,
-        gate=t.gate,
+        build_obstacles(cfg), capacity=max(1, len(cfg.scene.obstacles)), **t.kwargs()
     ),
-    "joint_limit": lambda t, cfg, robot: JointLimitTerm(t.margin, t.gain),
+    "joint_limit": lambda t, cfg, robot: JointLimitTerm(**t.kwargs()),
 }
 
 
@@ -188,69 +180,21 @@ def tracked_reference(geo: Geodesic, metric: Metric, time_scale: float = 1.0) ->
     """The reference a controller tracks along ``geo``.
 
     Accelerations are the metric's exact geodesic accelerations at the samples, interpolated
-    between them (9e-7 rad/s^2 from exact on a panda synergy at 100 samples): a shaped
-    metric's numeric geodesic acceleration costs 30-300 us per call, too much per 1 kHz tick.
+    between them: a shaped metric's exact geodesic acceleration is too costly to evaluate at
+    every control tick.
     """
     return GeodesicReference(geo, metric, time_scale=time_scale, exact_acceleration=False)
 
 
-def _computed_torque(
-    c: S.ComputedTorqueConfig, robot: Robot, metric: Metric, dt: float
-) -> Controller:
-    from geosyn.controllers.computed_torque import ComputedTorque
-
-    return ComputedTorque(robot, np.asarray(c.kp), np.asarray(c.kd), metric=metric)
-
-
-def _riemannian_pd(c: S.RiemannianPDConfig, robot: Robot, metric: Metric, dt: float) -> Controller:
-    from geosyn.controllers.riemannian_pd import RiemannianPD
-
-    return RiemannianPD(robot, np.asarray(c.lam), np.asarray(c.k), metric=metric)
-
-
-def _qp(c: S.QPConfig, robot: Robot, metric: Metric, dt: float) -> Controller:
-    from geosyn.controllers.qp import QPController
-
-    return QPController(
-        robot,
-        np.asarray(c.kp),
-        np.asarray(c.kd),
-        dt,
-        eps=c.eps,
-        position_horizon=c.position_horizon,
-        braking_acceleration=c.braking_acceleration,
-        max_iter=c.max_iter,
-        metric=metric,
-    )
-
-
-def _mpc(c: S.MPCConfig, robot: Robot, metric: Metric, dt: float) -> Controller:
-    from geosyn.controllers.mpc import GeodesicMPC
-
-    return GeodesicMPC(
-        robot,
-        metric,
-        horizon=c.horizon,
-        dt=c.dt,
-        solver=c.solver,
-        q_weight=c.q_weight,
-        v_weight=c.v_weight,
-        tau_weight=c.tau_weight,
-        terminal_weight=c.terminal_weight,
-        effort=c.effort,
-        control=c.control,
-        kp=np.asarray(c.kp),
-        kd=np.asarray(c.kd),
-        max_iter=c.max_iter,
-    )
-
-
 CONTROLLERS: dict[str, Callable[[Any, Robot, Metric, float], Controller]] = {
-    "computed_torque": _computed_torque,
-    "riemannian_pd": _riemannian_pd,
-    "qp": _qp,
-    "mpc": _mpc,
+    "computed_torque": lambda c, robot, metric, dt: ComputedTorque(
+        robot, metric=metric, **c.kwargs()
+    ),
+    "riemannian_pd": lambda c, robot, metric, dt: RiemannianPD(robot, metric=metric, **c.kwargs()),
+    "qp": lambda c, robot, metric, dt: QPController(robot, dt=dt, metric=metric, **c.kwargs()),
+    "mpc": lambda c, robot, metric, dt: GeodesicMPC(robot, metric, **c.kwargs()),
 }
+"""Registry of controller builders ``(section, robot, metric, control_dt) -> Controller``."""
 
 
 def build_controller(
@@ -260,21 +204,20 @@ def build_controller(
     return CONTROLLERS[c.type](c, robot, metric, control_dt)
 
 
-DISTURBANCES: dict[str, Callable[[Any], Disturbance]] = {
-    "push": lambda d: Push(d.body, d.force, d.start, d.duration, d.point),
-    "wrench": lambda d: Wrench(
-        d.body, d.force, d.torque, d.period, d.start, np.inf if d.stop is None else d.stop
-    ),
-    "payload_change": lambda d: PayloadChange(d.time, d.mass, d.payload),
-    "torque_noise": lambda d: TorqueNoise(np.asarray(d.std)),
-    "sensor_noise": lambda d: SensorNoise(np.asarray(d.q_std), np.asarray(d.v_std)),
-    "latency": lambda d: Latency(d.ticks, d.seconds),
+DISTURBANCES: dict[str, Callable[..., Disturbance]] = {
+    "push": Push,
+    "wrench": Wrench,
+    "payload_change": PayloadChange,
+    "torque_noise": TorqueNoise,
+    "sensor_noise": SensorNoise,
+    "latency": Latency,
 }
+"""Registry of disturbance classes by config ``type`` (built from the section's kwargs)."""
 
 
 def build_disturbances(cfg: S.ExperimentConfig) -> list[Disturbance]:
     """The config's disturbances, in order."""
-    return [DISTURBANCES[d.type](d) for d in cfg.disturbances]
+    return [DISTURBANCES[d.type](**d.kwargs()) for d in cfg.disturbances]
 
 
 def simulate(
@@ -288,40 +231,31 @@ def simulate(
     duration: float | None = None,
     disturbances: Sequence[Disturbance] | None = None,
     payloads: Sequence[Payload] | None = None,
-    obstacles: Sequence[Any] | None = None,
+    obstacles: Sequence[Shape] | None = None,
 ) -> SimResult:
     """Run one closed-loop simulation with the config's simulation settings and seed."""
     sim = cfg.simulation
     s = Simulation(
         robot,
         controller,
-        control_dt=sim.control_dt,
-        substeps=sim.substeps,
-        integrator=sim.integrator,
         payloads=build_payloads(cfg, robot) if payloads is None else payloads,
         obstacles=build_obstacles(cfg) if obstacles is None else obstacles,
         disturbances=build_disturbances(cfg) if disturbances is None else disturbances,
         seed=cfg.seed,
+        **sim.kwargs(),
     )
     return s.run(q0, v0, sim.duration if duration is None else duration, reference)
 
 
-#: Per-tick fields of a `SimResult` kept in results.npz.
-SIM_FIELDS = (
-    "t",
-    "q",
-    "v",
-    "tau_applied",
-    "q_ref",
-    "tracking_error",
-    "kinetic_energy",
-    "power",
-    "effort",
-    "saturated",
-    "clearance",
-    "payload_mass",
-    "fallback_used",
+#: Arrays of a `SimResult` left out of results.npz: the measured state, the commanded
+#: torque before saturation, the reference velocity, solver internals and the final state.
+_NOT_SAVED = frozenset(
+    {"q_meas", "v_meas", "tau", "v_ref", "compute_time", "iterations", "solver_status"}
+    | {"q_final", "v_final"}
 )
+
+#: Per-tick fields of a `SimResult` kept in results.npz, in `SimResult` order.
+SIM_FIELDS = tuple(f for f in ARRAY_FIELDS if f not in _NOT_SAVED)
 
 
 def sim_arrays(prefix: str, res: SimResult) -> dict[str, np.ndarray]:

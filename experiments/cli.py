@@ -8,10 +8,12 @@ traceback.
 from __future__ import annotations
 
 import argparse
+import inspect
 import os
 import re
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from geosyn.core.errors import GeosynError
 from geosyn.experiments import termination
@@ -55,22 +57,32 @@ def cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_arguments(p: argparse.ArgumentParser) -> None:
+def _experiment_arguments(p: argparse.ArgumentParser, out_help: str, set_help: str) -> None:
+    """Arguments of every command that runs an experiment (``run``, ``sweep``)."""
     p.add_argument(
         "experiment", metavar="NAME|FILE.yaml", help="built-in experiment name or YAML file"
     )
-    p.add_argument("--out", metavar="DIR", help="run directory (default runs/<name>-<timestamp>)")
+    p.add_argument("--out", metavar="DIR", help=out_help)
     p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a config field, e.g. --set simulation.duration=1.0 (repeatable)",
+        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=set_help
+    )
+    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
+
+
+def _keywords(args: argparse.Namespace, fn: Callable[..., Any]) -> dict[str, Any]:
+    """The parsed arguments named like keyword parameters of ``fn``."""
+    params = inspect.signature(fn).parameters
+    return {k: v for k, v in vars(args).items() if k in params}
+
+
+def _run_arguments(p: argparse.ArgumentParser) -> None:
+    _experiment_arguments(
+        p,
+        "run directory (default runs/<name>-<timestamp>)",
+        "override a config field, e.g. --set simulation.duration=1.0 (repeatable)",
     )
     p.add_argument("--video", action="store_true", help="also render videos")
     p.add_argument("--force", action="store_true", help="replace an existing run directory")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 @command("run", "run an experiment (built-in name or YAML file)")
@@ -79,16 +91,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     from geosyn.experiments.runner import run_experiment
 
     cfg, _ = load_config(args.experiment, args.overrides)
-    outcome = run_experiment(
-        cfg, args.out, force=args.force, video=args.video, progress=not args.no_progress
-    )
+    outcome = run_experiment(cfg, **_keywords(args, run_experiment))
     print(f"run directory: {outcome.path}  ({outcome.wall_time:.1f} s)")
     return 0
 
 
 def _sweep_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "experiment", metavar="NAME|FILE.yaml", help="built-in experiment name or YAML file"
+    _experiment_arguments(
+        p,
+        "sweep directory (default runs/sweep-<name>-<timestamp>)",
+        "override a config field for every run (repeatable)",
     )
     p.add_argument(
         "--grid",
@@ -107,36 +119,21 @@ def _sweep_arguments(p: argparse.ArgumentParser) -> None:
         metavar="K",
         help="local worker processes (default 1); with --ray local, Ray CPUs (default all)",
     )
-    p.add_argument("--ray", metavar="ADDRESS", help="run on Ray: a cluster address, or 'local'")
     p.add_argument(
-        "--out", metavar="DIR", help="sweep directory (default runs/sweep-<name>-<timestamp>)"
+        "--ray",
+        dest="ray_address",
+        metavar="ADDRESS",
+        help="run on Ray: a cluster address, or 'local'",
     )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a config field for every run (repeatable)",
-    )
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 @command("sweep", "run an experiment over a grid of settings and seeds")
 def cmd_sweep(args: argparse.Namespace) -> int:
     from geosyn.experiments.sweep import parse_grid, sweep
 
-    grid = parse_grid(args.grid)
-    result = sweep(
-        args.experiment,
-        grid,
-        seeds=args.seeds,
-        out=args.out,
-        workers=args.workers,
-        ray_address=args.ray,
-        overrides=args.overrides,
-        progress=not args.no_progress,
-    )
+    options = _keywords(args, sweep)
+    grid = parse_grid(options.pop("grid"))
+    result = sweep(args.experiment, grid, **options)
     print(
         f"sweep directory: {result.path}  ({result.ran} run(s) done now,"
         f" {result.skipped} already complete)"
@@ -188,9 +185,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse: usage errors exit 2, --help exits 0
         return int(exc.code) if isinstance(exc.code, int) else 2
     fn, _ = COMMANDS[args.command]
-    termination.install()
     try:
-        return fn(args)
+        with termination.sigterm_exits():  # the previous handler is back when main returns
+            return fn(args)
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0

@@ -1,22 +1,32 @@
-"""Errors of the experiments layer (configs, runner, CLI)."""
+"""Errors of the experiments layer (configs, runs, sweeps, the CLI).
+
+Three coarse kinds, by what the user does about them: fix the input (`ConfigError`),
+choose another output directory (`RunDirectoryExists`), or look at the run that failed
+(`ProcedureFailed`). Argument checks of the library functions raise
+`geosyn.core.InvalidArgument` (from `geosyn.core.validation`).
+"""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 from geosyn.core.errors import GeosynError
 
 
 class ExperimentError(GeosynError):
-    """Base class of experiment-layer errors."""
+    """Base class of experiment-layer errors (also raised for a path that is not a run
+    directory)."""
 
 
 class ConfigError(ExperimentError):
-    """A malformed experiment configuration (file, YAML syntax, field value or override).
+    """Malformed input: a config file, its YAML, a field value, a ``--set`` override or a
+    sweep's ``--grid``.
 
     The message reads ``<file>: <field path>: <what is wrong>``, e.g.
     ``panda.yaml: controllers.1.kp: Input should be greater than or equal to 0``.
 
     Attributes:
-        file: the config file (or built-in name, or ``--set``) the error is about.
+        file: the config file (or built-in name, ``--set`` or ``--grid``) the error is about.
         field: dotted field path (``controllers.1.kp``), or None for file-level errors.
         reason: the reason alone, without file and field.
     """
@@ -30,12 +40,22 @@ class ConfigError(ExperimentError):
 
 
 class RunDirectoryExists(ExperimentError):
-    """The output directory of a run already exists and ``--force`` was not given."""
+    """The output directory of a run or sweep exists and may not be written into.
+
+    Attributes:
+        path: the directory.
+        reason: why it may not be used (and what to do instead).
+    """
+
+    def __init__(self, path: str | Path, reason: str) -> None:
+        self.path = Path(path)
+        self.reason = reason
+        super().__init__(f"out {str(path)!r} {reason}")
 
 
 class ProcedureFailed(ExperimentError):
-    """A procedure could not produce its results (a solver failed, a run diverged, ...)."""
+    """A procedure could not produce its results (a solver failed, a run diverged, a
+    sweep's run failed, ...)."""
 
 
-class SweepError(ExperimentError):
-    """A malformed sweep (bad ``--grid``, seeds, workers) or a failed sweep run."""
+__all__ = ["ConfigError", "ExperimentError", "ProcedureFailed", "RunDirectoryExists"]

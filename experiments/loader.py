@@ -179,7 +179,7 @@ def _raise_validation(err: ValidationError, file: str, data: Any, prefix: str = 
 def scene_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
     """Names that only the built scene can check: payload frames, pushed bodies, load frames.
 
-    Builds the MuJoCo scene once (tens of milliseconds).
+    Builds the MuJoCo scene once (only when a push or wrench names a body).
     """
     from geosyn.experiments.build import build_payloads
     from geosyn.sim import build_scene

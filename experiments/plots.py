@@ -1,24 +1,49 @@
-"""Plot helpers shared by the procedures (matplotlib, Agg backend, PNG files)."""
+"""Plot helpers shared by the procedures: matplotlib figures written as PNG files.
+
+Figures are `matplotlib.figure.Figure` objects drawn on their own Agg canvas, never
+pyplot's: plotting needs no global backend and leaves no open figure behind, so
+importing or calling this module changes nothing in matplotlib's global state.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 COLORS = ("#1f5fbf", "#d9541e", "#2a9d3a", "#8e44ad", "#c0392b", "#7f8c8d")
 
+#: Axis label of the geodesic-equation residual [N m].
+RESIDUAL_LABEL = r"max $\|G\ddot q + C\dot q\|$ [N m]"
 
-def save(fig: plt.Figure, path: Path) -> Path:
-    """Save and close a figure."""
+
+def figure(
+    figsize: tuple[float, float], nrows: int = 1, ncols: int = 1, **kw: Any
+) -> tuple[Figure, Any]:
+    """A new figure on its own Agg canvas and its axes (``Figure.subplots(nrows, ncols, **kw)``).
+
+    Args:
+        figsize: (width, height) [inch].
+        nrows: rows of axes.
+        ncols: columns of axes.
+        **kw: passed to `matplotlib.figure.Figure.subplots` (``sharex``, ``squeeze``, ...).
+
+    Returns:
+        (the figure, one `Axes` or an array of them as `Figure.subplots` returns).
+    """
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols, **kw)
+
+
+def save(fig: Figure, path: Path) -> Path:
+    """Lay out and write a figure as PNG (110 dpi); returns ``path``."""
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
 
 
@@ -36,7 +61,7 @@ def tracking_error_plot(
         threshold: horizontal line [rad].
         windows: (start, stop, label) time windows to shade [s] (pushes, ...).
     """
-    fig, ax = plt.subplots(figsize=(8, 4))
+    fig, ax = figure((8, 4))
     for (label, r), c in zip(runs.items(), COLORS * 4, strict=False):
         err = np.linalg.norm(r["tracking_error"], axis=1)
         ax.semilogy(r["t"], np.maximum(err, 1e-12), color=c, lw=1.4, label=label)
@@ -55,8 +80,9 @@ def tracking_error_plot(
 
 
 def torque_plot(path: Path, runs: dict[str, dict[str, np.ndarray]]) -> Path:
-    """Applied joint torques [N m] against time, one panel per run."""
-    fig, axes = plt.subplots(len(runs), 1, figsize=(8, 2.4 * len(runs)), sharex=True, squeeze=False)
+    """Applied joint torques ``tau_applied`` (T, nv) [N m] against ``t`` (T,) [s], one
+    panel per run."""
+    fig, axes = figure((8, 2.4 * len(runs)), len(runs), 1, sharex=True, squeeze=False)
     for ax, (label, r) in zip(axes[:, 0], runs.items(), strict=True):
         tau = r["tau_applied"]
         for j in range(tau.shape[1]):
@@ -73,7 +99,7 @@ def bar_plot(
     path: Path, labels: Sequence[str], values: Sequence[float], ylabel: str, title: str
 ) -> Path:
     """One bar per label."""
-    fig, ax = plt.subplots(figsize=(5, 3.5))
+    fig, ax = figure((5, 3.5))
     ax.bar(list(labels), list(values), color=COLORS[: len(labels)])
     ax.set_ylabel(ylabel)
     ax.set_title(title)
@@ -81,4 +107,12 @@ def bar_plot(
     return save(fig, path)
 
 
-__all__ = ["COLORS", "bar_plot", "save", "torque_plot", "tracking_error_plot"]
+__all__ = [
+    "COLORS",
+    "RESIDUAL_LABEL",
+    "bar_plot",
+    "figure",
+    "save",
+    "torque_plot",
+    "tracking_error_plot",
+]

@@ -21,7 +21,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -124,7 +124,7 @@ def run_experiment(
     out = default_run_dir(cfg) if out is None else Path(out)
     if out.exists() and not force:
         raise RunDirectoryExists(
-            f"out {str(out)!r} already exists; choose another --out or pass --force to replace it"
+            out, "already exists; choose another --out or pass --force to replace it"
         )
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.partial-{uuid.uuid4().hex[:8]}"
@@ -145,7 +145,8 @@ def run_experiment(
                 progress=factory,
             )
             results = proc.run(ctx)
-        np.savez_compressed(tmp / "results.npz", **results)
+        arrays: dict[str, Any] = results  # numpy stubs match **kwds against allow_pickle: bool
+        np.savez_compressed(tmp / "results.npz", **arrays)
         summary = clean_summary(proc.summarize(cfg, params, results))
         if cfg.outputs.plots:
             proc.plot(cfg, params, results, tmp)

@@ -29,8 +29,9 @@ import numpy as np
 import yaml
 
 from geosyn.core.errors import GeosynError
+from geosyn.core.validation import check_int
 from geosyn.experiments import termination
-from geosyn.experiments.errors import ConfigError, SweepError
+from geosyn.experiments.errors import ConfigError, ProcedureFailed, RunDirectoryExists
 from geosyn.experiments.loader import load_config
 from geosyn.experiments.report import fmt
 
@@ -81,7 +82,8 @@ def parse_grid(items: Iterable[str]) -> dict[str, list[str]]:
     """``["key=v1,v2", ...]`` to ``{key: [v1, v2]}`` (values stay text; YAML-parsed later).
 
     Raises:
-        SweepError: no ``=``, an empty key or value, or a key given twice.
+        ConfigError: no ``=``, an empty key or value, or a key given twice (file
+            ``--grid``, field the item).
     """
     grid: dict[str, list[str]] = {}
     for item in items:
@@ -89,11 +91,11 @@ def parse_grid(items: Iterable[str]) -> dict[str, list[str]]:
         key = key.strip()
         vals = _split_values(values) if sep else []
         if not sep or not key or not vals or any(v == "" for v in vals):
-            raise SweepError(
-                f"--grid {item!r}: expected key.path=v1,v2,... (e.g. controllers.0.kp=100,400)"
+            raise ConfigError(
+                "--grid", item, "expected key.path=v1,v2,... (e.g. controllers.0.kp=100,400)"
             )
         if key in grid:
-            raise SweepError(f"--grid {key!r} is given twice")
+            raise ConfigError("--grid", key, "is given twice")
         grid[key] = vals
     return grid
 
@@ -134,9 +136,9 @@ def _run_local(jobs: Sequence[SweepJob], workers: int, advance: Any) -> None:
     import multiprocessing
 
     # Linux: fork, so workers inherit the already imported pinocchio/casadi/mujoco (a
-    # forkserver re-imports them, ~1.1 s inside the sweep: 1.49x instead of 1.91x speed-up
-    # on 16 short runs, benchmarks/RESULTS.md). Workers only run experiments and never use
-    # the parent's progress thread. Elsewhere: a forkserver that preloads geosyn.
+    # forkserver re-imports them in every sweep; the speed-ups are in benchmarks/RESULTS.md).
+    # Workers only run experiments and never use the parent's progress thread. Elsewhere:
+    # a forkserver that preloads geosyn.
     if sys.platform.startswith("linux"):
         ctx = multiprocessing.get_context("fork")
     else:
@@ -153,7 +155,7 @@ def _run_local(jobs: Sequence[SweepJob], workers: int, advance: Any) -> None:
                     try:
                         fut.result()
                     except GeosynError as err:
-                        raise SweepError(
+                        raise ProcedureFailed(
                             f"run {job.out!r} failed: {type(err).__name__}: {err}"
                         ) from err
                     advance()
@@ -167,8 +169,8 @@ def _run_ray(jobs: Sequence[SweepJob], address: str, workers: int, advance: Any)
     try:
         import ray
     except ImportError as err:
-        raise SweepError(
-            "--ray needs the 'distributed' extra: pip install 'geosyn[distributed]'"
+        raise ConfigError(
+            "--ray", address, "needs the 'distributed' extra: pip install 'geosyn[distributed]'"
         ) from err
     started = False
     if not ray.is_initialized():
@@ -189,7 +191,7 @@ def _run_ray(jobs: Sequence[SweepJob], address: str, workers: int, advance: Any)
                 except Exception as err:
                     for p in pending:
                         ray.cancel(p)
-                    raise SweepError(
+                    raise ProcedureFailed(
                         f"run {refs[ref].out!r} failed on Ray: {err}".splitlines()[0]
                     ) from err
                 advance()
@@ -265,15 +267,15 @@ def sweep(
         The `SweepResult`.
 
     Raises:
+        InvalidArgument: ``seeds`` or ``workers`` is not an integer >= 1.
         ConfigError: a grid point's config does not validate (checked before any run).
-        SweepError: bad seeds/workers, a foreign sweep directory, or a failed run.
+        RunDirectoryExists: ``out`` holds another sweep or is not a sweep directory.
+        ProcedureFailed: a run failed.
     """
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise SweepError(f"seeds must be an integer >= 1, got {seeds!r}")
+    seeds = check_int(seeds, "seeds", low=1)
     if workers is None:
         workers = (os.cpu_count() or 1) if ray_address == "local" else 1
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise SweepError(f"workers must be an integer >= 1, got {workers!r}")
+    workers = check_int(workers, "workers", low=1)
     base_cfg, path = load_config(source, overrides)
     path = path.resolve()  # workers (Ray) may run in another directory
     keys = list(grid)
@@ -305,13 +307,11 @@ def sweep(
     if spec_file.is_file():
         old = yaml.safe_load(spec_file.read_text())
         if old != spec:
-            raise SweepError(
-                f"out {str(out)!r} holds a different sweep (see its sweep.yaml); choose another --out"
+            raise RunDirectoryExists(
+                out, "holds a different sweep (see its sweep.yaml); choose another --out"
             )
     elif out.exists() and any(out.iterdir()):
-        raise SweepError(
-            f"out {str(out)!r} exists and is not a sweep directory; choose another --out"
-        )
+        raise RunDirectoryExists(out, "exists and is not a sweep directory; choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     spec_file.write_text(yaml.safe_dump(spec, sort_keys=False))
     todo = []

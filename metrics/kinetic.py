@@ -10,7 +10,7 @@ import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
-from geosyn.metrics.base import Metric, MetricFunctions
+from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
 
@@ -24,8 +24,8 @@ class KineticEnergyMetric(Metric):
       zero gravity and zero acceleration, `geodesic_acceleration` is ``pin.aba`` with zero
       gravity and zero torque;
     - symbolic on CasADi SX from geosyn's own recursive algorithms (CRBA, RNEA, ABA in
-      `geosyn.robots.symbolic`), giving dG/dq and the Christoffel symbols, optionally
-      compiled to C and cached on disk (``compile=True``).
+      `geosyn.robots.symbolic`), from which `Metric` derives dG/dq and the Christoffel
+      symbols, optionally compiled to C and cached on disk (``compile=True``).
 
     Args:
         robot: the robot.
@@ -77,7 +77,7 @@ class KineticEnergyMetric(Metric):
         # (tests inject NaN/inf into each coordinate of every built-in robot).
         try:
             M = pin.crba(self._model, self._data, q)
-            if math.isfinite(M[self._root, self._root] + q[self._root]):  # type: ignore[index]
+            if math.isfinite(M[self._root, self._root] + q[self._root]):
                 return M
         except (TypeError, ValueError, IndexError):
             pass
@@ -102,18 +102,13 @@ class KineticEnergyMetric(Metric):
             v: (n,) joint velocities [rad/s].
         """
         try:
-            if math.isfinite(q.dot(q) + v.dot(v)):  # type: ignore[union-attr]
+            if math.isfinite(q.dot(q) + v.dot(v)):
                 return pin.aba(self._model0, self._data0, q, v, self._zero)
         except (AttributeError, TypeError, ValueError):
             pass
         q = self._check(q, "q")
         v = self._check(v, "v")
         return pin.aba(self._model0, self._data0, q, v, self._zero)
-
-    def gravity_torque(self, q: Vector) -> Vector:
-        """Gravity torques g(q) [N m] for the robot's gravity vector."""
-        q = self._check(q, "q")
-        return pin.computeGeneralizedGravity(self._model, self._data, q).copy()
 
     # -- symbolic path ---------------------------------------------------------------
     def symbolic_G(self, q: ca.SX) -> ca.SX:
@@ -133,19 +128,3 @@ class KineticEnergyMetric(Metric):
         from geosyn.robots import symbolic
 
         return symbolic.aba(self._model, q, v, ca.SX.zeros(self.n), np.zeros(3))
-
-    def symbolic_rnea(self, q: ca.SX, v: ca.SX, a: ca.SX, gravity: bool = True) -> ca.SX:
-        """SX inverse dynamics ``M a + C v + g`` [N m] (``gravity=False`` drops g)."""
-        from geosyn.robots import symbolic
-
-        g = np.asarray(self.robot.gravity) if gravity else np.zeros(3)
-        return symbolic.rnea(self._model, q, v, a, g)
-
-    def build_functions(self) -> MetricFunctions:
-        """Build (and with ``compile=True`` compile to C, cached on disk) the functions."""
-        funcs = super().build_functions()
-        if not self.compile:
-            return funcs
-        from geosyn.core.codegen import compile_function
-
-        return MetricFunctions(*(compile_function(f, fallback=True) for f in funcs))

@@ -5,17 +5,11 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
     raise ImportError(f"import geosyn.robots, not {__name__}: one module, one name")
 
 
+from geosyn.robots.builtins import BUILTINS
 from geosyn.robots.errors import RobotError, RobotFileError, UnknownFrame, UnknownRobot
-from geosyn.robots.loading import (
-    BUILTINS,
-    example_robot_data_dir,
-    load_file,
-    load_robot,
-    planar2,
-    planar3,
-    planar_arm,
-    robot_from_model,
-)
+from geosyn.robots.files import load_file
+from geosyn.robots.from_model import robot_from_model
+from geosyn.robots.loading import load_robot
 from geosyn.robots.mjcf import robot_to_mjcf
 from geosyn.robots.robot import CollisionCapsule, CollisionSphere, Robot
 
@@ -28,12 +22,8 @@ __all__ = [
     "RobotFileError",
     "UnknownFrame",
     "UnknownRobot",
-    "example_robot_data_dir",
     "load_file",
     "load_robot",
-    "planar2",
-    "planar3",
-    "planar_arm",
     "robot_from_model",
     "robot_to_mjcf",
 ]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from geosyn.core.errors import GeosynError, InvalidArgument
 
 
@@ -9,22 +11,41 @@ class RobotError(GeosynError):
     """Base class of robot-layer errors."""
 
 
-class UnknownRobot(RobotError, KeyError):
-    """A robot name is neither a built-in nor an existing file."""
+class RobotFileError(RobotError):
+    """A robot file is missing, unreadable or malformed, or holds an unsupported model.
+
+    Attributes:
+        path: the file concerned, or None (e.g. an unsupported joint in a model).
+    """
+
+    def __init__(self, message: str, path: object = None) -> None:
+        super().__init__(message)
+        self.path = None if path is None else str(path)
+
+
+class _UnknownName(RobotError, KeyError):
+    """A name that is not among the available ones; the message lists them.
+
+    Attributes:
+        name: the name given.
+        available: the names that would have been accepted.
+    """
+
+    def __init__(self, message: str, name: object = None, available: Iterable[str] = ()) -> None:
+        super().__init__(message)
+        self.name = name
+        self.available = tuple(available)
 
     def __str__(self) -> str:  # KeyError quotes its message; keep it readable
         return str(self.args[0]) if self.args else ""
 
 
-class RobotFileError(RobotError):
-    """A robot file is missing, unreadable or malformed."""
+class UnknownRobot(_UnknownName):
+    """A robot name is neither a built-in nor a path with a robot-file suffix."""
 
 
-class UnknownFrame(RobotError, KeyError):
-    """A frame or joint name is not in the model; the message lists the available ones."""
-
-    def __str__(self) -> str:
-        return str(self.args[0]) if self.args else ""
+class UnknownFrame(_UnknownName):
+    """A frame or joint name is not in the model."""
 
 
 __all__ = ["InvalidArgument", "RobotError", "RobotFileError", "UnknownFrame", "UnknownRobot"]

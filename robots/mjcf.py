@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
+from geosyn.core.validation import check_choice, check_positive, check_vector
 
 if TYPE_CHECKING:
     from geosyn.robots.robot import Robot
@@ -79,17 +80,15 @@ def robot_to_mjcf(
 
     Returns:
         The MJCF document.
+
+    Raises:
+        InvalidArgument: bad ``gravity``, ``timestep`` or ``integrator``, or
+            ``body_extra`` naming an unknown joint.
     """
     model = robot.model
-    g = np.asarray(robot.gravity if gravity is None else gravity, dtype=np.float64)
-    if g.shape != (3,) or not np.all(np.isfinite(g)):
-        raise InvalidArgument(f"gravity must be a finite (3,) vector [m/s^2], got {gravity!r}")
-    if not (np.isfinite(timestep) and timestep > 0):
-        raise InvalidArgument(f"timestep must be > 0 [s], got {timestep!r}")
-    if integrator not in _INTEGRATORS:
-        raise InvalidArgument(
-            f"integrator {integrator!r} unknown; allowed: {', '.join(_INTEGRATORS)}"
-        )
+    g = check_vector(robot.gravity if gravity is None else gravity, 3, "gravity")
+    timestep = check_positive(timestep, "timestep", unit="s")
+    check_choice(integrator, _INTEGRATORS, "integrator")
     body_extra = dict(body_extra or {})
     unknown = [k for k in body_extra if not model.existJointName(k)]
     if unknown:
@@ -149,8 +148,8 @@ def robot_to_mjcf(
         return lines
 
     tree: list[str] = []
-    for c in children[0]:
-        tree += body(c, "    ")
+    for child in children[0]:
+        tree += body(child, "    ")
     actuators = [
         f'    <motor name={quoteattr(n + "_motor")} joint={quoteattr(n)} gear="1"'
         f' ctrllimited="true" ctrlrange="{mjcf_number(-t)} {mjcf_number(t)}"/>'

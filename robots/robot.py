@@ -12,9 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_int, check_vector
 from geosyn.robots.errors import UnknownFrame
 
 if TYPE_CHECKING:
@@ -118,8 +117,12 @@ class Robot:
             UnknownFrame: the name is not a frame of the model; the message lists them.
         """
         if not isinstance(name, str) or not self.model.existFrame(name):
-            names = ", ".join(f.name for f in self.model.frames)
-            raise UnknownFrame(f"frame {name!r} is not in robot {self.name!r}; available: {names}")
+            names = [f.name for f in self.model.frames]
+            raise UnknownFrame(
+                f"frame {name!r} is not in robot {self.name!r}; available: {', '.join(names)}",
+                name,
+                names,
+            )
         return int(self.model.getFrameId(name))
 
     def joint_id(self, name: str) -> int:
@@ -129,8 +132,12 @@ class Robot:
             UnknownFrame: the name is not a joint of the model; the message lists them.
         """
         if not isinstance(name, str) or not self.model.existJointName(name):
-            names = ", ".join(self.model.names[1:])
-            raise UnknownFrame(f"joint {name!r} is not in robot {self.name!r}; available: {names}")
+            names = list(self.model.names[1:])
+            raise UnknownFrame(
+                f"joint {name!r} is not in robot {self.name!r}; available: {', '.join(names)}",
+                name,
+                names,
+            )
         return int(self.model.getJointId(name))
 
     def collision_spheres(self, per_capsule: int = 3) -> tuple[CollisionSphere, ...]:
@@ -144,8 +151,7 @@ class Robot:
         """
         if self._spheres:
             return self._spheres
-        if per_capsule < 1:
-            raise InvalidArgument(f"per_capsule must be >= 1, got {per_capsule}")
+        per_capsule = check_int(per_capsule, "per_capsule", low=1)
         spheres = []
         for c in self.capsules:
             p0, p1 = np.asarray(c.p0), np.asarray(c.p1)

@@ -4,22 +4,17 @@ videos.
 `Simulation(robot, controller, ...)` runs torque control of a `Robot` in a MuJoCo model built
 from the same description (`build_scene`: payload bodies welded to links, obstacle geoms),
 under `Disturbance`s (`Push`, `Wrench`, `PayloadChange`, `TorqueNoise`, `SensorNoise`,
-`Latency`), and returns a per-tick `SimResult` (saved to .npz). `render_video` draws a
-result headless (EGL) to .gif (Pillow) or .mp4 (imageio + ffmpeg).
+`Latency`), and returns a per-tick `SimResult` (saved to .npz). A `Clip` draws a result
+headless (EGL unless ``MUJOCO_GL`` names another backend) to frames, a .gif (Pillow) or an
+.mp4 (imageio + ffmpeg); `render_video` is its one-call form. Importing this package sets
+nothing global: the OpenGL context is made when a video is drawn.
 """
 
 if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
     raise ImportError(f"import geosyn.sim, not {__name__}: one module, one name")
 
 
-# render first: it sets MUJOCO_GL=egl (headless) before anything imports mujoco.
-from geosyn.sim.render import (  # isort: skip
-    CameraView,
-    iter_frames,
-    render_frames,
-    render_video,
-    write_frames,
-)
+from geosyn.sim.camera import CameraView
 from geosyn.sim.disturbances import (
     Disturbance,
     Latency,
@@ -29,23 +24,19 @@ from geosyn.sim.disturbances import (
     TorqueNoise,
     Wrench,
 )
-from geosyn.sim.errors import RenderError, SimError, UnknownBody, UnsupportedObstacle
+from geosyn.sim.errors import RenderError, SimError, UnknownBody
 from geosyn.sim.log import SimResult
-from geosyn.sim.scene import Clearance, ObstacleGeom, Payload, Scene, build_scene, link_placement
-from geosyn.sim.simulation import SPEED_FACTOR, ControllerLike, ReferenceLike, Simulation
+from geosyn.sim.render import Clip, render_video
+from geosyn.sim.scene import Scene, build_scene
+from geosyn.sim.simulation import Simulation
 
 __all__ = [
-    "SPEED_FACTOR",
     "CameraView",
-    "Clearance",
-    "ControllerLike",
+    "Clip",
     "Disturbance",
     "Latency",
-    "ObstacleGeom",
-    "Payload",
     "PayloadChange",
     "Push",
-    "ReferenceLike",
     "RenderError",
     "Scene",
     "SensorNoise",
@@ -54,12 +45,7 @@ __all__ = [
     "Simulation",
     "TorqueNoise",
     "UnknownBody",
-    "UnsupportedObstacle",
     "Wrench",
     "build_scene",
-    "iter_frames",
-    "link_placement",
-    "render_frames",
     "render_video",
-    "write_frames",
 ]

@@ -32,7 +32,7 @@ import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_float, check_int, check_vec3, check_vector
 from geosyn.sim.errors import UnknownBody
 from geosyn.sim.scene import Scene
 
@@ -41,25 +41,20 @@ _TIME_EPS = 1e-9
 
 
 def _std(x: object, name: str) -> np.ndarray:
-    """A non-negative scalar or vector standard deviation, checked for sign and finiteness."""
+    """A standard deviation >= 0: a scalar, or a (n,) vector with one per joint."""
     try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a float or a float vector >= 0, got {x!r}") from err
-    if arr.ndim > 1 or not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise InvalidArgument(f"{name} must be a finite float or (n,) vector >= 0, got {x!r}")
+        n = len(x)  # type: ignore[arg-type]
+    except TypeError:  # a scalar, or not a number at all (check_float says which)
+        return np.asarray(check_float(x, name, low=0.0))
+    arr = check_vector(x, n, name)
+    if np.any(arr < 0):
+        raise InvalidArgument(f"{name} must be >= 0 on every joint, got {x!r}")
     return arr
 
 
 def _time(x: object, name: str, *, positive: bool = False) -> float:
-    try:
-        val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a time [s], got {x!r}") from err
-    if not np.isfinite(val) or val < 0 or (positive and val == 0):
-        allowed = "> 0" if positive else ">= 0"
-        raise InvalidArgument(f"{name} must be finite and {allowed} [s], got {x!r}")
-    return val
+    """A time [s]: finite and >= 0 (> 0 with ``positive``)."""
+    return check_float(x, name, low=0.0, low_open=positive, unit="s")
 
 
 def _check_sized(std: np.ndarray, n: int, name: str) -> None:
@@ -142,7 +137,8 @@ class Disturbance:
         """
 
 
-def _overrides(d: Disturbance, hook: str) -> bool:
+def overrides(d: Disturbance, hook: str) -> bool:
+    """Whether the class of ``d`` overrides the hook ``hook`` (the simulation calls only those)."""
     return getattr(type(d), hook) is not getattr(Disturbance, hook)
 
 
@@ -158,7 +154,7 @@ class _BodyWrench(Disturbance):
         self.body = body
         self.force = check_vector(force, 3, "force [N]")
         self.torque = check_vector(torque, 3, "torque [N m]")
-        self.point = None if point is None else check_vector(point, 3, "point [m]")
+        self.point = None if point is None else check_vec3(point, "point [m]")
         self._bid = -1
         self._point_body: Vector | None = None
 
@@ -271,7 +267,8 @@ class Wrench(_BodyWrench):
 class PayloadChange(Disturbance):
     """Set a payload's mass during a run; the controller is not told.
 
-    The payload body's mass and its solid-sphere inertia (2/5 m r^2) are written into the
+    The payload body's mass and its principal moments of inertia (those of the same shape
+    at the new mass: `geosyn.world.Payload.principal_inertia`) are written into the
     simulated model, then ``mujoco.mj_setConst`` recomputes the derived constants (subtree
     masses, inverse weights, actuator acc0) on a scratch MjData, so the simulation's state is
     untouched. The next `reset` restores the initial mass.
@@ -284,9 +281,7 @@ class PayloadChange(Disturbance):
 
     def __init__(self, time: float, mass: float, payload: int | str = 0) -> None:
         self.time = _time(time, "time")
-        if not (np.isfinite(mass) and float(mass) >= 0):
-            raise InvalidArgument(f"mass must be finite and >= 0 [kg], got {mass!r}")
-        self.mass = float(mass)
+        self.mass = check_float(mass, "mass", low=0.0, unit="kg")
         self.payload = payload
         self._bid = -1
         self._done = False
@@ -321,7 +316,7 @@ class PayloadChange(Disturbance):
 
     def before_tick(self, t: float, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         if not self._done and t >= self.time - _TIME_EPS:
-            self._set(self.mass, self._payload.inertia(self.mass))
+            self._set(self.mass, self._payload.principal_inertia(self.mass)[0])
             self._done = True
 
     def __repr__(self) -> str:
@@ -336,7 +331,7 @@ class TorqueNoise(Disturbance):
         std: standard deviation [N m], a scalar or (nv,) per joint, >= 0.
     """
 
-    def __init__(self, std: float | Sequence[float]) -> None:
+    def __init__(self, std: float | Sequence[float] | np.ndarray) -> None:
         self.std = _std(std, "std [N m]")
 
     def bind(self, scene: Scene, control_dt: float) -> None:
@@ -359,7 +354,9 @@ class SensorNoise(Disturbance):
     """
 
     def __init__(
-        self, q_std: float | Sequence[float] = 0.0, v_std: float | Sequence[float] = 0.0
+        self,
+        q_std: float | Sequence[float] | np.ndarray = 0.0,
+        v_std: float | Sequence[float] | np.ndarray = 0.0,
     ) -> None:
         self.q_std = _std(q_std, "q_std [rad]")
         self.v_std = _std(v_std, "v_std [rad/s]")
@@ -395,11 +392,7 @@ class Latency(Disturbance):
             raise InvalidArgument(
                 f"give exactly one of ticks or seconds, got ticks={ticks!r}, seconds={seconds!r}"
             )
-        if ticks is not None and (
-            isinstance(ticks, bool) or not isinstance(ticks, (int, np.integer)) or ticks < 0
-        ):
-            raise InvalidArgument(f"ticks must be an int >= 0, got {ticks!r}")
-        self.ticks_arg = None if ticks is None else int(ticks)
+        self.ticks_arg = None if ticks is None else check_int(ticks, "ticks", low=0)
         self.seconds = None if seconds is None else _time(seconds, "seconds")
         self.ticks = self.ticks_arg if self.ticks_arg is not None else -1
 

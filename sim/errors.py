@@ -1,4 +1,8 @@
-"""Errors of the simulation layer (scene building, disturbances, rendering)."""
+"""Errors of the simulation layer (scene building, disturbances, rendering).
+
+A bad obstacle shape or payload is a `geosyn.world.InvalidGeometry`, raised where shapes
+and payloads are validated.
+"""
 
 from __future__ import annotations
 
@@ -19,12 +23,8 @@ class UnknownBody(SimError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
-class UnsupportedObstacle(SimError, TypeError):
-    """An obstacle object is none of Sphere, Box, Capsule or HalfSpace."""
-
-
 class RenderError(SimError):
     """A video could not be rendered or written (no OpenGL context, no writer, ...)."""
 
 
-__all__ = ["InvalidArgument", "RenderError", "SimError", "UnknownBody", "UnsupportedObstacle"]
+__all__ = ["InvalidArgument", "RenderError", "SimError", "UnknownBody"]

@@ -4,45 +4,114 @@ Row ``k`` describes control tick ``k``: the true state at ``t[k]`` (before the t
 torque acts), what the controller measured and commanded, what was applied during
 ``[t[k], t[k] + control_dt)``, and derived quantities at ``t[k]``. A run that stopped early
 (divergence, controller failure) has only the rows of the ticks that ran.
+
+`LOG_FIELDS` is the one declaration of the logged arrays (name, shape, unit, dtype, how
+they are filled): the simulation allocates its per-tick buffers from it (`allocate_rows`),
+`finish_rows` adds the derived arrays, and `SimResult.save`/`SimResult.load` write and
+read exactly these arrays.
 """
 
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 
-#: Array fields of `SimResult`, in order.
-ARRAY_FIELDS = (
-    "t",
-    "q",
-    "v",
-    "q_meas",
-    "v_meas",
-    "tau",
-    "tau_applied",
-    "q_ref",
-    "v_ref",
-    "tracking_error",
-    "kinetic_energy",
-    "power",
-    "effort",
-    "saturated",
-    "clearance",
-    "payload_mass",
-    "compute_time",
-    "iterations",
-    "fallback_used",
-    "solver_status",
-    "q_final",
-    "v_final",
+
+class LogField(NamedTuple):
+    """One logged array of a `SimResult`.
+
+    Attributes:
+        name: attribute of `SimResult` and key in the saved ``.npz``.
+        shape: dimension names: ``T`` ticks, ``nq``, ``nv``, ``P`` payloads.
+        unit: SI unit; ``""`` for flags, counts and codes.
+        source: ``"tick"`` (written by the simulation at each tick), ``"derived"``
+            (computed from the tick rows by `finish_rows`) or ``"final"`` (the state after
+            the last tick).
+        dtype: numpy dtype of the array.
+        fill: value of a row the simulation does not write (e.g. no reference: NaN).
+    """
+
+    name: str
+    shape: tuple[str, ...]
+    unit: str
+    source: str = "tick"
+    dtype: type = np.float64
+    fill: float = 0.0
+
+
+#: Every array of a `SimResult`, in the order of its attributes.
+LOG_FIELDS: tuple[LogField, ...] = (
+    LogField("t", ("T",), "s"),
+    LogField("q", ("T", "nq"), "rad"),
+    LogField("v", ("T", "nv"), "rad/s"),
+    LogField("q_meas", ("T", "nq"), "rad"),
+    LogField("v_meas", ("T", "nv"), "rad/s"),
+    LogField("tau", ("T", "nv"), "N m"),
+    LogField("tau_applied", ("T", "nv"), "N m"),
+    LogField("q_ref", ("T", "nq"), "rad", fill=np.nan),
+    LogField("v_ref", ("T", "nv"), "rad/s", fill=np.nan),
+    LogField("tracking_error", ("T", "nq"), "rad", "derived"),
+    LogField("kinetic_energy", ("T",), "J"),
+    LogField("power", ("T",), "W", "derived"),
+    LogField("effort", ("T",), "N^2 m^2 s", "derived"),
+    LogField("saturated", ("T", "nv"), "", dtype=np.bool_),
+    LogField("clearance", ("T",), "m", fill=np.inf),
+    LogField("payload_mass", ("T", "P"), "kg"),
+    LogField("compute_time", ("T",), "s"),
+    LogField("iterations", ("T",), "", dtype=np.int64, fill=-1),
+    LogField("fallback_used", ("T",), "", dtype=np.bool_),
+    LogField("solver_status", ("T",), "", dtype=np.int64),
+    LogField("q_final", ("nq",), "rad", "final"),
+    LogField("v_final", ("nv",), "rad/s", "final"),
 )
+
+#: Names of the arrays of a `SimResult`, in order.
+ARRAY_FIELDS = tuple(f.name for f in LOG_FIELDS)
+
+
+def allocate_rows(n_ticks: int, dims: Mapping[str, int]) -> dict[str, np.ndarray]:
+    """Buffers for the ``"tick"`` fields of `LOG_FIELDS`, each filled with its ``fill``.
+
+    Args:
+        n_ticks: number of ticks planned (the ``T`` dimension).
+        dims: sizes of the other dimensions: ``nq``, ``nv``, ``P``.
+
+    Returns:
+        ``{name: (n_ticks, ...) array}``; the simulation writes row ``k`` at tick ``k``.
+    """
+    sizes = {"T": n_ticks, **dims}
+    return {
+        f.name: np.full(tuple(sizes[d] for d in f.shape), f.fill, dtype=f.dtype)
+        for f in LOG_FIELDS
+        if f.source == "tick"
+    }
+
+
+def finish_rows(rows: Mapping[str, np.ndarray], done: int, control_dt: float) -> dict[str, Any]:
+    """The tick rows that ran, plus the ``"derived"`` fields computed from them.
+
+    Args:
+        rows: buffers from `allocate_rows`, rows ``0 .. done-1`` written.
+        done: number of ticks that ran.
+        control_dt: control period [s] (the effort integrates over it).
+
+    Returns:
+        ``{name: (done, ...) array}`` for every ``"tick"`` and ``"derived"`` field.
+    """
+    out: dict[str, Any] = {name: (a[:done] if done < len(a) else a) for name, a in rows.items()}
+    tau, v = out["tau_applied"], out["v"]
+    out["tracking_error"] = out["q_ref"] - out["q"]
+    out["power"] = np.einsum("ij,ij->i", tau, v)
+    out["effort"] = np.cumsum(np.einsum("ij,ij->i", tau, tau)) * control_dt
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,4 +272,4 @@ class SimResult:
         return cls(**arrays, **meta)
 
 
-__all__ = ["ARRAY_FIELDS", "SimResult"]
+__all__ = ["ARRAY_FIELDS", "LOG_FIELDS", "LogField", "SimResult", "allocate_rows", "finish_rows"]

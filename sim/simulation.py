@@ -13,9 +13,8 @@ of ``control_dt / substeps``):
 5. tick hooks act on the data (pushes, wrenches); model changes (payload masses) are
    made by the disturbances' ``before_tick`` hooks before step 1;
 6. the physics advances by ``substeps`` steps (``mj_step2`` then ``mj_step``; RK4: ``mj_step``);
-7. the new state is checked: non-finite, a joint speed beyond 3 times its limit, or a
-   MuJoCo instability warning (MuJoCo then resets its state) stop the run with a status
-   ``"diverged: ..."``; the ticks run so far are kept.
+7. the new state is checked (`geosyn.sim.divergence`): a diverged state stops the run
+   with a status ``"diverged: ..."``; the ticks run so far are kept.
 
 The controller never sees MuJoCo: it is any object with ``reset(q, v, t)``,
 ``compute(t, q, v) -> tau``, ``set_reference(ref)`` when a reference is passed to `run`,
@@ -36,20 +35,13 @@ import numpy as np
 
 from geosyn.core.errors import GeosynError, InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_int, check_positive, check_vector
 from geosyn.robots.robot import Robot
-from geosyn.sim.disturbances import Disturbance, _overrides
-from geosyn.sim.log import SimResult
-from geosyn.sim.scene import Payload, Scene, build_scene
-
-#: A joint speed beyond this multiple of its limit counts as divergence.
-SPEED_FACTOR = 3.0
-
-_INSTABILITY_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQACC,
-)
+from geosyn.sim.disturbances import Disturbance, overrides
+from geosyn.sim.divergence import SPEED_FACTOR, DivergenceCheck
+from geosyn.sim.log import SimResult, allocate_rows, finish_rows
+from geosyn.sim.scene import Scene, build_scene
+from geosyn.world import Payload
 
 
 class ControllerLike(Protocol):
@@ -64,6 +56,25 @@ class ReferenceLike(Protocol):
     """What the simulation needs from a reference (`geosyn.controllers.Reference` fits)."""
 
     def sample(self, t: float) -> tuple[Vector, Vector, Vector]: ...
+
+
+def _check_parts(
+    robot: object, controller: object, disturbances: Sequence[object]
+) -> tuple[Disturbance, ...]:
+    """The disturbances as a tuple, once robot, controller and disturbances are checked."""
+    if not isinstance(robot, Robot):
+        raise InvalidArgument(f"robot must be a geosyn.robots.Robot, got {type(robot).__name__}")
+    for hook in ("reset", "compute"):
+        if not callable(getattr(controller, hook, None)):
+            raise InvalidArgument(
+                f"controller must have a {hook}() method (a geosyn Controller), got {type(controller).__name__}"
+            )
+    checked = []
+    for i, d in enumerate(disturbances):
+        if not isinstance(d, Disturbance):
+            raise InvalidArgument(f"disturbances[{i}] must be a geosyn.sim.Disturbance, got {d!r}")
+        checked.append(d)
+    return tuple(checked)
 
 
 class Simulation:
@@ -112,42 +123,14 @@ class Simulation:
         torque_limits: bool = True,
         position_limits: bool = True,
     ) -> None:
-        if not isinstance(robot, Robot):
-            raise InvalidArgument(
-                f"robot must be a geosyn.robots.Robot, got {type(robot).__name__}"
-            )
-        for hook in ("reset", "compute"):
-            if not callable(getattr(controller, hook, None)):
-                raise InvalidArgument(
-                    f"controller must have a {hook}() method (a geosyn Controller), got {type(controller).__name__}"
-                )
-        try:
-            control_dt = float(control_dt)
-        except (TypeError, ValueError) as err:
-            raise InvalidArgument(f"control_dt must be a time > 0 [s], got {control_dt!r}") from err
-        if not (np.isfinite(control_dt) and control_dt > 0):
-            raise InvalidArgument(f"control_dt must be finite and > 0 [s], got {control_dt!r}")
-        if (
-            isinstance(substeps, bool)
-            or not isinstance(substeps, (int, np.integer))
-            or substeps < 1
-        ):
-            raise InvalidArgument(f"substeps must be an int >= 1, got {substeps!r}")
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise InvalidArgument(f"seed must be an int >= 0, got {seed!r}")
-        disturbances = tuple(disturbances)
-        for i, d in enumerate(disturbances):
-            if not isinstance(d, Disturbance):
-                raise InvalidArgument(
-                    f"disturbances[{i}] must be a geosyn.sim.Disturbance, got {d!r}"
-                )
-
+        disturbances = _check_parts(robot, controller, disturbances)
+        control_dt = check_positive(control_dt, "control_dt", "s")
+        self.substeps = check_int(substeps, "substeps", low=1)
+        self.seed = check_int(seed, "seed", low=0)
         self.robot = robot
         self.controller = controller
         self.control_dt = control_dt
-        self.substeps = int(substeps)
         self.integrator = integrator
-        self.seed = int(seed)
         self.torque_limits = bool(torque_limits)
         self.scene: Scene = build_scene(
             robot,
@@ -166,8 +149,8 @@ class Simulation:
         self.tau_min = np.array(self.model.actuator_ctrlrange[:, 0])
         self.tau_max = np.array(self.model.actuator_ctrlrange[:, 1])
         act_joints = [int(self.model.actuator_trnid[a, 0]) for a in range(self.model.nu)]
-        self._act_dof = np.array([self.model.jnt_dofadr[j] for j in act_joints], dtype=np.int64)
-        if not np.array_equal(self._act_dof, self.scene.dof_adr):
+        act_dof = np.array([self.model.jnt_dofadr[j] for j in act_joints], dtype=np.int64)
+        if not np.array_equal(act_dof, self.scene.dof_adr):
             raise InvalidArgument(
                 "the scene's actuators are not in joint order; check robot.joint_names"
             )
@@ -175,38 +158,31 @@ class Simulation:
         self.disturbances = copy.deepcopy(disturbances)
         for d in self.disturbances:
             d.bind(self.scene, control_dt)
-        self._measure_hooks = [d for d in self.disturbances if _overrides(d, "modify_measurement")]
-        self._tau_hooks = [d for d in self.disturbances if _overrides(d, "modify_tau")]
-        self._tick_hooks = [d for d in self.disturbances if _overrides(d, "on_tick")]
-        self._pre_hooks = [d for d in self.disturbances if _overrides(d, "before_tick")]
+        self._measure_hooks = [d for d in self.disturbances if overrides(d, "modify_measurement")]
+        self._tau_hooks = [d for d in self.disturbances if overrides(d, "modify_tau")]
+        self._tick_hooks = [d for d in self.disturbances if overrides(d, "on_tick")]
+        self._pre_hooks = [d for d in self.disturbances if overrides(d, "before_tick")]
         self._zero_xfrc = any(d.applies_wrench for d in self.disturbances)
+        self.divergence = DivergenceCheck(robot, self.data)
 
-        v_max = np.asarray(robot.v_max, dtype=np.float64)
-        self._speed_limit = np.where(np.isfinite(v_max) & (v_max > 0), SPEED_FACTOR * v_max, np.inf)
-
-    # -- helpers ---------------------------------------------------------------------
-    def _state(self) -> tuple[Vector, Vector]:
-        return self.data.qpos[self.scene.qpos_adr].copy(), self.data.qvel[self.scene.dof_adr].copy()
-
-    def _warnings(self) -> int:
-        return sum(int(self.data.warning[w].number) for w in _INSTABILITY_WARNINGS)
-
-    def _divergence(self, t: float, q: Vector, v: Vector, warnings: int) -> str | None:
-        """Status message if the state ``(q, v)`` at time ``t`` diverged, else None."""
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))):
-            return f"diverged: non-finite state at t={t:.6g} s"
-        if warnings != self._warn0:
-            return (
-                "diverged: MuJoCo reported an unstable simulation (bad qpos/qvel/qacc) and"
-                f" reset its state at t={t:.6g} s"
-            )
-        if np.any(np.abs(v) > self._speed_limit):
-            j = int(np.argmax(np.abs(v) / self._speed_limit))
-            return (
-                f"diverged: joint {self.robot.joint_names[j]} speed {abs(v[j]):.4g} rad/s exceeds"
-                f" {SPEED_FACTOR:g}x its limit {self.robot.v_max[j]:.4g} rad/s at t={t:.6g} s"
-            )
-        return None
+    def _start(self, q0: Vector, v0: Vector, reference: ReferenceLike | None, seed: int) -> None:
+        """Reset the model, the disturbances (reseeded) and the controller for a run."""
+        children = np.random.SeedSequence(seed).spawn(len(self.disturbances))
+        for dist, child in zip(self.disturbances, children, strict=True):
+            dist.reset(np.random.default_rng(child))
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[self.scene.qpos_adr] = q0
+        self.data.qvel[self.scene.dof_adr] = v0
+        self.divergence.start()
+        controller = self.controller
+        if reference is not None:
+            set_ref = getattr(controller, "set_reference", None)
+            if not callable(set_ref):
+                raise InvalidArgument(
+                    f"a reference was given but controller {type(controller).__name__} has no set_reference()"
+                )
+            set_ref(reference)
+        controller.reset(q0.copy(), v0.copy(), 0.0)
 
     # -- running ---------------------------------------------------------------------
     def run(
@@ -220,7 +196,8 @@ class Simulation:
     ) -> SimResult:
         """Simulate ``round(duration / control_dt)`` control ticks from ``(q0, v0)``.
 
-        Allocates the log arrays once; the tick loop allocates only small vectors.
+        Allocates the log arrays once (`geosyn.sim.log.allocate_rows`); the tick loop
+        allocates only small vectors.
 
         Args:
             q0: (nq,) initial joint positions [rad].
@@ -244,58 +221,28 @@ class Simulation:
         nq, nv = robot.nq, robot.nv
         q0 = check_vector(q0, nq, "q0")
         v0 = np.zeros(nv) if v0 is None else check_vector(v0, nv, "v0")
-        try:
-            duration = float(duration)
-        except (TypeError, ValueError) as err:
-            raise InvalidArgument(f"duration must be a time [s], got {duration!r}") from err
-        n_ticks = int(round(duration / self.control_dt)) if np.isfinite(duration) else 0
+        duration = check_positive(duration, "duration", "s")
+        n_ticks = int(round(duration / self.control_dt))
         if n_ticks < 1:
             raise InvalidArgument(
-                f"duration must be finite and >= control_dt={self.control_dt} [s], got {duration!r}"
+                f"duration must be >= control_dt={self.control_dt} [s], got {duration!r}"
             )
-        seed = self.seed if seed is None else seed
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-            raise InvalidArgument(f"seed must be an int >= 0, got {seed!r}")
+        seed = check_int(self.seed if seed is None else seed, "seed", low=0)
+        self._start(q0, v0, reference, seed)
 
         m, d, sc = self.model, self.data, self.scene
-        children = np.random.SeedSequence(int(seed)).spawn(len(self.disturbances))
-        for dist, child in zip(self.disturbances, children, strict=True):
-            dist.reset(np.random.default_rng(child))
-        mujoco.mj_resetData(m, d)
-        d.qpos[sc.qpos_adr] = q0
-        d.qvel[sc.dof_adr] = v0
-        self._warn0 = self._warnings()
-
         controller = self.controller
-        if reference is not None:
-            set_ref = getattr(controller, "set_reference", None)
-            if not callable(set_ref):
-                raise InvalidArgument(
-                    f"a reference was given but controller {type(controller).__name__} has no set_reference()"
-                )
-            set_ref(reference)
         has_ref_attr = hasattr(type(controller), "reference") or hasattr(controller, "reference")
-        controller.reset(q0.copy(), v0.copy(), 0.0)
-
-        # -- log buffers (filled row by row, truncated on early stop)
-        n_pay = len(sc.payload_body_ids)
-        t_log = np.zeros(n_ticks)
-        q_log = np.zeros((n_ticks, nq))
-        v_log = np.zeros((n_ticks, nv))
-        qm_log = np.zeros((n_ticks, nq))
-        vm_log = np.zeros((n_ticks, nv))
-        tau_log = np.zeros((n_ticks, nv))
-        taua_log = np.zeros((n_ticks, nv))
-        qref_log = np.full((n_ticks, nq), np.nan)
-        vref_log = np.full((n_ticks, nv), np.nan)
-        ke_log = np.zeros(n_ticks)
-        sat_log = np.zeros((n_ticks, nv), dtype=bool)
-        clear_log = np.full(n_ticks, np.inf)
-        pay_log = np.zeros((n_ticks, n_pay))
-        ctime_log = np.zeros(n_ticks)
-        iter_log = np.full(n_ticks, -1, dtype=np.int64)
-        fb_log = np.zeros(n_ticks, dtype=bool)
-        st_log = np.zeros(n_ticks, dtype=np.int64)
+        pay_ids = sc.payload_body_ids
+        n_pay = len(pay_ids)
+        rows = allocate_rows(n_ticks, {"nq": nq, "nv": nv, "P": n_pay})
+        t_log, q_log, v_log = rows["t"], rows["q"], rows["v"]
+        qm_log, vm_log = rows["q_meas"], rows["v_meas"]
+        tau_log, taua_log, sat_log = rows["tau"], rows["tau_applied"], rows["saturated"]
+        qref_log, vref_log = rows["q_ref"], rows["v_ref"]
+        ke_log, clear_log, pay_log = rows["kinetic_energy"], rows["clearance"], rows["payload_mass"]
+        ctime_log, iter_log = rows["compute_time"], rows["iterations"]
+        fb_log, st_log = rows["fallback_used"], rows["solver_status"]
 
         status_codes: dict[str, int] = {"": 0}
         rk4 = self.integrator == "RK4"
@@ -303,16 +250,12 @@ class Simulation:
         extra_steps = range(self.substeps if rk4 else self.substeps - 1)
         clip = self.torque_limits
         lo, hi = self.tau_min, self.tau_max
-        speed = self._speed_limit
+        speed = self.divergence.speed_limit
+        diverged = self.divergence.status
         qadr, dadr = sc.qpos_adr, sc.dof_adr
         clearance = sc.clearance if len(sc.obstacles) else None
-        pay_ids = sc.payload_body_ids
-        measure_hooks, tau_hooks, tick_hooks = (
-            self._measure_hooks,
-            self._tau_hooks,
-            self._tick_hooks,
-        )
-        pre_hooks = self._pre_hooks
+        measure_hooks, tau_hooks = self._measure_hooks, self._tau_hooks
+        tick_hooks, pre_hooks = self._tick_hooks, self._pre_hooks
         zero_xfrc = self._zero_xfrc
         h_phys = dt / self.substeps
         perf = time.perf_counter
@@ -332,7 +275,7 @@ class Simulation:
             # the clock shows it, and once after the first tick (a reset there keeps time).
             reset = abs(d.time - t) > 0.5 * h_phys or k == 1
             if not (isfinite(float(q @ q)) and (np.abs(v) <= speed).all()) or reset:
-                bad = self._divergence(t, q, v, self._warnings())
+                bad = diverged(t, q, v)
                 if bad is not None:
                     status = bad
                     break
@@ -369,21 +312,15 @@ class Simulation:
                     f"diverged: controller returned a non-finite torque {tau_cmd} at t={t:.6g} s"
                 )
                 break
-            if clip:
+            tau_out = tau_cmd
+            for h in tau_hooks:
+                tau_out = h.modify_tau(t, tau_out)
+            if clip:  # the log's tau is the clipped command, tau_applied what the motors got
                 tau_c = np.minimum(np.maximum(tau_cmd, lo), hi)
-                if tau_hooks:
-                    tau_out = tau_cmd
-                    for h in tau_hooks:
-                        tau_out = h.modify_tau(t, tau_out)
-                    tau_a = np.minimum(np.maximum(tau_out, lo), hi)
-                    sat_log[k] = tau_a != tau_out
-                else:
-                    tau_a = tau_c
-                    sat_log[k] = tau_c != tau_cmd
+                tau_a = np.minimum(np.maximum(tau_out, lo), hi) if tau_hooks else tau_c
+                sat_log[k] = tau_a != tau_out
             else:
-                tau_c = tau_a = tau_cmd
-                for h in tau_hooks:
-                    tau_a = h.modify_tau(t, tau_a)
+                tau_c, tau_a = tau_cmd, tau_out
             tau_log[k] = tau_c
 
             if zero_xfrc:
@@ -421,10 +358,7 @@ class Simulation:
                 st = getattr(diag, "solver_status", None)
                 if st is not None:
                     key = str(getattr(st, "name", st))
-                    code = status_codes.get(key)
-                    if code is None:
-                        code = status_codes[key] = len(status_codes)
-                    st_log[k] = code
+                    st_log[k] = status_codes.setdefault(key, len(status_codes))
             done = k + 1
 
             # -- physics over the tick
@@ -434,38 +368,10 @@ class Simulation:
                 mujoco.mj_step(m, d)
 
         wall = perf() - wall0
-        q_final, v_final = self._state()
-
-        def cut(a: np.ndarray) -> np.ndarray:
-            return a[:done] if done < n_ticks else a
-
-        q_ref = cut(qref_log)
-        q_true = cut(q_log)
-        v_true = cut(v_log)
-        tau_applied = cut(taua_log)
         return SimResult(
-            t=cut(t_log),
-            q=q_true,
-            v=v_true,
-            q_meas=cut(qm_log),
-            v_meas=cut(vm_log),
-            tau=cut(tau_log),
-            tau_applied=tau_applied,
-            q_ref=q_ref,
-            v_ref=cut(vref_log),
-            tracking_error=q_ref - q_true,
-            kinetic_energy=cut(ke_log),
-            power=np.einsum("ij,ij->i", tau_applied, v_true),
-            effort=np.cumsum(np.einsum("ij,ij->i", tau_applied, tau_applied)) * dt,
-            saturated=cut(sat_log),
-            clearance=cut(clear_log),
-            payload_mass=cut(pay_log),
-            compute_time=cut(ctime_log),
-            iterations=cut(iter_log),
-            fallback_used=cut(fb_log),
-            solver_status=cut(st_log),
-            q_final=q_final,
-            v_final=v_final,
+            **finish_rows(rows, done, dt),
+            q_final=d.qpos[qadr].copy(),
+            v_final=d.qvel[dadr].copy(),
             solver_status_names=tuple(status_codes),
             joint_names=tuple(robot.joint_names),
             robot_name=robot.name,
@@ -475,7 +381,7 @@ class Simulation:
             duration=float(n_ticks * dt),
             status=status,
             wall_time=wall,
-            seed=int(seed),
+            seed=seed,
         )
 
 

@@ -5,36 +5,21 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 
 
 from geosyn.synergies.basis import SynergyBasis, g_orthonormalize, orthonormal_synergies
-from geosyn.synergies.errors import (
-    DimensionMismatch,
-    EmptyDemonstrations,
-    InvalidSynergyInput,
-    LinearlyDependentDirections,
-    LogMapFailed,
-    MeanNotConverged,
-    SynergyError,
-    WeightCountMismatch,
-)
+from geosyn.synergies.errors import InvalidSynergyInput, SynergyError, SynergyNotConverged
 from geosyn.synergies.pga import PCAResult, PGAResult, frechet_mean, pca_synergies, pga
-from geosyn.synergies.reach import ReachResult, frame_position, reach
+from geosyn.synergies.reach import ReachResult, reach
 from geosyn.synergies.synergy import GeodesicSynergy, combine, transported_velocities
 
 __all__ = [
-    "DimensionMismatch",
-    "EmptyDemonstrations",
     "GeodesicSynergy",
     "InvalidSynergyInput",
-    "LinearlyDependentDirections",
-    "LogMapFailed",
-    "MeanNotConverged",
     "PCAResult",
     "PGAResult",
     "ReachResult",
     "SynergyBasis",
     "SynergyError",
-    "WeightCountMismatch",
+    "SynergyNotConverged",
     "combine",
-    "frame_position",
     "frechet_mean",
     "g_orthonormalize",
     "orthonormal_synergies",

@@ -9,18 +9,20 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import pinocchio as pin
 import scipy.linalg
 
 from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.base import Metric
+from geosyn.robots.kinematics import frame_position_jacobian
 from geosyn.robots.robot import Robot
-from geosyn.synergies.errors import (
-    DimensionMismatch,
-    InvalidSynergyInput,
-    LinearlyDependentDirections,
+from geosyn.synergies.errors import InvalidSynergyInput
+from geosyn.synergies.synergy import (
+    GeodesicSynergy,
+    as_vector,
+    check_count,
+    check_metric,
+    check_robot,
 )
-from geosyn.synergies.synergy import GeodesicSynergy, as_vector
 
 DEPENDENCE_TOL = 1e-10
 """A direction whose G-norm drops below this fraction of its own G-norm after removing
@@ -46,23 +48,6 @@ class SynergyBasis(NamedTuple):
     scores: Vector
 
 
-def frame_position_jacobian(robot: Robot, q: Vector, frame: str) -> Matrix:
-    """Linear part of the world-aligned frame Jacobian.
-
-    Args:
-        robot: the robot.
-        q: (n,) configuration [rad].
-        frame: frame name.
-
-    Returns:
-        (3, n) Jacobian of the frame origin's world position [m/rad].
-    """
-    data = robot.model.createData()
-    fid = robot.frame_id(frame)
-    J = pin.computeFrameJacobian(robot.model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
-    return np.array(J[:3])
-
-
 def g_orthonormalize(G: Matrix, D: Matrix) -> Matrix:
     """Gram-Schmidt (done twice per column for stability) under the inner product G.
 
@@ -75,24 +60,25 @@ def g_orthonormalize(G: Matrix, D: Matrix) -> Matrix:
         ``span(u_1..u_j) = span(d_1..d_j)`` for every j, ``<u_j, d_j>_G > 0``.
 
     Raises:
-        LinearlyDependentDirections: a column lies (to `DEPENDENCE_TOL`) in the span of
-            the previous ones (or is zero).
+        InvalidSynergyInput: a column lies (to `DEPENDENCE_TOL`) in the span of the
+            previous ones (or is zero); its ``index`` is that column.
     """
     n, m = D.shape
     U = np.zeros((n, m))
     for j in range(m):
         d = D[:, j].astype(np.float64)
-        norm0 = np.sqrt(max(d @ G @ d, 0.0))
+        norm0 = np.sqrt(max(float(d @ G @ d), 0.0))
         u = d.copy()
         for _ in range(2):
             u = u - U[:, :j] @ (U[:, :j].T @ (G @ u))
-        norm = np.sqrt(max(u @ G @ u, 0.0))
+        norm = np.sqrt(max(float(u @ G @ u), 0.0))
         if norm0 == 0.0 or norm <= DEPENDENCE_TOL * norm0:
-            raise LinearlyDependentDirections(
+            raise InvalidSynergyInput(
                 f"directions[:, {j}] = {np.round(d, 6).tolist()} is linearly dependent on "
                 f"directions[:, :{j}] under G (relative residual {norm / max(norm0, 1e-300):.2e}"
                 f" <= {DEPENDENCE_TOL:g}); directions must be linearly independent",
-                j,
+                "directions",
+                index=j,
             )
         U[:, j] = u / norm
     return U
@@ -145,23 +131,19 @@ def orthonormal_synergies(
         The basis, its synergies and their scores (see `SynergyBasis`).
 
     Raises:
-        InvalidSynergyInput: k out of range.
-        DimensionMismatch: q0 or directions of the wrong shape.
-        LinearlyDependentDirections: dependent directions.
+        InvalidSynergyInput: k out of range, q0 or directions of the wrong shape,
+            dependent directions (``index`` names the column), or a robot whose nv is
+            not the metric's n.
+        UnknownFrame: ``frame`` is not in the robot.
     """
-    if not isinstance(metric, Metric):
-        raise InvalidSynergyInput(f"metric must be a geosyn Metric, got {type(metric).__name__}")
+    check_metric(metric)
     n = metric.n
     q = as_vector(q0, n, "q0")
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= n:
-        raise InvalidSynergyInput(f"k must be an integer in [1, {n}], got {k!r}")
-    k = int(k)
+    k = check_count(k, n)
     if robot is None:
         robot = getattr(metric, "robot", None)
-    if robot is not None and not isinstance(robot, Robot):
-        raise InvalidSynergyInput(f"robot must be a geosyn Robot, got {type(robot).__name__}")
-    if robot is not None and robot.nv != n:
-        raise DimensionMismatch(f"robot {robot.name!r} has nv={robot.nv}, metric has n={n}")
+    if robot is not None:
+        check_robot(robot, n)
     G = np.asarray(metric.G(q), dtype=np.float64)
     J = None
     if robot is not None:
@@ -172,11 +154,12 @@ def orthonormal_synergies(
         if D.ndim == 1:
             D = D[:, None]
         if D.ndim != 2 or D.shape[0] != n or D.shape[1] < k:
-            raise DimensionMismatch(
-                f"directions must have shape ({n}, m) with m >= k = {k}, got {D.shape}"
+            raise InvalidSynergyInput(
+                f"directions must have shape ({n}, m) with m >= k = {k}, got {D.shape}",
+                "directions",
             )
         if not np.all(np.isfinite(D)):
-            raise InvalidSynergyInput("directions must be finite")
+            raise InvalidSynergyInput("directions must be finite", "directions")
         V = g_orthonormalize(G, D[:, :k])
     else:
         V = _ordered_basis(G, J)[:, :k]

@@ -1,9 +1,15 @@
-"""Errors of the synergies layer (geodesic synergies, bases, PGA, reaching)."""
+"""Errors of the synergies layer (geodesic synergies, bases, PGA, reaching).
+
+Two kinds: bad input (`InvalidSynergyInput`, also a `geosyn.core.InvalidArgument`) and a
+numerical iteration that did not converge (`SynergyNotConverged`), both a `SynergyError`.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 from geosyn.core.errors import GeosynError, InvalidArgument
-from geosyn.metrics.errors import GeodesicNotFound
 
 
 class SynergyError(GeosynError):
@@ -11,64 +17,72 @@ class SynergyError(GeosynError):
 
 
 class InvalidSynergyInput(SynergyError, InvalidArgument):
-    """An argument of a synergy function has the wrong shape, size or value.
+    """An argument of a synergy function has the wrong type, shape, size or value.
 
     The message names the argument, the value given and what is allowed.
-    """
-
-
-class DimensionMismatch(InvalidSynergyInput):
-    """Arrays or synergies whose dimensions disagree (e.g. a (3,) vector for a 2-DoF metric)."""
-
-
-class EmptyDemonstrations(InvalidSynergyInput):
-    """No demonstrations, or a demonstration with no samples."""
-
-
-class WeightCountMismatch(InvalidSynergyInput):
-    """The number of weights differs from the number of synergies."""
-
-
-class LinearlyDependentDirections(InvalidSynergyInput):
-    """Directions to orthonormalize are linearly dependent (under the metric).
 
     Attributes:
-        index: column of the first direction found dependent on the previous ones.
+        argument: name of the offending argument, or None.
+        index: for linearly dependent directions, the column found dependent on the
+            previous ones; otherwise None.
     """
 
-    def __init__(self, message: str, index: int) -> None:
+    def __init__(self, message: str, argument: str | None = None, index: int | None = None) -> None:
         super().__init__(message)
-        self.index = int(index)
+        self.argument = argument
+        self.index = None if index is None else int(index)
 
 
-class LogMapFailed(SynergyError, GeodesicNotFound):
-    """The log map needed by a synergy operation did not converge.
+class SynergyNotConverged(SynergyError):
+    """A numerical iteration inside a synergy operation did not converge.
 
-    Wraps `geosyn.metrics.GeodesicNotFound` (and is one, so code catching that keeps
-    working), adding which configurations were being connected.
+    Raised when the log map joining two configurations fails (chained from
+    `geosyn.metrics.GeodesicNotFound`) and when the Fréchet mean iteration stops at its
+    limit.
 
     Attributes:
-        residual: final endpoint error of the shooting [rad].
-        v0: (n,) best initial velocity found [rad/s], or None.
-        q_from: (n,) start configuration [rad].
-        q_to: (n,) target configuration [rad].
+        residual: final residual: the log map's endpoint error [rad], or the G-norm of
+            the mean's last update [rad].
+        iterations: iterations done (Fréchet mean), or None.
+        q_from: (n,) start configuration of the failed log map [rad], or None.
+        q_to: (n,) target configuration of the failed log map [rad], or None.
+        v0: (n,) best initial velocity the log map found [rad/s], or None.
     """
 
-    def __init__(self, message: str, residual: float, v0: object, q_from: object, q_to: object):
-        super().__init__(message, residual, v0)
+    def __init__(
+        self,
+        message: str,
+        residual: float,
+        iterations: int | None = None,
+        *,
+        q_from: object = None,
+        q_to: object = None,
+        v0: object = None,
+    ) -> None:
+        super().__init__(message)
+        self.residual = float(residual)
+        self.iterations = None if iterations is None else int(iterations)
         self.q_from = q_from
         self.q_to = q_to
+        self.v0 = v0
 
 
-class MeanNotConverged(SynergyError):
-    """The Fréchet (Karcher) mean iteration did not converge.
+@contextmanager
+def synergy_input(argument: str | None = None) -> Iterator[None]:
+    """Report a `geosyn.core.InvalidArgument` raised inside as `InvalidSynergyInput`.
 
-    Attributes:
-        iterations: iterations done.
-        step_norm: Riemannian norm of the last mean update [rad, G-norm].
+    Lets synergy functions use the shared checks of `geosyn.core.validation` while
+    every bad input they refuse stays a `SynergyError`; the message is kept.
+
+    Args:
+        argument: name of the argument checked inside, for `InvalidSynergyInput.argument`.
     """
+    try:
+        yield
+    except InvalidSynergyInput:
+        raise
+    except InvalidArgument as err:
+        raise InvalidSynergyInput(str(err), argument) from err
 
-    def __init__(self, message: str, iterations: int, step_norm: float) -> None:
-        super().__init__(message)
-        self.iterations = int(iterations)
-        self.step_norm = float(step_norm)
+
+__all__ = ["InvalidSynergyInput", "SynergyError", "SynergyNotConverged", "synergy_input"]

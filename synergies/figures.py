@@ -1,9 +1,10 @@
 """Figures of the paper's section 2 (configuration space of planar2, synergy combinations).
 
-Each function draws with matplotlib's Agg backend, saves a PNG and returns a NamedTuple
-whose first field is the saved path, followed by the plotted data (so callers and tests
-can check numbers, not only pixels). The functions allocate and are meant for scripts and
-the CLI, not control loops.
+Each function draws on its own `matplotlib.figure.Figure` with the Agg canvas (no pyplot,
+no global backend switch: importing this module changes nothing), saves a PNG and returns
+a NamedTuple whose first field is the saved path, followed by the plotted data (so callers
+and tests can check numbers, not only pixels). The functions allocate and are meant for
+scripts and the CLI, not control loops.
 """
 
 from __future__ import annotations
@@ -12,21 +13,20 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import NamedTuple
 
-import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Ellipse
+from mpl_toolkits.mplot3d.axes3d import Axes3D
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-from matplotlib.patches import Ellipse  # noqa: E402
-from mpl_toolkits.mplot3d.axes3d import Axes3D  # noqa: E402
-
-from geosyn.core.types import Matrix, Vector  # noqa: E402
-from geosyn.metrics.base import Metric  # noqa: E402
-from geosyn.metrics.geodesic import Geodesic, exp, path_energy, straight_line  # noqa: E402
-from geosyn.robots.robot import Robot  # noqa: E402
-from geosyn.synergies.errors import DimensionMismatch, InvalidSynergyInput  # noqa: E402
-from geosyn.synergies.synergy import (  # noqa: E402
+from geosyn.core.types import Matrix, Vector
+from geosyn.metrics.base import Metric
+from geosyn.metrics.geodesic import Geodesic, exp, path_energy, straight_line
+from geosyn.robots.kinematics import frame_positions, joint_positions
+from geosyn.robots.robot import Robot
+from geosyn.synergies.errors import InvalidSynergyInput
+from geosyn.synergies.synergy import (
     GeodesicSynergy,
     as_vector,
     checked_log,
@@ -77,26 +77,6 @@ class SynergyCombinationFigure(NamedTuple):
     labels: list[str]
 
 
-def joint_positions(robot: Robot, q: Vector, frame: str | None = None) -> Matrix:
-    """Positions of the joint origins (and optionally a frame) for drawing a skeleton.
-
-    Args:
-        robot: the robot.
-        q: (n,) configuration [rad].
-        frame: frame appended as the last point (e.g. the end effector), or None.
-
-    Returns:
-        (njoints - 1 [+ 1], 3) world positions [m], base to tip.
-    """
-    data = robot.model.createData()
-    pin.forwardKinematics(robot.model, data, q)
-    pts = [data.oMi[j].translation.copy() for j in range(1, robot.model.njoints)]
-    if frame is not None:
-        fid = robot.frame_id(frame)
-        pts.append(pin.updateFramePlacement(robot.model, data, fid).translation.copy())
-    return np.array(pts)
-
-
 def _check_path(path: object) -> Path:
     if not isinstance(path, (str, Path)):
         raise InvalidSynergyInput(f"path must be a str or Path, got {type(path).__name__}")
@@ -107,10 +87,10 @@ def _check_path(path: object) -> Path:
     return p
 
 
-def _draw_planar_arm(ax: plt.Axes, robot: Robot, traj: Geodesic, color: str, n_poses: int) -> None:
+def _draw_planar_arm(ax: Axes, robot: Robot, traj: Geodesic, color: str, n_poses: int) -> None:
     """Arm poses along a planar trajectory, from transparent to opaque, numbered."""
     idx = np.linspace(0, len(traj.t) - 1, n_poses).round().astype(int)
-    tip = np.array([joint_positions(robot, q, robot.ee_frame)[-1] for q in traj.q])
+    tip = frame_positions(robot, traj.q, robot.ee_frame)
     ax.plot(tip[:, 0], tip[:, 1], color=color, lw=1.2, ls=":", zorder=1)
     for rank, i in enumerate(idx):
         pts = joint_positions(robot, traj.q[i], robot.ee_frame)
@@ -119,7 +99,7 @@ def _draw_planar_arm(ax: plt.Axes, robot: Robot, traj: Geodesic, color: str, n_p
         ax.plot(pts[:-1, 0], pts[:-1, 1], "o", ms=5, mfc="white", mec="k", alpha=alpha, zorder=3)
         ax.annotate(
             str(rank + 1),
-            pts[-1, :2],
+            (float(pts[-1, 0]), float(pts[-1, 1])),
             xytext=(4, 4),
             textcoords="offset points",
             fontsize=8,
@@ -169,14 +149,15 @@ def figure_configuration_space(
         The `ConfigurationSpaceFigure`.
 
     Raises:
-        DimensionMismatch: the metric is not 2-D.
-        InvalidSynergyInput: bad path or robot.
-        LogMapFailed: no geodesic found between q0 and q1.
+        InvalidSynergyInput: the metric is not 2-D, or a bad path or robot.
+        SynergyNotConverged: no geodesic found between q0 and q1.
     """
     if not isinstance(metric, Metric):
         raise InvalidSynergyInput(f"metric must be a geosyn Metric, got {type(metric).__name__}")
     if metric.n != 2:
-        raise DimensionMismatch(f"figure_configuration_space needs n = 2, metric has {metric.n}")
+        raise InvalidSynergyInput(
+            f"figure_configuration_space needs n = 2, metric has {metric.n}", "metric"
+        )
     robot = robot if robot is not None else getattr(metric, "robot", None)
     if not isinstance(robot, Robot) or robot.nv != 2:
         raise InvalidSynergyInput("robot must be a 2-DoF geosyn Robot (or metric.robot one)")
@@ -190,7 +171,8 @@ def figure_configuration_space(
     e_geo = float(path_energy(metric, geo.t, geo.q))
     e_line = float(path_energy(metric, line.t, line.q))
 
-    fig = plt.figure(figsize=(13.0, 4.6), dpi=dpi)
+    fig = Figure(figsize=(13.0, 4.6), dpi=dpi)
+    FigureCanvasAgg(fig)
     gs = fig.add_gridspec(1, 3, width_ratios=[1.3, 1, 1], wspace=0.45)
     ax = fig.add_subplot(gs[0])
     lo, hi = limits
@@ -239,7 +221,7 @@ def figure_configuration_space(
         for r_, i in enumerate(idx):
             ax.annotate(
                 str(r_ + 1),
-                traj.q[i],
+                (float(traj.q[i, 0]), float(traj.q[i, 1])),
                 xytext=(4, -10),
                 textcoords="offset points",
                 fontsize=8,
@@ -271,7 +253,6 @@ def figure_configuration_space(
     axs.set_title("(c) straight-line (Euclidean) motion", fontsize=10)
     fig.subplots_adjust(left=0.05, right=0.98, bottom=0.11, top=0.88)
     fig.savefig(out, dpi=dpi, bbox_inches=None)
-    plt.close(fig)
     return ConfigurationSpaceFigure(out, geo, line, e_geo, e_line)
 
 
@@ -320,8 +301,8 @@ def figure_synergy_combinations(
         The `SynergyCombinationFigure`.
 
     Raises:
-        InvalidSynergyInput, DimensionMismatch, WeightCountMismatch: bad input.
-        LogMapFailed: a synergy base could not be joined to q0.
+        InvalidSynergyInput: bad input (sizes, weights, path).
+        SynergyNotConverged: a synergy base could not be joined to q0.
     """
     syns = list(synergies)
     if len(syns) != 2:
@@ -329,7 +310,9 @@ def figure_synergy_combinations(
     if not isinstance(robot, Robot):
         raise InvalidSynergyInput(f"robot must be a geosyn Robot, got {type(robot).__name__}")
     if robot.nv != metric.n:
-        raise DimensionMismatch(f"robot {robot.name!r} has nv={robot.nv}, metric has n={metric.n}")
+        raise InvalidSynergyInput(
+            f"robot {robot.name!r} has nv={robot.nv}, metric has n={metric.n}", "robot"
+        )
     q_s = as_vector(q0, metric.n, "q0")
     out = _check_path(path)
     weights = [tuple(float(x) for x in w) for w in weights_list]
@@ -343,14 +326,7 @@ def figure_synergy_combinations(
     ]
     colors = [SYNERGY_COLORS[0], SYNERGY_COLORS[1]] + [COMBINATION_COLOR] * len(weights)
     trajs = [s.trajectory(duration=duration, steps=steps) for s in motions]
-    fid = robot.frame_id(robot.ee_frame)
-    data = robot.model.createData()
-
-    def hand(q: Vector) -> Vector:
-        pin.forwardKinematics(robot.model, data, q)
-        return pin.updateFramePlacement(robot.model, data, fid).translation.copy()
-
-    hand_paths = [np.array([hand(q) for q in tr.q]) for tr in trajs]
+    hand_paths = [frame_positions(robot, tr.q, robot.ee_frame) for tr in trajs]
     skeletons = [
         [
             joint_positions(robot, tr.q[i], robot.ee_frame)
@@ -362,7 +338,8 @@ def figure_synergy_combinations(
 
     ncols = 3
     nrows = int(np.ceil(len(trajs) / ncols))
-    fig = plt.figure(figsize=(4.2 * ncols, 4.0 * nrows), dpi=dpi)
+    fig = Figure(figsize=(4.2 * ncols, 4.0 * nrows), dpi=dpi)
+    FigureCanvasAgg(fig)
     for k, (hp, sk, lab, col) in enumerate(zip(hand_paths, skeletons, labels, colors, strict=True)):
         ax = fig.add_subplot(nrows, ncols, k + 1, projection="3d")
         for j, other in enumerate(hand_paths):
@@ -391,5 +368,4 @@ def figure_synergy_combinations(
     )
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.03, top=0.9, wspace=0.05, hspace=0.12)
     fig.savefig(out, dpi=dpi)
-    plt.close(fig)
     return SynergyCombinationFigure(out, hand_paths, trajs, labels)

@@ -19,13 +19,8 @@ from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic import exp
 from geosyn.synergies.basis import _fix_signs
-from geosyn.synergies.errors import (
-    DimensionMismatch,
-    EmptyDemonstrations,
-    InvalidSynergyInput,
-    MeanNotConverged,
-)
-from geosyn.synergies.synergy import checked_log
+from geosyn.synergies.errors import InvalidSynergyInput, SynergyNotConverged
+from geosyn.synergies.synergy import check_count, check_metric, checked_log
 
 
 class PGAResult(NamedTuple):
@@ -90,57 +85,50 @@ def as_configurations(demos: object, n: int | None = None) -> Matrix:
         (sum T_i, n) configurations (a copy).
 
     Raises:
-        EmptyDemonstrations: no demonstrations or an empty trajectory.
-        DimensionMismatch: wrong or inconsistent dimensions.
-        InvalidSynergyInput: non-numeric or non-finite values.
+        InvalidSynergyInput: no demonstrations or an empty trajectory, wrong or
+            inconsistent dimensions, non-numeric or non-finite values.
     """
     parts: list[object]
     if isinstance(demos, np.ndarray):
         parts = [demos]
         if demos.ndim not in (2,):
-            raise DimensionMismatch(
-                f"demos as an array must be (N, n) configurations, got shape {demos.shape}"
+            raise InvalidSynergyInput(
+                f"demos as an array must be (N, n) configurations, got shape {demos.shape}",
+                "demos",
             )
     else:
         if not isinstance(demos, Sequence) or isinstance(demos, (str, bytes)):
             raise InvalidSynergyInput(
                 f"demos must be an (N, n) array or a list of (T_i, n) trajectories, "
-                f"got {type(demos).__name__}"
+                f"got {type(demos).__name__}",
+                "demos",
             )
         parts = [getattr(d, "q", d) for d in demos]
     if len(parts) == 0:
-        raise EmptyDemonstrations("demos is empty; at least one configuration is needed")
+        raise InvalidSynergyInput("demos is empty; at least one configuration is needed", "demos")
     arrays: list[np.ndarray] = []
     for i, p in enumerate(parts):
         try:
             a = np.array(p, dtype=np.float64)
         except (TypeError, ValueError) as err:
-            raise InvalidSynergyInput(f"demos[{i}] is not a float array: {p!r}") from err
+            raise InvalidSynergyInput(f"demos[{i}] is not a float array: {p!r}", "demos") from err
         if a.ndim != 2:
-            raise DimensionMismatch(f"demos[{i}] must be (T, n), got shape {a.shape}")
+            raise InvalidSynergyInput(f"demos[{i}] must be (T, n), got shape {a.shape}", "demos")
         if a.shape[0] == 0:
-            raise EmptyDemonstrations(f"demos[{i}] has zero samples, shape {a.shape}")
+            raise InvalidSynergyInput(f"demos[{i}] has zero samples, shape {a.shape}", "demos")
         if n is not None and a.shape[1] != n:
-            raise DimensionMismatch(
-                f"demos[{i}] has dimension {a.shape[1]}, the metric has n = {n}"
+            raise InvalidSynergyInput(
+                f"demos[{i}] has dimension {a.shape[1]}, the metric has n = {n}", "demos"
             )
         if arrays and a.shape[1] != arrays[0].shape[1]:
-            raise DimensionMismatch(
-                f"demos[{i}] has dimension {a.shape[1]}, demos[0] has {arrays[0].shape[1]}"
+            raise InvalidSynergyInput(
+                f"demos[{i}] has dimension {a.shape[1]}, demos[0] has {arrays[0].shape[1]}",
+                "demos",
             )
         if not np.all(np.isfinite(a)):
-            raise InvalidSynergyInput(f"demos[{i}] has non-finite values")
+            raise InvalidSynergyInput(f"demos[{i}] has non-finite values", "demos")
         arrays.append(a)
-    X = np.vstack(arrays)
-    if X.shape[0] == 0:
-        raise EmptyDemonstrations("demos hold zero configurations")
-    return X
-
-
-def _check_k(k: object, n: int) -> int:
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= n:
-        raise InvalidSynergyInput(f"k must be an integer in [1, {n}], got {k!r}")
-    return int(k)
+    return np.vstack(arrays)
 
 
 def frechet_mean(
@@ -167,8 +155,8 @@ def frechet_mean(
         mean (n,), log vectors (N, n) at the mean, iterations.
 
     Raises:
-        MeanNotConverged: ``max_iter`` reached.
-        LogMapFailed: a log map did not converge.
+        SynergyNotConverged: ``max_iter`` reached (``residual`` is the G-norm of the last
+            update, ``iterations`` is ``max_iter``), or a log map did not converge.
     """
     mean = X.mean(axis=0)
     U = X - mean
@@ -178,17 +166,17 @@ def frechet_mean(
             [checked_log(metric, mean, x, v_init=u, steps=steps) for x, u in zip(X, U, strict=True)]
         )
         step = U.mean(axis=0)
-        step_norm = float(np.sqrt(max(step @ metric.G(mean) @ step, 0.0)))
+        step_norm = float(np.sqrt(max(float(step @ metric.G(mean) @ step), 0.0)))
         if step_norm <= tol:
             return mean, U, it
         mean = exp(metric, mean, step, duration=1.0, steps=steps).q[-1].copy()
         U = U - step
-    raise MeanNotConverged(
+    raise SynergyNotConverged(
         f"Fréchet mean did not converge in max_iter={max_iter} iterations "
         f"(last update G-norm {step_norm:.3g} > tol={tol:g}); demonstrations may be too "
         "spread out for a unique mean",
-        max_iter,
         step_norm,
+        max_iter,
     )
 
 
@@ -207,20 +195,20 @@ def _reconstruction_errors(
             if np.max(np.abs(x_rec - x)) <= 1e-14:
                 continue
             w = checked_log(metric, x_rec, x, v_init=u - u_rec, steps=steps)
-            total += float(np.sqrt(max(w @ metric.G(x_rec) @ w, 0.0)))
+            total += float(np.sqrt(max(float(w @ metric.G(x_rec) @ w), 0.0)))
         errs[kk - 1] = total / X.shape[0]
     return errs
 
 
 def _geodesic_projection_sq(
-    metric: Metric, mean: Vector, V: Matrix, x: Vector, c0: Vector, L_x: Matrix, steps: int
+    metric: Metric, mean: Vector, V: Matrix, x: Vector, c0: Vector, L_x: np.ndarray, steps: int
 ) -> tuple[float, Vector]:
     """Squared distance from x to the geodesic submanifold {exp(mean, V c)} and best c.
 
     Gauss-Newton (scipy least_squares, finite differences) on c with the residual
     ``L_x^T log(x, exp(mean, V c))``, whose norm is the Riemannian distance.
     """
-    warm = {"v": None}
+    warm: dict[str, Vector | None] = {"v": None}
 
     def residual(c: np.ndarray) -> np.ndarray:
         y = exp(metric, mean, V @ c, duration=1.0, steps=steps).q[-1]
@@ -334,15 +322,12 @@ def pga(
     inner projections.
 
     Raises:
-        EmptyDemonstrations, DimensionMismatch, InvalidSynergyInput: bad input.
-        MeanNotConverged: the mean iteration did not converge.
-        LogMapFailed: a log map did not converge.
+        InvalidSynergyInput: bad input.
+        SynergyNotConverged: the mean iteration or a log map did not converge.
     """
-    if not isinstance(metric, Metric):
-        raise InvalidSynergyInput(f"metric must be a geosyn Metric, got {type(metric).__name__}")
-    n = metric.n
+    n = check_metric(metric).n
     X = as_configurations(demos, n)
-    k = _check_k(k, n)
+    k = check_count(k, n)
     mean, U, iterations = frechet_mean(metric, X, steps=steps, tol=mean_tol, max_iter=max_iter)
     G = np.asarray(metric.G(mean), dtype=np.float64)
     S = U.T @ U / X.shape[0]
@@ -375,11 +360,11 @@ def pca_synergies(demos: Matrix | Sequence[Matrix], k: int) -> PCAResult:
         The `PCAResult` (1/N variance normalization, as in `pga`; same sign convention).
 
     Raises:
-        EmptyDemonstrations, DimensionMismatch, InvalidSynergyInput: bad input.
+        InvalidSynergyInput: bad input.
     """
     X = as_configurations(demos)
     n = X.shape[1]
-    k = _check_k(k, n)
+    k = check_count(k, n)
     mean = X.mean(axis=0)
     D = X - mean
     S = D.T @ D / X.shape[0]

@@ -6,17 +6,19 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-import pinocchio as pin
 import scipy.optimize
 
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_float, check_int, check_positive
 from geosyn.metrics.geodesic import Geodesic, exp
+from geosyn.robots.kinematics import frame_position
 from geosyn.robots.robot import Robot
-from geosyn.synergies.errors import DimensionMismatch, InvalidSynergyInput
+from geosyn.synergies.errors import synergy_input
 from geosyn.synergies.synergy import (
     GeodesicSynergy,
     _check_synergies,
     as_vector,
+    check_robot,
     transported_velocities,
 )
 
@@ -39,23 +41,6 @@ class ReachResult(NamedTuple):
     trajectory: Geodesic
     converged: bool
     starts: int
-
-
-def frame_position(robot: Robot, q: Vector, frame_id: int, data: pin.Data | None = None) -> Vector:
-    """World position of a frame.
-
-    Args:
-        robot: the robot.
-        q: (n,) configuration [rad].
-        frame_id: Pinocchio frame index.
-        data: optional Pinocchio data to reuse.
-
-    Returns:
-        (3,) position [m].
-    """
-    data = robot.model.createData() if data is None else data
-    pin.forwardKinematics(robot.model, data, q)
-    return pin.updateFramePlacement(robot.model, data, frame_id).translation.copy()
 
 
 def reach(
@@ -103,22 +88,21 @@ def reach(
         The `ReachResult`.
 
     Raises:
-        InvalidSynergyInput, DimensionMismatch: bad input.
+        InvalidSynergyInput: bad input.
         UnknownFrame: ``frame`` is not in the robot.
-        LogMapFailed: a synergy base could not be joined to ``q_start``.
+        SynergyNotConverged: a synergy base could not be joined to ``q_start``.
     """
     syns = _check_synergies(synergies)
     metric = syns[0].metric
     n = metric.n
-    if not isinstance(robot, Robot):
-        raise InvalidSynergyInput(f"robot must be a geosyn Robot, got {type(robot).__name__}")
-    if robot.nv != n:
-        raise DimensionMismatch(f"robot {robot.name!r} has nv={robot.nv}, the metric has n={n}")
+    check_robot(robot, n)
     p_star = as_vector(target, 3, "target")
-    if not (np.isfinite(duration) and duration > 0):
-        raise InvalidSynergyInput(f"duration must be finite and > 0 [s], got {duration!r}")
-    if not (np.isfinite(lam) and lam >= 0):
-        raise InvalidSynergyInput(f"lam must be finite and >= 0, got {lam!r}")
+    with synergy_input("duration"):
+        duration = check_positive(duration, "duration", unit="s")
+    with synergy_input("lam"):
+        lam = check_float(lam, "lam", low=0.0, unit="m^2")
+    with synergy_input("restarts"):
+        restarts = check_int(restarts, "restarts", low=0)
     fid = robot.frame_id(frame)
     q_s = syns[0].q0.copy() if q_start is None else as_vector(q_start, n, "q_start")
     Vt = transported_velocities(syns, q_s, steps=steps)
@@ -135,7 +119,7 @@ def reach(
 
     rng = np.random.default_rng(seed)
     best_w, best_err, starts = np.zeros(m), np.inf, 0
-    for attempt in range(int(restarts) + 1):
+    for attempt in range(restarts + 1):
         w0 = np.zeros(m) if attempt == 0 else weight_scale * rng.standard_normal(m)
         sol = scipy.optimize.least_squares(
             residual,

@@ -13,44 +13,83 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from typing_extensions import Unpack
 
 from geosyn.core.types import Matrix, Vector
+from geosyn.core.validation import check_int, check_vector
 from geosyn.metrics.base import Metric
 from geosyn.metrics.errors import GeodesicNotFound
-from geosyn.metrics.geodesic import Geodesic, exp, log, parallel_transport
-from geosyn.synergies.errors import (
-    DimensionMismatch,
-    InvalidSynergyInput,
-    LogMapFailed,
-    WeightCountMismatch,
-)
+from geosyn.metrics.geodesic import Geodesic, LogOptions, exp, log, parallel_transport
+from geosyn.robots.robot import Robot
+from geosyn.synergies.errors import InvalidSynergyInput, SynergyNotConverged, synergy_input
 
 COMMON_BASE_TOL = 1e-12
 """Bases closer than this (max-norm) [rad] count as equal: no transport is done."""
 
 
-def as_vector(x: object, n: int, name: str) -> np.ndarray:
-    """Validate a finite float64 vector of shape (n,) (copy).
+def as_vector(x: object, n: int, name: str) -> Vector:
+    """Return ``x`` as a new finite float64 (n,) array (always a copy).
+
+    Args:
+        x: candidate vector.
+        n: expected length.
+        name: argument name for the error message.
 
     Raises:
-        DimensionMismatch: wrong shape.
-        InvalidSynergyInput: not numeric or not finite.
+        InvalidSynergyInput: wrong shape, not numeric or not finite.
     """
-    try:
-        arr = np.array(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
+    with synergy_input(name):
+        return check_vector(x, n, name).copy()
+
+
+def check_count(k: object, n: int) -> int:
+    """Return ``k``, a number of synergies or directions, as an int in ``[1, n]``.
+
+    Raises:
+        InvalidSynergyInput: not an integer, or out of range.
+    """
+    with synergy_input("k"):
+        return check_int(k, "k", low=1, high=n)
+
+
+def check_metric(metric: object) -> Metric:
+    """Return ``metric`` if it is a geosyn `Metric`.
+
+    Raises:
+        InvalidSynergyInput: anything else.
+    """
+    if not isinstance(metric, Metric):
         raise InvalidSynergyInput(
-            f"{name} must be a float array of shape ({n},), got {x!r}"
-        ) from err
-    if arr.shape != (n,):
-        raise DimensionMismatch(f"{name} must have shape ({n},), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InvalidSynergyInput(f"{name} must be finite, got {arr.tolist()}")
-    return arr
+            f"metric must be a geosyn Metric, got {type(metric).__name__}", "metric"
+        )
+    return metric
 
 
-def checked_log(metric: Metric, q_from: Vector, q_to: Vector, **options: object) -> Vector:
-    """``log(metric, q_from, q_to)``, with a failure reported as `LogMapFailed`.
+def check_robot(robot: object, n: int) -> Robot:
+    """Return ``robot`` if it is a geosyn `Robot` with ``nv == n``.
+
+    Args:
+        robot: candidate robot.
+        n: dimension of the metric's configuration space.
+
+    Raises:
+        InvalidSynergyInput: not a `Robot`, or its nv differs from n.
+    """
+    if not isinstance(robot, Robot):
+        raise InvalidSynergyInput(
+            f"robot must be a geosyn Robot, got {type(robot).__name__}", "robot"
+        )
+    if robot.nv != n:
+        raise InvalidSynergyInput(
+            f"robot {robot.name!r} has nv={robot.nv}, the metric has n={n}", "robot"
+        )
+    return robot
+
+
+def checked_log(
+    metric: Metric, q_from: Vector, q_to: Vector, **options: Unpack[LogOptions]
+) -> Vector:
+    """``log(metric, q_from, q_to)``, with a failure reported as `SynergyNotConverged`.
 
     Args:
         metric: the metric.
@@ -62,18 +101,19 @@ def checked_log(metric: Metric, q_from: Vector, q_to: Vector, **options: object)
         (n,) initial velocity [rad/s] of the geodesic reaching ``q_to`` at t = 1 s.
 
     Raises:
-        LogMapFailed: the shooting did not converge (carries its residual).
+        SynergyNotConverged: the shooting did not converge (carries its residual, the
+            configurations and the best initial velocity found).
     """
     try:
         return np.asarray(log(metric, q_from, q_to, **options), dtype=np.float64)
     except GeodesicNotFound as err:
-        raise LogMapFailed(
+        raise SynergyNotConverged(
             f"no geodesic found from q={np.round(q_from, 6).tolist()} to "
             f"q={np.round(q_to, 6).tolist()} (endpoint residual {err.residual:.3g} rad): {err}",
             err.residual,
-            err.v0,
-            np.array(q_from),
-            np.array(q_to),
+            q_from=np.array(q_from),
+            q_to=np.array(q_to),
+            v0=err.v0,
         ) from err
 
 
@@ -95,11 +135,7 @@ class GeodesicSynergy:
     v0: np.ndarray
 
     def __post_init__(self) -> None:
-        if not isinstance(self.metric, Metric):
-            raise InvalidSynergyInput(
-                f"metric must be a geosyn Metric, got {type(self.metric).__name__}"
-            )
-        n = self.metric.n
+        n = check_metric(self.metric).n
         for name in ("q0", "v0"):
             arr = as_vector(getattr(self, name), n, name)
             arr.setflags(write=False)
@@ -135,16 +171,19 @@ def _check_synergies(synergies: Sequence[GeodesicSynergy]) -> list[GeodesicSyner
     else:
         syns = list(synergies)
     if not syns:
-        raise InvalidSynergyInput("synergies must hold at least one GeodesicSynergy, got none")
+        raise InvalidSynergyInput(
+            "synergies must hold at least one GeodesicSynergy, got none", "synergies"
+        )
     for i, s in enumerate(syns):
         if not isinstance(s, GeodesicSynergy):
             raise InvalidSynergyInput(
-                f"synergies[{i}] must be a GeodesicSynergy, got {type(s).__name__}"
+                f"synergies[{i}] must be a GeodesicSynergy, got {type(s).__name__}", "synergies"
             )
         if s.metric is not syns[0].metric:
-            raise DimensionMismatch(
+            raise InvalidSynergyInput(
                 f"synergies[{i}] uses metric {s.metric!r}, synergies[0] uses "
-                f"{syns[0].metric!r}; all synergies must share one metric object"
+                f"{syns[0].metric!r}; all synergies must share one metric object",
+                "synergies",
             )
     return syns
 
@@ -168,8 +207,8 @@ def transported_velocities(
         (n, m) transported velocities [rad/s], one per column.
 
     Raises:
-        InvalidSynergyInput, DimensionMismatch: bad synergies or q_start.
-        LogMapFailed: a base could not be joined to ``q_start``.
+        InvalidSynergyInput: bad synergies or q_start.
+        SynergyNotConverged: a base could not be joined to ``q_start``.
     """
     syns = _check_synergies(synergies)
     metric = syns[0].metric
@@ -187,25 +226,24 @@ def transported_velocities(
     return out
 
 
-def check_weights(weights: object, m: int) -> np.ndarray:
-    """Validate (m,) finite weights.
+def check_weights(weights: object, m: int) -> Vector:
+    """Return ``weights`` as (m,) finite floats [-] (a scalar counts as one weight).
 
     Raises:
-        WeightCountMismatch: not m of them.
-        InvalidSynergyInput: not numeric / not finite.
+        InvalidSynergyInput: not m of them, not numeric or not finite.
     """
     try:
-        w = np.array(weights, dtype=np.float64)
+        w = np.atleast_1d(np.array(weights, dtype=np.float64))
     except (TypeError, ValueError) as err:
-        raise InvalidSynergyInput(f"weights must be {m} numbers, got {weights!r}") from err
-    w = np.atleast_1d(w)
+        raise InvalidSynergyInput(
+            f"weights must be {m} numbers, got {weights!r}", "weights"
+        ) from err
     if w.ndim != 1 or w.size != m:
-        raise WeightCountMismatch(
-            f"weights must hold one weight per synergy ({m}), got shape {w.shape}"
+        raise InvalidSynergyInput(
+            f"weights must hold one weight per synergy ({m}), got shape {w.shape}", "weights"
         )
-    if not np.all(np.isfinite(w)):
-        raise InvalidSynergyInput(f"weights must be finite, got {w.tolist()}")
-    return w
+    with synergy_input("weights"):
+        return check_vector(w, m, "weights")
 
 
 def combine(
@@ -232,9 +270,9 @@ def combine(
         The combined synergy based at ``q_start``.
 
     Raises:
-        WeightCountMismatch: ``len(weights) != len(synergies)``.
-        DimensionMismatch: ``q_start`` of the wrong size, or synergies on different metrics.
-        LogMapFailed: a base could not be joined to ``q_start``.
+        InvalidSynergyInput: ``len(weights) != len(synergies)``, ``q_start`` of the wrong
+            size, or synergies on different metrics.
+        SynergyNotConverged: a base could not be joined to ``q_start``.
     """
     syns = _check_synergies(synergies)
     w = check_weights(weights, len(syns))

@@ -4,9 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from geosyn.experiments.build import build_obstacles
-from geosyn.experiments.loader import load_config
-from geosyn.metrics.shaping import Box
+from geosyn.experiments.build import (
+    SIM_FIELDS,
+    build_disturbances,
+    build_metric,
+    build_obstacles,
+    build_payloads,
+    build_robot,
+)
+from geosyn.experiments.loader import builtin_names, load_config
+from geosyn.metrics.shaping import LoadTerm
+from geosyn.sim import Disturbance
+from geosyn.world import Box, Payload
+from geosyn.world.shapes import SHAPES
 
 
 def _config_with(obstacle: str):
@@ -35,3 +45,44 @@ def test_box_without_rpy_is_axis_aligned() -> None:
     cfg = _config_with("{type: box, center: [0.5, 0, 0.3], half_extents: [0.1, 0.2, 0.3]}")
     (box,) = build_obstacles(cfg)
     np.testing.assert_array_equal(np.asarray(box.rotation), np.eye(3))
+
+
+def test_payload_load_term_is_the_payloads_ball() -> None:
+    """The load term of a scene payload is its solid ball (2/5 m r^2), exactly."""
+    cfg, _ = load_config("panda_payload_shaping")
+    robot = build_robot(cfg)
+    (payload,) = build_payloads(cfg, robot)
+    p = cfg.scene.payloads[0]
+    assert payload == Payload(robot.ee_frame, p.mass, tuple(p.offset), radius=p.radius, name=p.name)
+    (term,) = build_metric(cfg, robot).terms  # type: ignore[attr-defined]
+    inertia = np.eye(3) * 0.4 * p.mass * p.radius**2
+    ref = LoadTerm(robot.ee_frame, p.mass, p.offset, inertia)
+    np.testing.assert_array_equal(term.spatial_inertia, ref.spatial_inertia)
+
+
+def test_every_builtin_scene_builds() -> None:
+    for name in builtin_names():
+        cfg, _ = load_config(name)
+        robot = build_robot(cfg)
+        assert all(isinstance(p, Payload) for p in build_payloads(cfg, robot))
+        assert all(isinstance(o, SHAPES) for o in build_obstacles(cfg))
+        assert all(isinstance(d, Disturbance) for d in build_disturbances(cfg))
+
+
+def test_saved_fields_are_the_per_tick_log() -> None:
+    """results.npz keeps these arrays of a run (their names are the file format)."""
+    assert SIM_FIELDS == (
+        "t",
+        "q",
+        "v",
+        "tau_applied",
+        "q_ref",
+        "tracking_error",
+        "kinetic_energy",
+        "power",
+        "effort",
+        "saturated",
+        "clearance",
+        "payload_mass",
+        "fallback_used",
+    )

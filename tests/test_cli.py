@@ -206,7 +206,7 @@ def test_other_commands_bad_input(tmp_path, capsys):
         )
         == 2
     )
-    assert "--grid 'seed': expected key.path=v1,v2" in capsys.readouterr().err
+    assert "ConfigError: --grid: seed: expected key.path=v1,v2" in capsys.readouterr().err
     assert (
         main(
             [
@@ -286,3 +286,25 @@ def test_console_script_subprocess(tmp_path):
     )
     assert "Traceback" not in proc.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_main_restores_the_sigterm_handler(tmp_path, capsys):
+    """The CLI routes SIGTERM to SystemExit while a command runs, then puts back the
+    handler it found (also after an error)."""
+    import signal
+
+    def mine(signum, frame):  # pragma: no cover - never delivered
+        pass
+
+    previous = signal.signal(signal.SIGTERM, mine)
+    try:
+        assert main(["report", str(tmp_path)]) == 2  # an error exit
+        assert signal.getsignal(signal.SIGTERM) is mine
+        assert main(["robots"]) == 0
+        assert signal.getsignal(signal.SIGTERM) is mine
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["report", str(tmp_path)]) == 2
+    assert signal.getsignal(signal.SIGTERM) == before
+    capsys.readouterr()

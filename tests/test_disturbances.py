@@ -11,7 +11,6 @@ from conftest import get_robot
 from geosyn.core.errors import InvalidArgument
 from geosyn.sim import (
     Latency,
-    Payload,
     PayloadChange,
     Push,
     SensorNoise,
@@ -21,6 +20,7 @@ from geosyn.sim import (
     Wrench,
     build_scene,
 )
+from geosyn.world import Payload
 
 
 class GravityPD:
@@ -110,7 +110,7 @@ def test_wrench_periodic_and_constant():
 def test_payload_change_changes_gravity_torque_as_pinocchio_predicts():
     robot, q0 = panda_q0()
     offset = (0.0, 0.0, 0.05)
-    payload = Payload("panda_hand_tcp", 0.5, offset=offset, radius=0.04)
+    payload = Payload("panda_hand_tcp", 0.5, com=offset, radius=0.04)
     sim = Simulation(
         robot, GravityPD(robot), payloads=[payload], disturbances=[PayloadChange(0.05, 2.0)]
     )
@@ -152,8 +152,8 @@ def test_payload_change_acts_from_its_tick():
     """A change at t=0 equals building the payload with the new mass (bit for bit)."""
     robot, q0 = panda_q0()
     v0 = np.full(7, 0.3)
-    light = Payload("panda_hand_tcp", 0.5, offset=(0, 0, 0.05))
-    heavy = Payload("panda_hand_tcp", 2.0, offset=(0, 0, 0.05))
+    light = Payload("panda_hand_tcp", 0.5, com=(0, 0, 0.05))
+    heavy = Payload("panda_hand_tcp", 2.0, com=(0, 0, 0.05))
     changed = Simulation(
         robot, GravityPD(robot), payloads=[light], disturbances=[PayloadChange(0.0, 2.0)]
     ).run(q0, v0, 0.05)
@@ -234,7 +234,7 @@ def test_latency_in_seconds_and_bad_values():
         Simulation(robot, GravityPD(robot), disturbances=[Latency(seconds=0.0015)])
     with pytest.raises(InvalidArgument, match="exactly one of ticks or seconds"):
         Latency()
-    with pytest.raises(InvalidArgument, match="ticks must be an int >= 0"):
+    with pytest.raises(InvalidArgument, match="ticks must be an integer >= 0"):
         Latency(ticks=-1)
 
 

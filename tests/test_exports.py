@@ -11,6 +11,7 @@ import pytest
 PACKAGES = [
     "geosyn.core",
     "geosyn.robots",
+    "geosyn.world",
     "geosyn.metrics",
     "geosyn.metrics.shaping",
     "geosyn.synergies",
@@ -18,7 +19,7 @@ PACKAGES = [
     "geosyn.sim",
     "geosyn.experiments",
 ]
-LAYERS = ["core", "robots", "metrics", "synergies", "controllers", "sim", "experiments"]
+LAYERS = ["core", "robots", "world", "metrics", "synergies", "controllers", "sim", "experiments"]
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+
 import matplotlib.image as mpimg
 import numpy as np
 import pinocchio as pin
@@ -9,12 +13,13 @@ import pytest
 
 from conftest import get_metric, get_robot
 from geosyn.metrics.geodesic import exp
-from geosyn.synergies import DimensionMismatch, InvalidSynergyInput, orthonormal_synergies
+from geosyn.robots.kinematics import joint_positions
+from geosyn.synergies import InvalidSynergyInput, orthonormal_synergies
+from geosyn.synergies import InvalidSynergyInput as DimensionMismatch
 from geosyn.synergies.figures import (
     PAPER_WEIGHTS,
     figure_configuration_space,
     figure_synergy_combinations,
-    joint_positions,
 )
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -87,3 +92,17 @@ def test_bad_input(tmp_path):
         figure_synergy_combinations(
             metric, robot, [0.0, 1.0], basis.synergies[:1], path=tmp_path / "f.png"
         )
+
+
+def test_importing_figures_changes_nothing_global():
+    """A fresh interpreter: importing the figures module selects no matplotlib backend."""
+    probe = (
+        "import json, os\n"
+        "import matplotlib\n"
+        "before = (dict(os.environ), matplotlib.rcParams._get_backend_or_none())\n"
+        "import geosyn.synergies.figures\n"
+        "after = (dict(os.environ), matplotlib.rcParams._get_backend_or_none())\n"
+        "print(json.dumps([after == before, 'matplotlib.pyplot' in __import__('sys').modules]))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == [True, False]

@@ -98,7 +98,7 @@ def test_planar2_closed_form_metric_and_christoffel() -> None:
         c2, s2 = np.cos(q[1]), np.sin(q[1])
         M_closed = np.array([[a + b + 2 * h * c2, b + h * c2], [b + h * c2, b]])
         np.testing.assert_allclose(metric.G(q), M_closed, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(metric.symbolic_G_numeric(q), M_closed, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(metric.functions.evaluate("G", q), M_closed, rtol=0, atol=1e-12)
         gamma_closed = np.zeros((2, 2, 2))
         gamma_closed[0, 0, 1] = gamma_closed[0, 1, 0] = gamma_closed[0, 1, 1] = -h * s2
         gamma_closed[1, 0, 0] = h * s2

@@ -109,7 +109,7 @@ def test_resolved_config_round_trips():
 def test_robot_file_path_is_relative_to_the_config(tmp_path, monkeypatch):
     import os
 
-    from geosyn.robots import example_robot_data_dir
+    from geosyn.robots.files import example_robot_data_dir
 
     urdf = example_robot_data_dir() / "ur_description" / "urdf" / "ur5_robot.urdf"
     os.symlink(urdf, tmp_path / "arm.urdf")

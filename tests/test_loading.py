@@ -8,14 +8,9 @@ import pytest
 
 from conftest import BUILTIN_NAMES, get_robot
 from geosyn.core import GeosynError
-from geosyn.robots import (
-    RobotFileError,
-    UnknownFrame,
-    UnknownRobot,
-    example_robot_data_dir,
-    load_robot,
-    planar2,
-)
+from geosyn.robots import RobotFileError, UnknownFrame, UnknownRobot, load_robot
+from geosyn.robots.builtins import planar2
+from geosyn.robots.files import example_robot_data_dir
 
 CONTINUOUS_URDF = """<?xml version="1.0"?>
 <robot name="wheelarm">
@@ -100,8 +95,9 @@ def test_keep_joints_locks_the_rest(tmp_path) -> None:
     path.write_text(CONTINUOUS_URDF)
     robot = load_robot(path, keep_joints=["j2", "j3"], lock_q={"j1": 0.0})
     assert robot.joint_names == ("j2", "j3")
-    with pytest.raises(UnknownFrame, match="available: j1, j2, j3"):
+    with pytest.raises(UnknownFrame, match="available: j1, j2, j3") as info:
         load_robot(path, keep_joints=["j9"])
+    assert info.value.name == "j9" and info.value.available == ("j1", "j2", "j3")
 
 
 def test_unknown_robot_lists_available() -> None:
@@ -111,11 +107,13 @@ def test_unknown_robot_lists_available() -> None:
     for name in BUILTIN_NAMES:
         assert name in msg
     assert isinstance(info.value, GeosynError)
+    assert info.value.name == "pandda" and set(BUILTIN_NAMES) <= set(info.value.available)
 
 
 def test_missing_and_malformed_files(tmp_path) -> None:
-    with pytest.raises(RobotFileError, match="does not exist"):
+    with pytest.raises(RobotFileError, match="does not exist") as info:
         load_robot(tmp_path / "nothing.urdf")
+    assert info.value.path == str(tmp_path / "nothing.urdf")
     bad = tmp_path / "bad.urdf"
     bad.write_text("<robot name='x'><link name='a'></robot")
     with pytest.raises(RobotFileError, match="could not parse"):

@@ -113,7 +113,7 @@ def test_panda_tracks_synergy_acceleration_control(effort: str) -> None:
 
 @pytest.mark.slow
 def test_panda_tracks_synergy_torque_control() -> None:
-    # The first run compiles the RK4/ABA step and its Jacobian (~40 s, then cached on
+    # The first run compiles the RK4/ABA step and its Jacobian (slow once, then cached on
     # disk); a shorter horizon keeps the test short (the benchmark uses N = 40).
     mpc = GeodesicMPC(get_robot("panda"), get_metric("panda"), horizon=20, dt=0.02)
     check_tracking(mpc, "panda")

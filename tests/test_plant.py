@@ -7,9 +7,10 @@ import pinocchio as pin
 import pytest
 
 from conftest import get_robot
-from geosyn.controllers.plant import Payload, PinocchioPlant
+from geosyn.controllers.plant import PinocchioPlant
 from geosyn.core import InvalidArgument
 from geosyn.robots import UnknownFrame
+from geosyn.world import Payload
 
 Q0 = np.array([0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8])
 V0 = 0.5 * np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0, 1.0])
@@ -60,7 +61,7 @@ def test_payload_changes_dynamics_by_a_point_mass():
     robot = get_robot("panda")
     mass = 1.3
     com = np.array([0.01, -0.02, 0.05])
-    plant = PinocchioPlant(robot, payload=(robot.ee_frame, mass, tuple(com)))
+    plant = PinocchioPlant(robot, payload=Payload(robot.ee_frame, mass, tuple(com), radius=0.0))
     assert isinstance(plant.payload, Payload)
     # The robot's own model is untouched.
     assert robot.total_mass == pytest.approx(

@@ -2,15 +2,21 @@
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from PIL import Image
 
 from conftest import get_robot
 from geosyn.core.errors import InvalidArgument
-from geosyn.metrics.shaping import Sphere
-from geosyn.sim import Payload, RenderError, Simulation, render_frames, render_video
-from geosyn.sim.render import CameraView, frame_indices
+from geosyn.sim import CameraView, Clip, RenderError, Simulation, render_video
+from geosyn.sim.offscreen import gl_backend
+from geosyn.sim.render import frame_indices
+from geosyn.world import Payload, Sphere
 
 
 class HoldPD:
@@ -72,9 +78,9 @@ def test_gif_has_expected_frames(run, tmp_path):
 def test_frames_show_the_robot(run):
     """The robot occupies the centre of the auto-framed view: a view aimed away differs."""
     robot, res = run
-    frames = render_frames(res, robot, fps=5, width=96, height=72, trail=False)
+    frames = Clip(res, robot, fps=5, width=96, height=72, trail=False).render()
     assert frames.shape == (2, 72, 96, 3) and frames.dtype == np.uint8
-    away = render_frames(
+    away = Clip(
         res,
         robot,
         fps=5,
@@ -82,7 +88,7 @@ def test_frames_show_the_robot(run):
         height=72,
         trail=False,
         camera=CameraView((10.0, 10.0, 5.0), 1.0, 0.0, 0.0),
-    )
+    ).render()
     assert np.abs(frames.astype(float) - away).mean() > 5.0
 
 
@@ -121,15 +127,15 @@ def test_bad_render_input(run, tmp_path):
     with pytest.raises(InvalidArgument, match=r"\.gif, \.mp4"):
         render_video(res, tmp_path / "clip.avi", robot)
     with pytest.raises(InvalidArgument, match="width"):
-        render_frames(res, robot, width=5000)
+        Clip(res, robot, width=5000)
     with pytest.raises(InvalidArgument, match="robot 'panda'"):
-        render_frames(res, get_robot("ur5"))
+        Clip(res, get_robot("ur5"))
     with pytest.raises(InvalidArgument, match="fps"):
-        render_frames(res, robot, fps=0.0)
+        Clip(res, robot, fps=0.0)
 
 
 def test_write_frames_streams_and_checks(tmp_path):
-    from geosyn.sim import write_frames
+    from geosyn.sim.video import write_frames
 
     def gen():
         for i in range(3):
@@ -157,8 +163,53 @@ def test_render_a_run_ending_non_finite():
     res = Simulation(robot, HoldPD(robot), control_dt=0.01).run(np.zeros(2), [2.0, -1.0], 0.2)
     broken = dataclasses.replace(res, q_final=np.array([np.nan, 0.0]))
     view = CameraView((0.0, 0.0, 0.0), 4.0, 90.0, -89.0)
-    frames = render_frames(broken, robot, fps=10, width=64, height=48, camera=view, trail=False)
+    frames = Clip(broken, robot, fps=10, width=64, height=48, camera=view, trail=False).render()
     assert frames.shape == (3, 48, 64, 3)
-    full = render_frames(res, robot, fps=10, width=64, height=48, camera=view, trail=False)
+    full = Clip(res, robot, fps=10, width=64, height=48, camera=view, trail=False).render()
     assert np.array_equal(frames[:2], full[:2])
     assert frames[-1].std() > 5.0  # a drawn scene, not a blank or broken frame
+
+
+# -- no global state ---------------------------------------------------------------------
+_PROBE = """
+import json, os, sys
+before = dict(os.environ)
+import mujoco
+gl_module = sys.modules.get("mujoco.rendering.classic.gl_context") or mujoco.gl_context
+gl_class = gl_module.GLContext
+import geosyn.sim
+print(json.dumps({
+    "environ_unchanged": dict(os.environ) == before,
+    "mujoco_gl_context_unchanged": gl_module.GLContext is gl_class,
+}))
+"""
+
+
+def test_importing_geosyn_sim_changes_nothing_global():
+    """A fresh interpreter: importing geosyn.sim sets no variable and patches no module."""
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    out = subprocess.run(
+        [sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True
+    )
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {
+        "environ_unchanged": True,
+        "mujoco_gl_context_unchanged": True,
+    }
+
+
+def test_rendering_restores_the_environment(run, monkeypatch):
+    """MUJOCO_GL unset: EGL is chosen at render time; the environment is left as it was."""
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    robot, res = run
+    before = dict(os.environ)
+    assert gl_backend() == "egl"
+    frames = Clip(res, robot, fps=5, width=32, height=24, trail=False).render()
+    assert frames.shape == (2, 24, 32, 3)
+    assert dict(os.environ) == before
+
+
+def test_unknown_backend_is_one_clear_error(run, monkeypatch):
+    monkeypatch.setenv("MUJOCO_GL", "vulkan")
+    robot, res = run
+    with pytest.raises(RenderError, match="MUJOCO_GL='vulkan'.*egl"):
+        Clip(res, robot, fps=5, width=32, height=24).render()

@@ -23,8 +23,14 @@ def test_check_q_names_expected_shape() -> None:
 
 def test_unknown_frame_lists_names() -> None:
     robot = get_robot("planar2")
-    with pytest.raises(UnknownFrame, match="available: .*tip"):
+    with pytest.raises(UnknownFrame, match="available: .*tip") as info:
         robot.frame_id("hand")
+    assert info.value.name == "hand" and "tip" in info.value.available
+    with pytest.raises(UnknownFrame, match="joint 'j9'.*available: joint1, joint2") as info:
+        robot.joint_id("j9")
+    assert info.value.available == ("joint1", "joint2")
+    with pytest.raises(InvalidArgument, match="per_capsule"):
+        robot.collision_spheres(per_capsule=0)
     assert isinstance(UnknownFrame("x"), GeosynError)
 
 

@@ -191,3 +191,34 @@ def test_explicit_synergies_and_every_disturbance_type(tmp_path):
     np.testing.assert_allclose(geo.v[0], 2.0 * np.array(v1) - np.array(v2), atol=1e-12)
     s = run_experiment(cfg, tmp_path / "run", progress=False, quiet=True).summary
     assert s["computed_torque.ok"] == 1.0
+
+
+def test_a_run_with_plots_leaves_matplotlib_global_state_alone(tmp_path):
+    """Plots draw on their own Agg canvases: no pyplot, no backend switch (in a fresh
+    interpreter, where nothing else has touched matplotlib)."""
+    import subprocess
+    import sys
+
+    code = """
+import sys
+from pathlib import Path
+import matplotlib
+backend = lambda: dict.__getitem__(matplotlib.rcParams, "backend")  # unresolved value
+before = backend()
+from geosyn.experiments import load_config, run_experiment
+cfg, _ = load_config(
+    "planar2_geodesic_vs_euclidean",
+    ["params.steps=60", "params.duration=0.3", "simulation.duration=0.3"],
+)
+out = run_experiment(cfg, sys.argv[1], progress=False, quiet=True).path
+assert (out / "effort.png").is_file() and (out / "figure1_configuration_space.png").is_file()
+assert backend() == before, (before, backend())
+assert "matplotlib.pyplot" not in sys.modules
+"""
+    proc = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path / "run")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr

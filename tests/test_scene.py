@@ -9,9 +9,10 @@ import pytest
 
 from conftest import get_robot
 from geosyn.core.errors import InvalidArgument
-from geosyn.metrics.shaping import Box, Capsule, HalfSpace, ObstacleTerm, Sphere
-from geosyn.sim import Payload, UnknownBody, UnsupportedObstacle, build_scene
-from geosyn.sim.scene import obstacle_geom
+from geosyn.metrics.shaping import ObstacleTerm
+from geosyn.sim import UnknownBody, build_scene
+from geosyn.sim.obstacles import obstacle_geom
+from geosyn.world import Box, Capsule, HalfSpace, InvalidGeometry, Payload, Sphere
 
 
 def rot(axis, angle):
@@ -37,7 +38,7 @@ def pinocchio_with_payload(robot, frame, mass, offset, radius):
 
 def test_payload_gravity_matches_pinocchio():
     robot = get_robot("panda")
-    payload = Payload("panda_hand_tcp", 1.5, offset=(0.01, 0.02, 0.05), radius=0.04)
+    payload = Payload("panda_hand_tcp", 1.5, com=(0.01, 0.02, 0.05), radius=0.04)
     scene = build_scene(robot, payloads=[payload])
     m, d = scene.model, mujoco.MjData(scene.model)
     ref_model = pinocchio_with_payload(robot, "panda_hand_tcp", 1.5, (0.01, 0.02, 0.05), 0.04)
@@ -54,6 +55,37 @@ def test_payload_gravity_matches_pinocchio():
         assert np.allclose(M, pin.crba(ref_model, ref_data, q), atol=1e-10)
     assert m.body_mass[scene.payload_body_ids[0]] == 1.5
     assert m.body_subtreemass[0] == pytest.approx(robot.total_mass + 1.5)
+
+
+def test_payload_with_inertia_matches_pinocchio():
+    """A payload given by a full (rotated) inertia in a rotated frame: MuJoCo's mass matrix
+    equals Pinocchio's with the same rigid body appended to the frame."""
+    robot = get_robot("panda")
+    com = np.array([0.01, -0.02, 0.04])
+    inertia = np.array([[0.02, 0.003, -0.001], [0.003, 0.03, 0.002], [-0.001, 0.002, 0.025]])
+    payload = Payload("panda_hand_tcp", 1.2, com=tuple(com), inertia=inertia)
+    scene = build_scene(robot, payloads=[payload])
+    m, d = scene.model, mujoco.MjData(scene.model)
+    ref_model = pin.Model(robot.model)
+    f = ref_model.frames[ref_model.getFrameId("panda_hand_tcp")]
+    ref_model.appendBodyToJoint(f.parentJoint, pin.Inertia(1.2, com, inertia), f.placement)
+    ref_data = ref_model.createData()
+    M = np.zeros((7, 7))
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        q = robot.random_q(rng)
+        d.qpos[:] = q
+        mujoco.mj_forward(m, d)
+        mujoco.mj_fullM(m, d, M)
+        assert np.allclose(M, pin.crba(ref_model, ref_data, q), atol=1e-10)
+    # The inertia matters (the test can fail): a ball payload gives another matrix.
+    ball = build_scene(robot, payloads=[Payload("panda_hand_tcp", 1.2, com=tuple(com))])
+    db = mujoco.MjData(ball.model)
+    db.qpos[:] = q
+    mujoco.mj_forward(ball.model, db)
+    Mb = np.zeros((7, 7))
+    mujoco.mj_fullM(ball.model, db, Mb)
+    assert np.abs(Mb - M).max() > 1e-3
 
 
 def test_obstacle_geoms_are_placed_as_the_shapes():
@@ -96,7 +128,7 @@ def test_signed_distance_matches_mujoco_geom_distance(index):
         d.mocap_pos[0] = p
         mujoco.mj_forward(m, d)
         dist = mujoco.mj_geomDistance(m, d, 0, 1, 10.0, None) + 1e-6
-        if ob.kind == "halfspace":
+        if isinstance(ob.shape, HalfSpace):
             assert ob.signed_distance(p[None])[0] == pytest.approx(dist, abs=1e-6)
         elif dist > 0:  # MuJoCo's penetration depth inside a solid is not a signed distance
             assert ob.signed_distance(p[None])[0] == pytest.approx(dist, abs=1e-6)
@@ -181,7 +213,7 @@ def test_bad_scene_input():
             robot,
             payloads=[Payload("panda_hand", 1.0, name="a"), Payload("panda_hand", 1.0, name="a")],
         )
-    with pytest.raises(UnsupportedObstacle, match="obstacle 0 of type str"):
+    with pytest.raises(InvalidGeometry, match=r"obstacles\[0\] is a str"):
         build_scene(robot, obstacles=["a cube"])
     with pytest.raises(InvalidArgument, match="timestep"):
         build_scene(robot, timestep=0.0)

@@ -9,21 +9,20 @@ import pytest
 import geosyn.metrics.shaping as shaping
 from conftest import get_metric, get_robot
 from geosyn.core import InvalidArgument
-from geosyn.metrics.base import christoffel_from_dG
+from geosyn.metrics.base import Metric
+from geosyn.metrics.derived import christoffel_from_dG
 from geosyn.metrics.shaping import (
-    Box,
-    Capsule,
-    HalfSpace,
     InvalidTermArgument,
     JointLimitTerm,
     LoadTerm,
     MetricTerm,
     ObstacleTerm,
     ShapedMetric,
-    Sphere,
     TermAlreadyBound,
     TermNotBound,
 )
+from geosyn.metrics.shaping.obstacle import PARAMS_PER_OBSTACLE
+from geosyn.world import Box, Capsule, HalfSpace, Sphere
 
 
 def _fd_dG(metric, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
@@ -68,6 +67,12 @@ def shaped_panda() -> ShapedMetric:
 def test_all_names_resolve() -> None:
     for name in shaping.__all__:
         assert getattr(shaping, name) is not None
+
+
+def test_derived_quantities_come_from_metric() -> None:
+    """ShapedMetric supplies G and its symbolic form; the derived quantities are Metric's."""
+    for name in ("dG", "christoffel", "coriolis", "geodesic_acceleration", "inner", "norm"):
+        assert getattr(ShapedMetric, name) is getattr(Metric, name), name
 
 
 def test_no_terms_equals_base_metric() -> None:
@@ -195,7 +200,7 @@ def test_velocity_gated_coriolis_follows_frozen_velocity_definition() -> None:
 def test_parameter_hook_and_symbolic_functions(shaped_panda: ShapedMetric) -> None:
     obstacle_term = shaped_panda.terms[1]
     p = shaped_panda.symbolic_parameters()
-    assert p.shape == (obstacle_term.capacity * shaping.PARAMS_PER_OBSTACLE, 1)
+    assert p.shape == (obstacle_term.capacity * PARAMS_PER_OBSTACLE, 1)
     assert np.array_equal(shaped_panda.parameter_values(), obstacle_term.parameter_values())
     # A geodesic integrator built from the symbolic form with the hook reproduces the
     # numeric geodesic acceleration.

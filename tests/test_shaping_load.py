@@ -8,7 +8,8 @@ import pinocchio as pin
 import pytest
 
 from conftest import get_metric, get_robot
-from geosyn.metrics.shaping import InvalidPayload, LoadTerm, ShapedMetric
+from geosyn.core import InvalidArgument
+from geosyn.metrics.shaping import LoadTerm, ShapedMetric
 from geosyn.robots.errors import UnknownFrame
 
 MASS = 2.0
@@ -108,10 +109,12 @@ def test_load_term_is_symmetric_psd_with_rank_at_most_six() -> None:
         ({"inertia": np.eye(2)}, "inertia"),
     ],
 )
-def test_bad_payloads_raise_invalid_payload(kwargs: dict, fragment: str) -> None:
+def test_bad_payloads_raise_invalid_argument(kwargs: dict, fragment: str) -> None:
+    """A bad mass is the term's InvalidTermArgument, a bad com or inertia the payload's
+    InvalidGeometry: both are InvalidArgument, told apart by the message."""
     args = {"frame": "panda_hand_tcp", "mass": 1.0, "com": (0.0, 0.0, 0.0), "inertia": None}
     args.update(kwargs)
-    with pytest.raises(InvalidPayload, match=fragment):
+    with pytest.raises(InvalidArgument, match=fragment):
         LoadTerm(**args)
 
 
@@ -121,3 +124,20 @@ def test_unknown_frame_lists_available_frames() -> None:
         ShapedMetric(get_metric("panda"), [LoadTerm("panda_hnd", 1.0)])
     assert "'panda_hnd'" in str(info.value)
     assert robot.ee_frame in str(info.value)
+
+
+def test_from_payload_uses_the_payloads_inertia() -> None:
+    """A world Payload without an inertia is a solid ball: 2/5 m r^2 about every axis."""
+    from geosyn.world import Payload
+
+    robot = get_robot("panda")
+    mass, radius = 1.2, 0.05
+    term = LoadTerm.from_payload(Payload(robot.ee_frame, mass, tuple(COM), radius=radius))
+    ball = np.eye(3) * 0.4 * mass * radius**2
+    ref = LoadTerm(robot.ee_frame, mass, COM, ball).bind(robot)
+    term.bind(robot)
+    q = robot.random_q(np.random.default_rng(7))
+    np.testing.assert_array_equal(term.G(q), ref.G(q))
+    assert np.abs(term.G(q) - LoadTerm(robot.ee_frame, mass, COM).bind(robot).G(q)).max() > 1e-5
+    with pytest.raises(InvalidArgument, match="mass"):
+        LoadTerm.from_payload(Payload(robot.ee_frame, 0.0))

@@ -9,19 +9,9 @@ import pinocchio as pin
 import pytest
 
 from conftest import get_metric, get_robot
-from geosyn.metrics.shaping import (
-    Box,
-    CapacityExceeded,
-    Capsule,
-    HalfSpace,
-    InvalidObstacle,
-    InvalidTermArgument,
-    ObstacleTerm,
-    ShapedMetric,
-    Sphere,
-    UnknownObstacleType,
-)
+from geosyn.metrics.shaping import CapacityExceeded, InvalidTermArgument, ObstacleTerm, ShapedMetric
 from geosyn.metrics.shaping.obstacle import HOMOTOPY_RADIUS, PARAMS_PER_OBSTACLE
+from geosyn.world import Box, Capsule, HalfSpace, InvalidGeometry, Sphere
 
 # -- numpy reference ------------------------------------------------------------------
 
@@ -236,9 +226,9 @@ def test_capacity_and_obstacle_type_errors() -> None:
         term.set_obstacle(2, Sphere((0, 0, 1), 0.1))
     with pytest.raises(CapacityExceeded, match="capacity"):
         term.set_obstacles([Sphere((0, 0, 1), 0.1)] * 3)
-    with pytest.raises(UnknownObstacleType, match=r"obstacles\[1\] is a dict.*Sphere, Box"):
+    with pytest.raises(InvalidGeometry, match=r"obstacles\[1\] is a dict.*Sphere, Box"):
         ObstacleTerm([Sphere((0, 0, 1), 0.1), {"center": (0, 0, 0)}])
-    with pytest.raises(UnknownObstacleType, match="Cylinder|tuple"):
+    with pytest.raises(InvalidGeometry, match="Cylinder|tuple"):
         term.set_obstacle(0, ((0, 0, 0), 0.1))  # type: ignore[arg-type]
     with pytest.raises(InvalidTermArgument, match="index"):
         term.move(5, (0, 0, 0))
@@ -265,7 +255,7 @@ def test_capacity_and_obstacle_type_errors() -> None:
     ],
 )
 def test_bad_obstacles_raise(make, fragment: str) -> None:
-    with pytest.raises(InvalidObstacle, match=fragment):
+    with pytest.raises(InvalidGeometry, match=fragment):
         make()
 
 
@@ -359,22 +349,24 @@ def test_shaped_geodesics_keep_clear_of_a_sphere_obstacle(name: str) -> None:
 
 def test_parameter_homotopy_shrinks_obstacles_about_their_centres() -> None:
     """s = 0: every obstacle a 1 mm ball at its centre; s = 1: the obstacles themselves."""
+    from geosyn.metrics.geodesic.continuation import parameter_homotopy
+
     term = ObstacleTerm(
         [Sphere((1.0, 0.5, 0.2), 0.1), Box((0.3, -0.2, 0.4), (0.1, 0.2, 0.05))], capacity=3
     )
     shaped = ShapedMetric(get_metric("panda"), [term])
     now = shaped.parameter_values().copy()
-    np.testing.assert_array_equal(shaped.parameter_homotopy(1.0), now)
-    at0 = shaped.parameter_homotopy(0.0).reshape(3, PARAMS_PER_OBSTACLE)
+    np.testing.assert_array_equal(parameter_homotopy(shaped, 1.0), now)
+    at0 = parameter_homotopy(shaped, 0.0).reshape(3, PARAMS_PER_OBSTACLE)
     slots = now.reshape(3, PARAMS_PER_OBSTACLE)
     np.testing.assert_array_equal(at0[:, :12], slots[:, :12])  # centres and rotations kept
     np.testing.assert_array_equal(at0[:, 12:15], 0.0)
     np.testing.assert_allclose(at0[:, 15], HOMOTOPY_RADIUS, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(at0[:, 16], slots[:, 16])  # active flags kept
-    half = shaped.parameter_homotopy(0.5).reshape(3, PARAMS_PER_OBSTACLE)
+    half = parameter_homotopy(shaped, 0.5).reshape(3, PARAMS_PER_OBSTACLE)
     np.testing.assert_allclose(half[0, 15], 0.5 * 0.1 + 0.5 * HOMOTOPY_RADIUS, rtol=1e-15)
     np.testing.assert_array_equal(shaped.parameter_values(), now)  # the metric is unchanged
-    assert get_metric("panda").parameter_homotopy(0.0) is None  # unshaped: no homotopy
+    assert parameter_homotopy(get_metric("panda"), 0.0) is None  # unshaped: no homotopy
 
 
 def test_exp_sees_moved_obstacle_without_rebuild() -> None:

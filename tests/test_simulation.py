@@ -12,8 +12,9 @@ from geosyn.controllers import ControllerError, JointTrajectoryReference
 from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.plant import PinocchioPlant
 from geosyn.core.errors import InvalidArgument
-from geosyn.sim import Payload, SimResult, Simulation
+from geosyn.sim import SimResult, Simulation
 from geosyn.sim.scene import build_scene
+from geosyn.world import Payload
 
 
 # -- stand-in controllers ---------------------------------------------------------------
@@ -316,8 +317,8 @@ def test_public_names_resolve():
 
 def test_contact_option_stops_the_robot_at_an_obstacle():
     """With contact=True the hand is stopped by a box it is pushed into; without, it enters."""
-    from geosyn.metrics.shaping import Box
     from geosyn.sim import Wrench
+    from geosyn.world import Box
 
     robot = get_robot("panda")
     q0 = robot.neutral()

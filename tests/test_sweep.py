@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 import geosyn.experiments.sweep as sweep_mod
-from geosyn.experiments.errors import SweepError
+from geosyn.core.errors import InvalidArgument
+from geosyn.experiments.errors import ConfigError, RunDirectoryExists
 from geosyn.experiments.sweep import parse_grid, point_name, sweep
 
 SRC = "planar2_geodesic_vs_euclidean"
@@ -24,9 +25,9 @@ BASE = [
 def test_parse_grid():
     assert parse_grid(["a.b=1,2", "c=[1,2],[3,4]"]) == {"a.b": ["1", "2"], "c": ["[1,2]", "[3,4]"]}
     for bad in (["a"], ["=1"], ["a="], ["a=1,"]):
-        with pytest.raises(SweepError, match="--grid"):
+        with pytest.raises(ConfigError, match="--grid"):
             parse_grid(bad)
-    with pytest.raises(SweepError, match="twice"):
+    with pytest.raises(ConfigError, match="twice"):
         parse_grid(["a=1", "a=2"])
     assert (
         point_name({"controllers.0.kp": "100", "x": "[1, 2]"}) == "controllers.0.kp=100__x=_1,_2_"
@@ -98,14 +99,14 @@ def test_interrupted_sweep_completes_only_missing_runs(tmp_path, monkeypatch):
 def test_foreign_directory_is_refused(tmp_path):
     out = tmp_path / "sweep"
     sweep(SRC, {"controllers.0.kp": ["100"]}, seeds=1, out=out, overrides=BASE, progress=False)
-    with pytest.raises(SweepError, match="different sweep"):
+    with pytest.raises(RunDirectoryExists, match="different sweep"):
         sweep(SRC, {"controllers.0.kp": ["200"]}, seeds=1, out=out, overrides=BASE, progress=False)
     other = tmp_path / "other"
     other.mkdir()
     (other / "file").write_text("x")
-    with pytest.raises(SweepError, match="not a sweep directory"):
+    with pytest.raises(RunDirectoryExists, match="not a sweep directory"):
         sweep(SRC, {}, seeds=1, out=other, overrides=BASE, progress=False)
-    with pytest.raises(SweepError, match="seeds"):
+    with pytest.raises(InvalidArgument, match="seeds"):
         sweep(SRC, {}, seeds=0, out=tmp_path / "z", overrides=BASE, progress=False)
 
 

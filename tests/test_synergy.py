@@ -8,15 +8,14 @@ import pytest
 import geosyn.synergies as synergies_pkg
 import geosyn.synergies.synergy as synergy_mod
 from conftest import get_metric
+from geosyn.core import InvalidArgument
 from geosyn.metrics.errors import GeodesicNotFound
 from geosyn.metrics.geodesic import exp, log
 from geosyn.synergies import (
-    DimensionMismatch,
     GeodesicSynergy,
     InvalidSynergyInput,
-    LogMapFailed,
     SynergyError,
-    WeightCountMismatch,
+    SynergyNotConverged,
     combine,
     transported_velocities,
 )
@@ -176,13 +175,15 @@ def test_bad_input_errors():
     metric = get_metric("planar2")
     other = get_metric("planar3")
     s = GeodesicSynergy(metric, [0.0, 1.0], [1.0, 0.0])
-    with pytest.raises(WeightCountMismatch, match="one weight per synergy"):
+    with pytest.raises(InvalidSynergyInput, match="one weight per synergy") as info:
         combine([s, s], [1.0])
-    with pytest.raises(DimensionMismatch, match="q_start"):
+    assert info.value.argument == "weights"
+    with pytest.raises(InvalidSynergyInput, match=r"q_start must have shape \(2,\)") as info:
         combine([s], [1.0], q_start=[0.0, 0.0, 0.0])
-    with pytest.raises(DimensionMismatch, match="v0"):
+    assert info.value.argument == "q_start"
+    with pytest.raises(InvalidSynergyInput, match=r"v0 must have shape \(2,\)"):
         GeodesicSynergy(metric, [0.0, 1.0], [1.0, 0.0, 0.0])
-    with pytest.raises(DimensionMismatch, match="share one metric"):
+    with pytest.raises(InvalidSynergyInput, match="share one metric"):
         combine([s, GeodesicSynergy(other, [0.0] * 3, [1.0] * 3)], [1.0, 1.0])
     with pytest.raises(InvalidSynergyInput, match="at least one"):
         combine([], [])
@@ -190,18 +191,21 @@ def test_bad_input_errors():
         combine([s], [np.nan])
     with pytest.raises(InvalidSynergyInput, match="Metric"):
         GeodesicSynergy("planar2", [0.0, 1.0], [1.0, 0.0])
-    for exc in (WeightCountMismatch, DimensionMismatch, InvalidSynergyInput, LogMapFailed):
+    for exc in (InvalidSynergyInput, SynergyNotConverged):
         assert issubclass(exc, SynergyError)
+    assert issubclass(InvalidSynergyInput, InvalidArgument)
 
 
 def test_non_converging_log_is_a_clear_error(monkeypatch):
     metric = get_metric("planar2")
     q_a, q_b = np.array([0.0, 0.5]), np.array([2.0, -1.0])
-    with pytest.raises(LogMapFailed) as info:
+    with pytest.raises(SynergyNotConverged, match="no geodesic found") as info:
         checked_log(metric, q_a, q_b, max_iter=1, tol=1e-300)
     err = info.value
-    assert isinstance(err, GeodesicNotFound) and isinstance(err.__cause__, GeodesicNotFound)
+    assert isinstance(err.__cause__, GeodesicNotFound)
+    assert err.residual == err.__cause__.residual
     assert err.residual > 0 and "residual" in str(err)
+    np.testing.assert_array_equal(err.q_from, q_a)
     np.testing.assert_array_equal(err.q_to, q_b)
 
     def failing_log(metric, q0, q1, **kw):
@@ -210,5 +214,5 @@ def test_non_converging_log_is_a_clear_error(monkeypatch):
 
     monkeypatch.setattr(synergy_mod, "log", failing_log)
     s = GeodesicSynergy(metric, q_a, [1.0, 0.0])
-    with pytest.raises(LogMapFailed, match="no geodesic found"):
+    with pytest.raises(SynergyNotConverged, match="no geodesic found"):
         combine([s], [1.0], q_start=q_b)

@@ -56,5 +56,15 @@ def test_run_after_a_swallowed_sigterm_commits_nothing(tmp_path) -> None:
 
 def test_install_resets_the_state() -> None:
     termination._received = signal.SIGTERM
-    termination.install()
-    termination.raise_if_terminated()  # nothing pending after a fresh install
+    previous = termination.install()
+    try:
+        termination.raise_if_terminated()  # nothing pending after a fresh install
+    finally:
+        termination.restore(previous)
+
+
+def test_sigterm_exits_restores_the_previous_handler() -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    with termination.sigterm_exits():
+        assert signal.getsignal(signal.SIGTERM) is termination._handler
+    assert signal.getsignal(signal.SIGTERM) == before

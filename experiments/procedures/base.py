@@ -15,16 +15,14 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel
 
-from geosyn.experiments.schema import ExperimentConfig
+from geosyn.experiments.schema import ExperimentConfig, Strict
 from geosyn.robots import Robot
 
 
-class NoParams(BaseModel):
+class NoParams(Strict):
     """A procedure without parameters: ``params`` must be empty."""
-
-    model_config = ConfigDict(extra="forbid")
 
 
 @dataclass

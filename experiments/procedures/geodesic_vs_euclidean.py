@@ -15,32 +15,43 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from geosyn.controllers import JointTrajectoryReference
 from geosyn.experiments import build as B
-from geosyn.experiments.plots import bar_plot, torque_plot, tracking_error_plot
-from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
-from geosyn.experiments.schema import ExperimentConfig, FiniteFloat
-from geosyn.metrics.geodesic import exp, log, path_energy, straight_line
+from geosyn.experiments.procedures.base import RunContext, check_required, register
+from geosyn.experiments.procedures.common import (
+    Duration,
+    PathComparison,
+    Steps,
+    robot_and_metric,
+    track_with_each_controller,
+)
+from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, Strict
+from geosyn.metrics import exp, log, path_energy, straight_line
+from geosyn.synergies.figures import figure_configuration_space
 
-PATHS = ("geodesic", "straight")
+Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
 
-class GeodesicVsEuclideanParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    q0: Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)] = [-1.2, 1.6]
-    q1: Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)] = [1.4, -0.9]
-    duration: Annotated[float, Field(gt=0.0)] = 1.0
-    steps: Annotated[int, Field(ge=10, le=10_000)] = 200
+class GeodesicVsEuclideanParams(Strict):
+    """Parameters of `GeodesicVsEuclidean`: end configurations [rad], time [s], steps."""
+
+    q0: Pair = [-1.2, 1.6]
+    q1: Pair = [1.4, -0.9]
+    duration: Duration = 1.0
+    steps: Steps = 200
 
 
 @register
-class GeodesicVsEuclidean(Procedure):
+class GeodesicVsEuclidean(PathComparison):
+    """Geodesic against straight joint line, both tracked by each controller."""
+
     kind = "geodesic_vs_euclidean"
     description = "planar2: geodesic vs straight joint line (paper Fig. 1), torque tracking effort"
     Params = GeodesicVsEuclideanParams
     units = {"path_energy": "J s", "effort": "N^2 m^2 s", "max_torque": "N m", "rms_error": "rad"}
+    paths = ("geodesic", "straight")
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:
@@ -64,8 +75,7 @@ class GeodesicVsEuclidean(Procedure):
             "straight": straight_line(q0, q1, T, p.steps),
         }
         out: dict[str, np.ndarray] = {}
-        labels = cfg.controller_labels()
-        advance = ctx.progress(f"{cfg.name}: tracking", len(labels) * 2)
+        advance = ctx.progress(f"{cfg.name}: tracking", len(cfg.controllers) * 2)
         for name, geo in paths.items():
             out[f"path_{name}__t"], out[f"path_{name}__q"] = geo.t, geo.q
             out[f"path_{name}__energy"] = np.array(path_energy(metric, geo.t, geo.q))
@@ -74,27 +84,27 @@ class GeodesicVsEuclidean(Procedure):
                 if name == "geodesic"
                 else JointTrajectoryReference(geo.t, geo.q, geo.v)
             )
-            for label, ccfg in zip(labels, cfg.controllers, strict=True):
-                ctrl = B.build_controller(ccfg, robot, metric, cfg.simulation.control_dt)
-                res = B.simulate(cfg, robot, ctrl, ref, q0, geo.v[0], duration=T)
-                out.update(B.sim_arrays(f"{name}_{label}", res))
-                advance()
+            out |= track_with_each_controller(
+                cfg, robot, metric, ref, q0, geo.v[0], f"{name}_", advance, duration=T
+            )
         return out
+
+    def path_summary(
+        self, results: dict[str, np.ndarray], name: str, run: dict[str, np.ndarray], dt: float
+    ) -> dict[str, float]:
+        tau = run["tau_applied"]
+        return {
+            "path_energy": float(results[f"path_{name}__energy"]),
+            "effort": B.effort(tau, dt),
+            "max_torque": float(np.abs(tau).max()),
+            "rms_error": float(np.sqrt(np.mean(run["tracking_error"] ** 2))),
+            "ok": float(str(run["status"]) == "ok"),
+        }
 
     def summarize(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]
     ) -> dict[str, float]:
-        dt = cfg.simulation.control_dt
-        out: dict[str, float] = {}
-        for name in PATHS:
-            for label in cfg.controller_labels():
-                r = B.sim_view(results, f"{name}_{label}")
-                row = name if len(cfg.controllers) == 1 else f"{name}_{label}"
-                out[f"{row}.path_energy"] = float(results[f"path_{name}__energy"])
-                out[f"{row}.effort"] = B.effort(r["tau_applied"], dt)
-                out[f"{row}.max_torque"] = float(np.abs(r["tau_applied"]).max())
-                out[f"{row}.rms_error"] = float(np.sqrt(np.mean(r["tracking_error"] ** 2)))
-                out[f"{row}.ok"] = float(str(r["status"]) == "ok")
+        out = super().summarize(cfg, params, results)
         first = cfg.controller_labels()[0]
         geo_row, line_row = (
             ("geodesic", "straight")
@@ -112,25 +122,8 @@ class GeodesicVsEuclidean(Procedure):
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
-        from geosyn.synergies.figures import figure_configuration_space
-
-        robot = B.build_robot(cfg)
-        metric = B.build_metric(cfg, robot)
+        robot, metric = robot_and_metric(cfg)
         fig = figure_configuration_space(
             metric, params.q0, params.q1, out_dir / "figure1_configuration_space.png", robot
         )
-        label = cfg.controller_labels()[0]
-        runs = {name: B.sim_view(results, f"{name}_{label}") for name in PATHS}
-        dt = cfg.simulation.control_dt
-        return [
-            fig.path,
-            torque_plot(out_dir / "torques.png", runs),
-            tracking_error_plot(out_dir / "tracking_error.png", runs),
-            bar_plot(
-                out_dir / "effort.png",
-                list(PATHS),
-                [B.effort(r["tau_applied"], dt) for r in runs.values()],
-                r"$\int \|\tau\|^2 dt$ [N$^2$m$^2$s]",
-                "effort",
-            ),
-        ]
+        return [fig.path, *self.comparison_plots(cfg, results, out_dir)[1]]

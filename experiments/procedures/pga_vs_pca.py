@@ -16,28 +16,33 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, save
+from geosyn.experiments.plots import COLORS, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, register
-from geosyn.experiments.schema import ExperimentConfig, JointVector
-from geosyn.metrics.geodesic import exp
+from geosyn.experiments.procedures.common import Steps
+from geosyn.experiments.schema import ExperimentConfig, JointVector, Strict
+from geosyn.metrics import exp
 from geosyn.synergies import pca_synergies, pga
 
 
-class PGAvsPCAParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class PGAvsPCAParams(Strict):
+    """Parameters of `PGAvsPCA`: base [rad], demonstrations, their spread [rad/s] and
+    latent dimension, the largest k, integration steps."""
+
     q0: JointVector
     n_demos: Annotated[int, Field(ge=3, le=500)] = 20
     spread: Annotated[float, Field(gt=0.0)] = 0.6
     latent: Annotated[int, Field(ge=1)] = 2
     k_max: Annotated[int, Field(ge=1)] = 4
-    steps: Annotated[int, Field(ge=10, le=10_000)] = 100
+    steps: Steps = 100
 
 
 @register
 class PGAvsPCA(Procedure):
+    """Reconstruction error of PGA and PCA synergies of the same demonstrations."""
+
     kind = "pga_vs_pca"
     description = "PGA vs PCA synergy extraction: reconstruction error against k"
     Params = PGAvsPCAParams
@@ -97,10 +102,8 @@ class PGAvsPCA(Procedure):
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
-        import matplotlib.pyplot as plt
-
         k = np.arange(1, params.k_max + 1)
-        fig, ax = plt.subplots(figsize=(6, 4))
+        fig, ax = figure((6, 4))
         ax.semilogy(
             k,
             np.maximum(results["pga_error_joint"], 1e-16),

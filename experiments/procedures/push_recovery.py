@@ -12,20 +12,21 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from geosyn.experiments import build as B
 from geosyn.experiments.plots import torque_plot, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
-from geosyn.experiments.schema import ExperimentConfig
+from geosyn.experiments.procedures.common import Duration, track_with_each_controller
+from geosyn.experiments.schema import ExperimentConfig, Strict
+from geosyn.sim import SimResult
 
 
-class PushRecoveryParams(BaseModel):
-    """Parameters of `PushRecovery`."""
+class PushRecoveryParams(Strict):
+    """Parameters of `PushRecovery`: error threshold [rad], window after the push [s]."""
 
-    model_config = ConfigDict(extra="forbid")
     threshold: Annotated[float, Field(gt=0.0)] = 1e-2
-    window: Annotated[float, Field(gt=0.0)] = 1.0
+    window: Duration = 1.0
 
 
 def push_window(cfg: ExperimentConfig) -> tuple[float, float]:
@@ -82,6 +83,8 @@ def controller_summary(
 
 @register
 class PushRecovery(Procedure):
+    """Each controller tracks the reference through the configured disturbances."""
+
     kind = "push_recovery"
     description = "track a synergy combination under a push, a payload change and torque noise; compare controllers"
     Params = PushRecoveryParams
@@ -106,29 +109,30 @@ class PushRecovery(Procedure):
         synergies = B.build_synergies(cfg, metric, robot)
         ref, geo = B.build_reference(cfg, metric, synergies)
         q0, v0, _ = ref.sample(0.0)
-        labels = cfg.controller_labels()
-        advance = ctx.progress(f"{cfg.name}: controllers", len(labels))
+        advance = ctx.progress(f"{cfg.name}: controllers", len(cfg.controllers))
         out: dict[str, np.ndarray] = {"reference__t": geo.t, "reference__q": geo.q}
-        for label, ccfg in zip(labels, cfg.controllers, strict=True):
-            ctrl = B.build_controller(ccfg, robot, metric, cfg.simulation.control_dt)
-            res = B.simulate(cfg, robot, ctrl, ref, q0, v0)
-            out.update(B.sim_arrays(label, res))
-            if ctx.video:
-                from geosyn.sim import render_video
 
-                o = cfg.outputs
-                render_video(
-                    res,
-                    ctx.out_dir / f"video_{label}.{o.video_format}",
-                    robot,
-                    o.fps,
-                    o.width,
-                    o.height,
-                    payloads=B.build_payloads(cfg, robot),
-                    obstacles=B.build_obstacles(cfg),
-                )
-            advance()
-        return out
+        def video(label: str, res: SimResult) -> None:
+            if not ctx.video:
+                return
+            from geosyn.sim import render_video
+
+            o = cfg.outputs
+            render_video(
+                res,
+                ctx.out_dir / f"video_{label}.{o.video_format}",
+                robot,
+                o.fps,
+                o.width,
+                o.height,
+                payloads=B.build_payloads(cfg, robot),
+                obstacles=B.build_obstacles(cfg),
+                trail=o.trail,
+            )
+
+        return out | track_with_each_controller(
+            cfg, robot, metric, ref, q0, v0, "", advance, each=video
+        )
 
     def summarize(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]

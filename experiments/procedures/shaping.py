@@ -21,22 +21,29 @@ from typing import Any
 import numpy as np
 
 from geosyn.experiments import build as B
-from geosyn.experiments.plots import bar_plot, torque_plot, tracking_error_plot
-from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
-from geosyn.experiments.schema import ExperimentConfig
-from geosyn.metrics.geodesic import exp, log, path_energy
-from geosyn.metrics.shaping import ObstacleTerm
+from geosyn.experiments.errors import ProcedureFailed
+from geosyn.experiments.plots import COLORS, figure, save
+from geosyn.experiments.procedures.base import RunContext, check_required, register
+from geosyn.experiments.procedures.common import PathComparison, track_with_each_controller
+from geosyn.experiments.schema import ExperimentConfig, LogReference
+from geosyn.metrics import Geodesic, Metric, exp, log, path_energy
+from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
 
-PATHS = ("unshaped", "shaped")
 
-
-def _geodesic(metric: Any, ref: Any, v_init: np.ndarray | None = None) -> tuple[Any, np.ndarray]:
+def _geodesic(
+    metric: Metric, ref: LogReference, v_init: np.ndarray | None = None
+) -> tuple[Geodesic, np.ndarray]:
+    """(the geodesic from ``ref.q_start`` to ``ref.goal``, its initial velocity over a unit
+    time (n,) [rad/s]); ``v_init`` warm-starts the log."""
     q0, q1 = np.array(ref.q_start), np.array(ref.goal)
     u = log(metric, q0, q1, steps=ref.steps, v_init=v_init)
     return exp(metric, q0, u / ref.duration, ref.duration, ref.steps), u
 
 
-class _Shaping(Procedure):
+class _Shaping(PathComparison):
+    """The geodesic of the robot's kinetic-energy metric against that of the shaped one."""
+
+    paths = ("unshaped", "shaped")
     units = {
         "energy_shaped_metric": "J s",
         "energy_unshaped_metric": "J s",
@@ -64,19 +71,20 @@ class _Shaping(Procedure):
         return out
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
-        cfg, robot = ctx.config, ctx.robot
+        cfg, robot, reference = ctx.config, ctx.robot, ctx.config.reference
+        if not isinstance(reference, LogReference):  # `check` refuses such a config
+            raise ProcedureFailed(f"kind {cfg.kind!r} needs a 'log' reference, got {reference!r}")
         metrics = {
             "unshaped": B.build_metric(cfg, robot, terms=[]),
             "shaped": B.build_metric(cfg, robot),
         }
-        labels = cfg.controller_labels()
-        advance = ctx.progress(f"{cfg.name}: runs", 2 * len(labels))
-        geo_u, u = _geodesic(metrics["unshaped"], cfg.reference)
-        geo_s, _ = _geodesic(metrics["shaped"], cfg.reference, v_init=u)
+        advance = ctx.progress(f"{cfg.name}: runs", 2 * len(cfg.controllers))
+        geo_u, u = _geodesic(metrics["unshaped"], reference)
+        geo_s, _ = _geodesic(metrics["shaped"], reference, v_init=u)
         geos = {"unshaped": geo_u, "shaped": geo_s}
-        obstacle_terms = [
-            t for t in getattr(metrics["shaped"], "terms", ()) if isinstance(t, ObstacleTerm)
-        ]
+        shaped = metrics["shaped"]
+        terms = shaped.terms if isinstance(shaped, ShapedMetric) else ()
+        obstacle_terms = [t for t in terms if isinstance(t, ObstacleTerm)]
         out: dict[str, np.ndarray] = {}
         for name, geo in geos.items():
             out[f"path_{name}__t"], out[f"path_{name}__q"] = geo.t, geo.q
@@ -88,65 +96,37 @@ class _Shaping(Procedure):
                 else np.full(len(geo.t), np.inf)
             )
             out[f"path_{name}__clearance"] = clear
-            ref = B.tracked_reference(geo, metrics[name], cfg.reference.time_scale)
+            ref = B.tracked_reference(geo, metrics[name], reference.time_scale)
             q0, v0, _ = ref.sample(0.0)
-            for label, ccfg in zip(labels, cfg.controllers, strict=True):
-                ctrl = B.build_controller(
-                    ccfg, robot, metrics["unshaped"], cfg.simulation.control_dt
-                )
-                res = B.simulate(cfg, robot, ctrl, ref, q0, v0)
-                out.update(B.sim_arrays(f"{name}_{label}", res))
-                advance()
+            # the controllers' model is the robot alone: the unshaped metric
+            out |= track_with_each_controller(
+                cfg, robot, metrics["unshaped"], ref, q0, v0, f"{name}_", advance
+            )
         return out
 
-    def summarize(
-        self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]
+    def path_summary(
+        self, results: dict[str, np.ndarray], name: str, run: dict[str, np.ndarray], dt: float
     ) -> dict[str, float]:
-        dt = cfg.simulation.control_dt
-        out: dict[str, float] = {}
-        single = len(cfg.controllers) == 1
-        for name in PATHS:
-            for label in cfg.controller_labels():
-                r = B.sim_view(results, f"{name}_{label}")
-                row = name if single else f"{name}_{label}"
-                out[f"{row}.energy_shaped_metric"] = float(results[f"path_{name}__energy_shaped"])
-                out[f"{row}.energy_unshaped_metric"] = float(
-                    results[f"path_{name}__energy_unshaped"]
-                )
-                out[f"{row}.kinetic_energy_integral"] = float(np.sum(r["kinetic_energy"]) * dt)
-                out[f"{row}.effort"] = B.effort(r["tau_applied"], dt)
-                out[f"{row}.rms_error"] = float(np.sqrt(np.mean(r["tracking_error"] ** 2)))
-                if np.isfinite(results[f"path_{name}__clearance"]).any():
-                    out[f"{row}.planned_clearance"] = float(
-                        results[f"path_{name}__clearance"].min()
-                    )
-                    out[f"{row}.executed_clearance"] = float(r["clearance"].min())
-                out[f"{row}.ok"] = float(str(r["status"]) == "ok")
+        out = {
+            "energy_shaped_metric": float(results[f"path_{name}__energy_shaped"]),
+            "energy_unshaped_metric": float(results[f"path_{name}__energy_unshaped"]),
+            "kinetic_energy_integral": float(np.sum(run["kinetic_energy"]) * dt),
+            "effort": B.effort(run["tau_applied"], dt),
+            "rms_error": float(np.sqrt(np.mean(run["tracking_error"] ** 2))),
+        }
+        planned = results[f"path_{name}__clearance"]
+        if np.isfinite(planned).any():
+            out["planned_clearance"] = float(planned.min())
+            out["executed_clearance"] = float(run["clearance"].min())
+        out["ok"] = float(str(run["status"]) == "ok")
         return out
 
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
-        import matplotlib.pyplot as plt
-
-        from geosyn.experiments.plots import COLORS, save
-
-        label = cfg.controller_labels()[0]
-        runs = {name: B.sim_view(results, f"{name}_{label}") for name in PATHS}
-        dt = cfg.simulation.control_dt
-        paths = [
-            torque_plot(out_dir / "torques.png", runs),
-            tracking_error_plot(out_dir / "tracking_error.png", runs),
-            bar_plot(
-                out_dir / "effort.png",
-                list(PATHS),
-                [B.effort(r["tau_applied"], dt) for r in runs.values()],
-                r"$\int \|\tau\|^2 dt$ [N$^2$m$^2$s]",
-                "effort",
-            ),
-        ]
+        runs, paths = self.comparison_plots(cfg, results, out_dir)
         if np.isfinite(runs["shaped"]["clearance"]).any():
-            fig, ax = plt.subplots(figsize=(7, 3.5))
+            fig, ax = figure((7, 3.5))
             for (name, r), c in zip(runs.items(), COLORS, strict=False):
                 ax.plot(r["t"], r["clearance"], color=c, label=name)
             ax.axhline(0.0, color="k", lw=0.8)

@@ -15,33 +15,42 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, save
+from geosyn.experiments.plots import COLORS, RESIDUAL_LABEL, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
-from geosyn.experiments.procedures.common import geodesic_residual
-from geosyn.experiments.schema import ExperimentConfig, FiniteFloat
-from geosyn.metrics.geodesic import path_energy
+from geosyn.experiments.procedures.common import (
+    Duration,
+    Steps,
+    geodesic_residual,
+    robot_and_metric,
+)
+from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, Strict
+from geosyn.metrics import path_energy
 from geosyn.synergies import combine, pca_synergies
+from geosyn.synergies.figures import figure_synergy_combinations
 
 Pair = Annotated[list[FiniteFloat], Field(min_length=2, max_length=2)]
 
 
-class SynergyCombinationsParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class SynergyCombinationsParams(Strict):
+    """Parameters of `SynergyCombinations`: weight pairs, time [s], steps."""
+
     weights: Annotated[list[Pair], Field(min_length=1)] = [
         [1.2, 0.7],
         [1.2, -0.5],
         [-0.5, 1.0],
         [-0.5, -0.5],
     ]
-    duration: Annotated[float, Field(gt=0.0)] = 1.0
-    steps: Annotated[int, Field(ge=10, le=10_000)] = 400
+    duration: Duration = 1.0
+    steps: Steps = 400
 
 
 @register
 class SynergyCombinations(Procedure):
+    """Combinations of two designed synergies against linear combinations of PCA ones."""
+
     kind = "synergy_combinations"
     description = "paper Fig. 2: geodesic synergy combinations vs PCA linear combinations"
     Params = SynergyCombinationsParams
@@ -112,12 +121,7 @@ class SynergyCombinations(Procedure):
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
-        import matplotlib.pyplot as plt
-
-        from geosyn.synergies.figures import figure_synergy_combinations
-
-        robot = B.build_robot(cfg)
-        metric = B.build_metric(cfg, robot)
+        robot, metric = robot_and_metric(cfg)
         syns = B.build_synergies(cfg, metric, robot)
         fig2 = figure_synergy_combinations(
             metric,
@@ -130,7 +134,7 @@ class SynergyCombinations(Procedure):
             steps=min(params.steps, 200),
         )
         n = len(params.weights)
-        fig, ax = plt.subplots(figsize=(7, 3.5))
+        fig, ax = figure((7, 3.5))
         x = np.arange(n)
         ax.bar(
             x - 0.2,
@@ -149,7 +153,7 @@ class SynergyCombinations(Procedure):
         ax.set_yscale("log")
         ax.set_xticks(x, [f"({w[0]:g}, {w[1]:g})" for w in params.weights])
         ax.set_xlabel("weights")
-        ax.set_ylabel(r"max $\|G\ddot q + C\dot q\|$ [N m]")
+        ax.set_ylabel(RESIDUAL_LABEL)
         ax.set_title("geodesic-equation residual")
         ax.legend(fontsize=8)
         return [fig2.path, save(fig, out_dir / "residuals.png")]

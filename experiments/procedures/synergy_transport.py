@@ -18,26 +18,28 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, save
+from geosyn.experiments.plots import COLORS, RESIDUAL_LABEL, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, register
-from geosyn.experiments.procedures.common import geodesic_residual
-from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, JointVector
-from geosyn.metrics.geodesic import path_energy
+from geosyn.experiments.procedures.common import Duration, Steps, geodesic_residual
+from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, JointVector, Strict
+from geosyn.metrics import path_energy
 from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies, transported_velocities
 
 MOTIONS = ("transported", "naive", "superposition")
 
 
-class SynergyTransportParams(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class SynergyTransportParams(Strict):
+    """Parameters of `SynergyTransport`: synergy bases and common start [rad], weights,
+    time [s], steps."""
+
     bases: Annotated[list[JointVector], Field(min_length=2)]
     q_start: JointVector
     weights: Annotated[list[FiniteFloat], Field(min_length=2)]
-    duration: Annotated[float, Field(gt=0.0)] = 1.0
-    steps: Annotated[int, Field(ge=10, le=10_000)] = 400
+    duration: Duration = 1.0
+    steps: Steps = 400
 
 
 def _norm(G: np.ndarray, v: np.ndarray) -> float:
@@ -46,6 +48,8 @@ def _norm(G: np.ndarray, v: np.ndarray) -> float:
 
 @register
 class SynergyTransport(Procedure):
+    """Synergies based at different configurations, combined with and without transport."""
+
     kind = "synergy_transport"
     description = "combine synergies from different bases with vs without parallel transport"
     Params = SynergyTransportParams
@@ -123,9 +127,7 @@ class SynergyTransport(Procedure):
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
-        import matplotlib.pyplot as plt
-
-        fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+        fig, axes = figure((10, 3.8), 1, 2)
         for name, c in zip(MOTIONS, COLORS, strict=False):
             q = results[f"{name}__q"]
             axes[0].plot(
@@ -141,6 +143,6 @@ class SynergyTransport(Procedure):
             color=COLORS[:3],
         )
         axes[1].set_yscale("log")
-        axes[1].set_ylabel(r"max $\|G\ddot q + C\dot q\|$ [N m]")
+        axes[1].set_ylabel(RESIDUAL_LABEL)
         axes[1].set_title("geodesic-equation residual")
         return [save(fig, out_dir / "transport.png")]

@@ -12,11 +12,13 @@ of the sum, term derivatives included.
 Parameters. A term may depend on a numeric parameter vector besides ``q`` (an
 `ObstacleTerm` keeps the poses and sizes of its obstacles there). The term owns a CasADi
 symbol for it (`MetricTerm.symbolic_parameters`) and a numpy array of its current values
-(`MetricTerm.parameter_values`). Every compiled function of a `ShapedMetric` takes the
-stacked parameter vector as an extra last input, filled from the terms at call time, so
-changing parameter values rebuilds nothing. Code that builds its own CasADi functions from
-``metric.symbolic_*`` (exp, log) must do the same with ``metric.symbolic_parameters()``
-and ``metric.parameter_values()``; both are empty for a metric without parameters.
+(`MetricTerm.parameter_values`). A `ShapedMetric` stacks them; its compiled functions
+(``metric.functions``, see `geosyn.metrics.functions`) take the stacked vector as a last
+input, filled from the terms at call time, so changing parameter values rebuilds nothing.
+Code that builds its own CasADi functions from ``metric.symbolic_*`` (exp, log) does the
+same with ``metric.symbolic_parameters()`` and ``metric.parameter_values()``. A term may
+also offer ``parameter_homotopy(s)`` (easier parameters, e.g. obstacles shrunk to points),
+which the log map's parameter continuation uses (`geosyn.metrics.geodesic.continuation`).
 """
 
 from __future__ import annotations
@@ -27,10 +29,12 @@ from collections.abc import Callable, Sequence
 import casadi as ca
 import numpy as np
 
+from geosyn.core.codegen import compile_function, numpy_function
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
 from geosyn.core.validation import check_vector
-from geosyn.metrics.base import Metric, MetricFunctions, sx_cholesky_solve
+from geosyn.metrics.base import Metric
+from geosyn.metrics.derived import sx_cholesky_solve, sx_coriolis
 from geosyn.metrics.shaping.errors import (
     InvalidTermArgument,
     TermAlreadyBound,
@@ -39,20 +43,6 @@ from geosyn.metrics.shaping.errors import (
 from geosyn.robots.robot import Robot
 
 __all__ = ["MetricTerm", "ShapedMetric"]
-
-
-def _numpy_call(fun: ca.Function) -> Callable[..., tuple[np.ndarray, ...]]:
-    from geosyn.core.codegen import numpy_function
-
-    return numpy_function(fun)
-
-
-def _maybe_compile(fun: ca.Function, compile: bool) -> ca.Function:
-    if not compile:
-        return fun
-    from geosyn.core.codegen import compile_function
-
-    return compile_function(fun, fallback=True)
 
 
 class MetricTerm(ABC):
@@ -154,10 +144,6 @@ class MetricTerm(ABC):
         """(p,) current parameter values (empty by default). Not a copy: do not modify."""
         return np.zeros(0)
 
-    def parameter_homotopy(self, s: float) -> np.ndarray:
-        """(p,) parameters of an easier term at ``s`` in [0, 1] (default: unchanged)."""
-        return self.parameter_values()
-
     # -- numeric ---------------------------------------------------------------------
     def build_function(self) -> ca.Function:
         """CasADi function ``(q, v, p) -> G_term`` (allocates; called once by `G`)."""
@@ -193,7 +179,7 @@ class MetricTerm(ABC):
         q = check_vector(q, n, "q")
         v = np.zeros(n) if v is None else check_vector(v, n, "v")
         if self._call is None:
-            self._call = _numpy_call(self.build_function())
+            self._call = numpy_function(self.build_function())
         return self._call(q, v, self.parameter_values())[0].copy()
 
 
@@ -218,11 +204,13 @@ class ShapedMetric(Metric):
     evaluate velocity-gated terms at ``qdot = 0``; `coriolis` and `geodesic_acceleration`
     use the given velocity.
 
-    Parameters: `symbolic_parameters` stacks the terms' parameter symbols and
-    `parameter_values` their current values; every compiled function in `functions` takes
-    the parameter vector as its last input: ``G(q, p)``, ``dG(q, p)``,
-    ``christoffel(q, p)``, ``coriolis(q, v, p)``, ``geodesic_acceleration(q, v, p)``.
-    Changing a term's parameter values (moving an obstacle) rebuilds nothing.
+    What it adds to `Metric`: the symbolic form of the sum (`symbolic_G`,
+    `symbolic_coriolis`, `symbolic_geodesic_acceleration`), the stacked term parameters
+    and a numeric `G` on the base metric's fast path plus one compiled function for the
+    terms (`terms_G`); dG, Christoffel symbols, Coriolis term and geodesic acceleration
+    come from `Metric`. Parameters: `symbolic_parameters` stacks the terms' parameter
+    symbols and `parameter_values` their current values, filled in at call time, so
+    changing a term's parameter values (moving an obstacle) rebuilds nothing.
 
     Args:
         base: the base metric; must have a ``robot`` attribute (e.g.
@@ -231,9 +219,15 @@ class ShapedMetric(Metric):
         compile: compile the CasADi functions to C (cached on disk, see
             `geosyn.core.codegen`) when they are first built.
 
-    `G` uses the base metric's numeric fast path plus one compiled function for the sum of
-    the terms; it allocates only its result. `build_count` counts builds of the compiled
-    functions (for tests that check that nothing is rebuilt).
+    `G` allocates only its result.
+
+    Attributes:
+        base: the base metric.
+        robot: the base metric's robot.
+        terms: the shaping terms, in order.
+        parameter_terms: the terms with a parameter vector, in order (their values make
+            up `parameter_values`).
+        velocity_dependent: True if some term depends on the velocity.
     """
 
     def __init__(
@@ -265,16 +259,19 @@ class ShapedMetric(Metric):
         self.velocity_dependent = any(t.velocity_dependent for t in self.terms)
         params = [t.symbolic_parameters() for t in self.terms]
         self._p_sym = ca.vertcat(ca.SX(0, 1), *params)
-        self._param_terms = [t for t, p in zip(self.terms, params, strict=True) if p.numel()]
-        self._terms_call: Callable[..., tuple[np.ndarray, ...]] | None = None
-        self._calls: dict[str, Callable[..., tuple[np.ndarray, ...]]] = {}
-        self._built: dict[str, ca.Function] = {}
+        self.parameter_terms: tuple[MetricTerm, ...] = tuple(
+            t for t, p in zip(self.terms, params, strict=True) if p.numel()
+        )
         self._zero = np.zeros(self.n)
-        self.build_count = 0
 
     def __repr__(self) -> str:
         names = ", ".join(type(t).__name__ for t in self.terms)
         return f"ShapedMetric({self.base!r}, [{names}])"
+
+    @property
+    def build_count(self) -> int:
+        """How many compiled functions were built for this metric (``functions.builds``)."""
+        return self.functions.builds
 
     # -- parameters ------------------------------------------------------------------
     def symbolic_parameters(self) -> ca.SX:
@@ -287,18 +284,11 @@ class ShapedMetric(Metric):
         With a single parameterized term this is that term's live array (no copy): read
         it, do not modify it.
         """
-        if not self._param_terms:
+        if not self.parameter_terms:
             return np.zeros(0)
-        if len(self._param_terms) == 1:
-            return self._param_terms[0].parameter_values()
-        return np.concatenate([t.parameter_values() for t in self._param_terms])
-
-    def parameter_homotopy(self, s: float) -> np.ndarray | None:
-        """Each parameterised term's easier parameters at ``s`` (e.g. obstacles shrunk
-        towards their centres), stacked in term order; None without parameters."""
-        if not self._param_terms:
-            return None
-        return np.concatenate([np.asarray(t.parameter_homotopy(s)) for t in self._param_terms])
+        if len(self.parameter_terms) == 1:
+            return self.parameter_terms[0].parameter_values()
+        return np.concatenate([t.parameter_values() for t in self.parameter_terms])
 
     # -- symbolic --------------------------------------------------------------------
     def symbolic_terms_G(self, q: ca.SX, v: ca.SX | None = None) -> ca.SX:
@@ -308,22 +298,20 @@ class ShapedMetric(Metric):
             out = out + t.symbolic_G(q, v if t.velocity_dependent else None)
         return out
 
-    def symbolic_G(self, q: ca.SX, v: ca.SX | None = None) -> ca.SX:  # type: ignore[override]
+    def symbolic_G(self, q: ca.SX, v: ca.SX | None = None) -> ca.SX:
         """SX of ``G_0(q) + sum_k G_k(q, v)`` (``v = None``: velocity-gated terms at 0)."""
         return self.base.symbolic_G(q) + self.symbolic_terms_G(q, v)
 
     def symbolic_coriolis(self, q: ca.SX, v: ca.SX) -> ca.SX:
-        """SX ``c(q, v)``: the base metric's plus each term's ``dG/dq`` contraction.
+        """SX ``c(q, v)``: the base metric's plus the terms' ``dG/dq`` contraction.
 
-        For a term ``G_k``: ``d(G_k(q, u) u)/dq u - 1/2 d(u^T G_k(q, u) u)/dq`` at ``u = v``
-        (``u`` held fixed inside velocity-gated terms; see the class docstring).
+        For the terms ``G_k``: ``d(G_k(q, u) u)/dq u - 1/2 d(u^T G_k(q, u) u)/dq`` at
+        ``u = v`` (``u`` held fixed inside velocity-gated terms; see the class docstring).
         """
         c = self.base.symbolic_coriolis(q, v)
-        if self.terms:
-            gt = self.symbolic_terms_G(q, v)
-            gv = ca.mtimes(gt, v)
-            c = c + ca.jtimes(gv, q, v) - 0.5 * ca.gradient(ca.dot(v, gv), q)
-        return c
+        if not self.terms:
+            return c
+        return sx_coriolis(self.symbolic_terms_G(q, v), q, v, plus=c)
 
     def symbolic_geodesic_acceleration(self, q: ca.SX, v: ca.SX) -> ca.SX:
         """SX ``-G(q, v)^-1 c(q, v)`` by an unrolled Cholesky solve."""
@@ -331,82 +319,9 @@ class ShapedMetric(Metric):
             return self.base.symbolic_geodesic_acceleration(q, v)
         return -sx_cholesky_solve(self.symbolic_G(q, v), self.symbolic_coriolis(q, v))
 
-    # -- compiled functions ----------------------------------------------------------
-    def build_functions(self) -> MetricFunctions:
-        """Build (and with ``compile=True`` compile) all functions, with the parameter input.
-
-        Allocates; called once, on first use of `functions`. The numeric methods build
-        only the function they need (see `build_function`), so e.g. `christoffel` does not
-        pay for the geodesic acceleration.
-        """
-        return MetricFunctions(*(self._function(name) for name in MetricFunctions._fields))
-
-    def build_function(self, name: str) -> ca.Function:
-        """Build one function of `MetricFunctions` by field name (allocates).
-
-        Args:
-            name: one of ``G``, ``dG``, ``christoffel``, ``coriolis``,
-                ``geodesic_acceleration``.
-
-        Returns:
-            The CasADi function (dense outputs; compiled to C with ``compile=True``) taking
-            ``(q, p)`` or ``(q, v, p)``.
-        """
-        n = self.n
-        q = ca.SX.sym("q", n)
-        v = ca.SX.sym("v", n)
-        p = self._p_sym
-        opts = {"cse": True}
-        dense = ca.densify
-        if name == "G":
-            f = ca.Function(
-                "shaped_G", [q, p], [dense(self.symbolic_G(q))], ["q", "p"], ["G"], opts
-            )
-        elif name in ("dG", "christoffel"):
-            dG = ca.jacobian(ca.vec(self.symbolic_G(q)), q)  # (n*n, n), row i + j*n
-            if name == "dG":
-                out = ca.vertcat(
-                    *[ca.horzcat(*[dG[i + j * n, :] for j in range(n)]) for i in range(n)]
-                )
-            else:
-                out = ca.vertcat(
-                    *[
-                        ca.horzcat(
-                            *[
-                                0.5 * (dG[i + j * n, k] + dG[i + k * n, j] - dG[j + k * n, i])
-                                for j in range(n)
-                                for k in range(n)
-                            ]
-                        )
-                        for i in range(n)
-                    ]
-                )
-            f = ca.Function(f"shaped_{name}", [q, p], [dense(out)], ["q", "p"], [name], opts)
-        elif name == "coriolis":
-            c = dense(self.symbolic_coriolis(q, v))
-            f = ca.Function("shaped_coriolis", [q, v, p], [c], ["q", "v", "p"], ["c"], opts)
-        elif name == "geodesic_acceleration":
-            a = dense(self.symbolic_geodesic_acceleration(q, v))
-            f = ca.Function(
-                "shaped_geodesic_acceleration", [q, v, p], [a], ["q", "v", "p"], ["a"], opts
-            )
-        else:
-            raise InvalidTermArgument(
-                f"name {name!r} is not a metric function; allowed: "
-                f"{', '.join(MetricFunctions._fields)}"
-            )
-        self.build_count += 1
-        return _maybe_compile(f, self.compile)
-
-    def _function(self, name: str) -> ca.Function:
-        fun = self._built.get(name)
-        if fun is None:
-            fun = self.build_function(name)
-            self._built[name] = fun
-        return fun
-
-    def build_terms_function(self) -> ca.Function:
-        """CasADi function ``(q, v, p) -> sum_k G_k(q, v)`` (allocates; called once)."""
+    # -- numeric ---------------------------------------------------------------------
+    def _build_terms_function(self) -> ca.Function:
+        """CasADi function ``(q, v, p) -> sum_k G_k(q, v)`` (allocates; built once)."""
         n = self.n
         q = ca.SX.sym("q", n)
         v = ca.SX.sym("v", n)
@@ -418,17 +333,8 @@ class ShapedMetric(Metric):
             ["G"],
             {"cse": True},
         )
-        self.build_count += 1
-        return _maybe_compile(f, self.compile)
+        return compile_function(f, fallback=True) if self.compile else f
 
-    def _call(self, name: str) -> Callable[..., tuple[np.ndarray, ...]]:
-        call = self._calls.get(name)
-        if call is None:
-            call = _numpy_call(self._function(name))
-            self._calls[name] = call
-        return call
-
-    # -- numeric API -----------------------------------------------------------------
     def terms_G(self, q: Vector, v: Vector | None = None) -> Matrix:
         """Sum of the shaping terms only (no base metric).
 
@@ -443,11 +349,9 @@ class ShapedMetric(Metric):
         v = self._zero if v is None else self._check(v, "v")
         if not self.terms:
             return np.zeros((self.n, self.n))
-        if self._terms_call is None:
-            self._terms_call = _numpy_call(self.build_terms_function())
-        return self._terms_call(q, v, self.parameter_values())[0].copy()
+        return self.functions.evaluate("terms_G", q, v, build=self._build_terms_function)
 
-    def G(self, q: Vector, v: Vector | None = None) -> Matrix:  # type: ignore[override]
+    def G(self, q: Vector, v: Vector | None = None) -> Matrix:
         """Shaped metric tensor ``G_0(q) + sum_k G_k(q, v)``.
 
         Args:
@@ -463,30 +367,3 @@ class ShapedMetric(Metric):
         if self.terms:
             g += self.terms_G(q, v)
         return g
-
-    def dG(self, q: Vector) -> np.ndarray:
-        """(n, n, n) ``[i, j, k] = d g_ij / d q_k`` (velocity-gated terms at ``qdot = 0``)."""
-        q = self._check(q, "q")
-        out = self._call("dG")(q, self.parameter_values())[0]
-        return np.array(out).reshape(self.n, self.n, self.n)
-
-    def christoffel(self, q: Vector) -> np.ndarray:
-        """(n, n, n) Christoffel symbols of the first kind ``Gamma[i, j, k]``.
-
-        Velocity-gated terms are taken at ``qdot = 0``.
-        """
-        q = self._check(q, "q")
-        out = self._call("christoffel")(q, self.parameter_values())[0]
-        return np.array(out).reshape(self.n, self.n, self.n)
-
-    def coriolis(self, q: Vector, v: Vector) -> Vector:
-        """(n,) curvature term ``c(q, v)`` of the geodesic equation (see the class doc)."""
-        q = self._check(q, "q")
-        v = self._check(v, "v")
-        return self._call("coriolis")(q, v, self.parameter_values())[0].copy()
-
-    def geodesic_acceleration(self, q: Vector, v: Vector) -> Vector:
-        """(n,) ``-G(q, v)^-1 c(q, v)`` [rad/s^2]."""
-        q = self._check(q, "q")
-        v = self._check(v, "v")
-        return self._call("geodesic_acceleration")(q, v, self.parameter_values())[0].copy()

@@ -1,6 +1,13 @@
-"""Errors of the metric-shaping terms (payload, obstacle and joint-limit terms)."""
+"""Errors of the metric-shaping terms and `ShapedMetric`.
+
+A bad obstacle shape or payload is a `geosyn.world.InvalidGeometry`, raised by the world
+layer where shapes and payloads are validated.
+"""
 
 from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.errors import MetricError
@@ -17,20 +24,18 @@ class InvalidTermArgument(ShapingError, InvalidArgument):
     """
 
 
-class InvalidPayload(InvalidTermArgument):
-    """A payload has a non-positive mass, a badly shaped com or a non-SPD inertia."""
-
-
-class InvalidObstacle(InvalidTermArgument):
-    """An obstacle has a bad size or pose (negative radius, non-unit normal, ...)."""
-
-
-class UnknownObstacleType(InvalidObstacle):
-    """An obstacle is not one of the supported shapes (Sphere, Box, Capsule, HalfSpace)."""
-
-
 class CapacityExceeded(InvalidTermArgument):
-    """More obstacles were given than the fixed capacity of an `ObstacleTerm`."""
+    """More obstacles were given than the fixed capacity of an `ObstacleTerm`.
+
+    Attributes:
+        capacity: the term's number of obstacle slots.
+        requested: the number of obstacles asked for.
+    """
+
+    def __init__(self, message: str, capacity: int = 0, requested: int = 0) -> None:
+        super().__init__(message)
+        self.capacity = capacity
+        self.requested = requested
 
 
 class TermNotBound(ShapingError):
@@ -41,13 +46,22 @@ class TermAlreadyBound(ShapingError):
     """A term bound to one robot was bound again to a different robot."""
 
 
+@contextmanager
+def term_arguments() -> Iterator[None]:
+    """Report a failed `geosyn.core.validation` check inside the block as `InvalidTermArgument`."""
+    try:
+        yield
+    except InvalidArgument as err:
+        if type(err) is not InvalidArgument:  # already a more specific error
+            raise
+        raise InvalidTermArgument(str(err)) from err
+
+
 __all__ = [
     "CapacityExceeded",
-    "InvalidObstacle",
-    "InvalidPayload",
     "InvalidTermArgument",
     "ShapingError",
     "TermAlreadyBound",
     "TermNotBound",
-    "UnknownObstacleType",
+    "term_arguments",
 ]

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import math
-
 import casadi as ca
 import numpy as np
 
+from geosyn.core.validation import check_positive
 from geosyn.metrics.shaping.base import MetricTerm
-from geosyn.metrics.shaping.errors import InvalidTermArgument
+from geosyn.metrics.shaping.errors import InvalidTermArgument, term_arguments
 from geosyn.robots.robot import Robot
 
 __all__ = ["JointLimitTerm"]
@@ -41,18 +40,14 @@ class JointLimitTerm(MetricTerm):
 
     def __init__(self, margin: float = 0.2, gain: float = 1e-3, *, d_min: float = 1e-12) -> None:
         super().__init__()
-        for name, val in (("margin", margin), ("gain", gain), ("d_min", d_min)):
-            if not isinstance(val, (int, float, np.floating)) or not (
-                math.isfinite(val) and val > 0
-            ):
-                raise InvalidTermArgument(f"{name} must be finite and > 0, got {val!r}")
-        if d_min >= margin:
+        with term_arguments():
+            self.margin = check_positive(margin, "margin")
+            self.gain = check_positive(gain, "gain")
+            self.d_min = check_positive(d_min, "d_min")
+        if self.d_min >= self.margin:
             raise InvalidTermArgument(
                 f"d_min must be < margin, got d_min={d_min!r}, margin={margin!r}"
             )
-        self.margin = float(margin)
-        self.gain = float(gain)
-        self.d_min = float(d_min)
 
     def __repr__(self) -> str:
         return f"JointLimitTerm(margin={self.margin}, gain={self.gain})"

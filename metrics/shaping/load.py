@@ -8,13 +8,13 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
+from geosyn.core.validation import check_positive
 from geosyn.metrics.shaping.base import MetricTerm
-from geosyn.metrics.shaping.errors import InvalidPayload
+from geosyn.metrics.shaping.errors import term_arguments
 from geosyn.robots.robot import Robot
+from geosyn.world.payload import Payload
 
 __all__ = ["LoadTerm"]
-
-_SYM_TOL = 1e-12
 
 
 class LoadTerm(MetricTerm):
@@ -32,6 +32,7 @@ class LoadTerm(MetricTerm):
 
     This is exactly what the mass matrix gains when the payload is added to the robot as a
     rigid body fixed to the frame's parent link. Constant parameters (no parameter vector).
+    `from_payload` builds the term of a `geosyn.world.Payload`.
 
     Args:
         frame: name of a Pinocchio frame of the robot (checked at `bind`).
@@ -39,11 +40,18 @@ class LoadTerm(MetricTerm):
         com: (3,) payload centre of mass in the frame [m].
         inertia: (3, 3) rotational inertia about the com, in frame axes [kg m^2];
             symmetric positive definite and satisfying the triangle inequality of principal
-            moments. None: a point mass.
+            moments. None: a solid ball of ``radius`` (a point mass for radius 0).
+        radius: radius of that ball [m], >= 0.
+
+    Attributes:
+        payload: the `geosyn.world.Payload` described.
+        spatial_inertia: (6, 6) spatial inertia about the frame origin, linear first
+            [kg, kg m, kg m^2].
 
     Raises:
-        InvalidPayload: non-positive or non-finite mass, com not a finite (3,) vector, or
-            inertia not a finite symmetric positive-definite (3, 3) matrix.
+        geosyn.world.InvalidGeometry: com not a finite (3,) vector, or inertia not a
+            finite symmetric positive-definite (3, 3) matrix of a rigid body.
+        InvalidTermArgument: a mass that is not finite and > 0.
         geosyn.robots.errors.UnknownFrame: at `bind`, the frame is not in the robot (the
             message lists the available frames).
     """
@@ -54,64 +62,48 @@ class LoadTerm(MetricTerm):
         mass: float,
         com: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
         inertia: Sequence[Sequence[float]] | np.ndarray | None = None,
+        *,
+        radius: float = 0.0,
     ) -> None:
         super().__init__()
-        if not isinstance(frame, str):
-            raise InvalidPayload(f"frame must be a frame name (str), got {frame!r}")
-        try:
-            m = float(mass)
-        except (TypeError, ValueError) as err:
-            raise InvalidPayload(f"mass must be a positive number [kg], got {mass!r}") from err
-        if not (np.isfinite(m) and m > 0.0):
-            raise InvalidPayload(f"mass must be finite and > 0 [kg], got {mass!r}")
-        try:
-            c = np.asarray(com, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise InvalidPayload(f"com must be a (3,) vector [m], got {com!r}") from err
-        if c.shape != (3,) or not np.all(np.isfinite(c)):
-            raise InvalidPayload(f"com must be a finite (3,) vector [m], got {com!r}")
-        if inertia is None:
-            inertia_c = np.zeros((3, 3))
-        else:
-            inertia_c = self._check_inertia(inertia)
-        self.frame = frame
-        self.mass = m
-        self.com = c
-        self.inertia = inertia_c
-        self.spatial_inertia = np.asarray(pin.Inertia(m, c, inertia_c).matrix(), dtype=np.float64)
-        """(6, 6) spatial inertia about the frame origin, linear first [kg, kg m, kg m^2]."""
+        with term_arguments():
+            check_positive(mass, "mass", "kg")
+        rows = None if inertia is None else np.asarray(inertia, dtype=np.float64)
+        self.payload = Payload(frame, mass, com, rows, radius)  # type: ignore[arg-type]
+        self.spatial_inertia = np.asarray(
+            pin.Inertia(
+                self.payload.mass, np.array(self.payload.com), self.payload.rotational_inertia()
+            ).matrix(),
+            dtype=np.float64,
+        )
         self.frame_index = -1
 
-    @staticmethod
-    def _check_inertia(inertia: object) -> np.ndarray:
-        try:
-            inertia_c = np.asarray(inertia, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise InvalidPayload(
-                f"inertia must be a (3, 3) matrix [kg m^2] or None, got {inertia!r}"
-            ) from err
-        if inertia_c.shape != (3, 3) or not np.all(np.isfinite(inertia_c)):
-            raise InvalidPayload(
-                f"inertia must be a finite (3, 3) matrix [kg m^2] or None, got {inertia!r}"
-            )
-        scale = max(float(np.max(np.abs(inertia_c))), 1e-300)
-        if np.max(np.abs(inertia_c - inertia_c.T)) > _SYM_TOL * scale:
-            raise InvalidPayload(f"inertia must be symmetric, got {inertia_c.tolist()}")
-        eig = np.linalg.eigvalsh(inertia_c)
-        if eig[0] <= 0.0:
-            raise InvalidPayload(
-                f"inertia must be positive definite, got eigenvalues {eig.tolist()} "
-                f"of {inertia_c.tolist()}"
-            )
-        if eig[0] + eig[1] < eig[2] * (1.0 - 1e-12):
-            raise InvalidPayload(
-                f"inertia principal moments {eig.tolist()} violate the triangle inequality "
-                "(I1 + I2 >= I3); no rigid body has this inertia"
-            )
-        return inertia_c
+    @classmethod
+    def from_payload(cls, payload: Payload) -> LoadTerm:
+        """The load term of a `geosyn.world.Payload` (mass > 0).
+
+        Raises:
+            InvalidTermArgument: the payload's mass is 0.
+        """
+        return cls(payload.frame, payload.mass, payload.com, payload.inertia, radius=payload.radius)
+
+    @property
+    def frame(self) -> str:
+        """Name of the frame carrying the payload."""
+        return self.payload.frame
+
+    @property
+    def mass(self) -> float:
+        """Payload mass [kg]."""
+        return self.payload.mass
+
+    @property
+    def com(self) -> np.ndarray:
+        """(3,) payload centre of mass in the frame [m]."""
+        return np.array(self.payload.com)
 
     def __repr__(self) -> str:
-        return f"LoadTerm({self.frame!r}, mass={self.mass}, com={self.com.tolist()})"
+        return f"LoadTerm({self.frame!r}, mass={self.mass}, com={list(self.payload.com)})"
 
     def _on_bind(self, robot: Robot) -> None:
         self.frame_index = robot.frame_id(self.frame)

@@ -1,261 +1,43 @@
 """`ObstacleTerm`: barrier metrics pulled back along the clearance of robot spheres.
 
-Every obstacle shape is stored as one primitive, a *rounded box*: the Minkowski sum of an
-oriented box (centre ``c``, rotation ``R``, half-extents ``h``) and a ball of radius
-``r``. Its signed distance at a point ``x`` is
-
-.. math::
-    p = R^T (x - c), \\qquad
-    \\mathrm{sd}(x) = \\lVert p - \\mathrm{clamp}(p, -h, h) \\rVert
-                    + \\min(\\max_i (|p_i| - h_i), 0) - r
-
-which is the exact Euclidean signed distance. The four shapes map onto it exactly:
-
-- `Sphere`: ``h = 0``, ``r`` the radius (smooth everywhere outside the centre);
-- `Capsule`: ``h = (L/2, 0, 0)`` along the segment, ``r`` the radius (C1 outside,
-  curvature jumps where the closest point moves from the segment's body to an end cap);
-- `Box`: ``h`` the half-extents, ``r = 0`` (exact signed distance, not a smooth
-  approximation: C1 outside the box, with jumps of the curvature, and so of the
-  Christoffel symbols, across the face / edge / corner regions);
-- `HalfSpace`: a cube of half-extent `HALFSPACE_EXTENT` (100 m) with one face on the
-  plane, so the distance is exactly ``n . x - offset`` for points within 100 m of the
-  plane's point closest to the origin (rounding error ~1e-14 m).
-
-Because all shapes share one parameter layout, the compiled functions have a fixed number
-of obstacle *slots* (``capacity``); moving, adding or removing obstacles up to the
-capacity only writes the parameter array.
+Obstacles are the shapes of `geosyn.world` (`Sphere`, `Box`, `Capsule`, `HalfSpace`),
+each stored in one parameter *slot* as its rounded box (`geosyn.world.shapes`) plus an
+active flag, and measured with the rounded box's exact signed distance
+(`geosyn.world.distance.rounded_box_distance`). Because all shapes share one parameter layout, the
+compiled functions have a fixed number of slots (``capacity``); moving, adding or
+removing obstacles up to the capacity only writes the parameter array.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from geosyn.core.validation import check_vector
-from geosyn.metrics.shaping.base import MetricTerm, _numpy_call
-from geosyn.metrics.shaping.errors import (
-    CapacityExceeded,
-    InvalidObstacle,
-    InvalidTermArgument,
-    UnknownObstacleType,
-)
+from geosyn.core.codegen import numpy_function as _numpy_call
+from geosyn.core.validation import check_int, check_positive, check_vector
+from geosyn.metrics.shaping.base import MetricTerm
+from geosyn.metrics.shaping.errors import CapacityExceeded, InvalidTermArgument, term_arguments
 from geosyn.robots.robot import CollisionSphere, Robot
+from geosyn.world.distance import rounded_box_distance
+from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
 
 __all__ = [
-    "Box",
-    "Capsule",
     "GATES",
-    "HALFSPACE_EXTENT",
-    "HalfSpace",
-    "Obstacle",
+    "HOMOTOPY_RADIUS",
     "ObstacleTerm",
     "PARAMS_PER_OBSTACLE",
     "PROFILES",
-    "Sphere",
 ]
-
-HALFSPACE_EXTENT = 100.0
-"""Half-extent [m] of the cube that represents a `HalfSpace`."""
 
 HOMOTOPY_RADIUS = 1e-3
 """Radius [m] of the ball each obstacle shrinks to at the start of a log-map homotopy."""
 
-PARAMS_PER_OBSTACLE = 17
-"""Parameters per obstacle slot: centre (3), rotation (9, row-major), half-extents (3),
+PARAMS_PER_OBSTACLE = ROUNDED_BOX_SIZE + 1
+"""Parameters per obstacle slot (17): centre (3), rotation (9, row-major), half-extents (3),
 rounding radius (1), active flag (1)."""
-
-_ORTHO_TOL = 1e-9
-
-
-def _vec3(x: object, name: str, shape: str) -> tuple[float, float, float]:
-    try:
-        a = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidObstacle(f"{shape}.{name} must be a finite (3,) vector, got {x!r}") from err
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise InvalidObstacle(f"{shape}.{name} must be a finite (3,) vector, got {x!r}")
-    return (float(a[0]), float(a[1]), float(a[2]))
-
-
-def _nonneg(x: object, name: str, shape: str, strict: bool = False) -> float:
-    try:
-        f = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidObstacle(f"{shape}.{name} must be a number [m], got {x!r}") from err
-    if not math.isfinite(f) or f < 0.0 or (strict and f == 0.0):
-        allowed = "> 0" if strict else ">= 0"
-        raise InvalidObstacle(f"{shape}.{name} must be finite and {allowed} [m], got {x!r}")
-    return f
-
-
-def _frame_with_axis(axis: np.ndarray, column: int) -> np.ndarray:
-    """A rotation matrix whose column ``column`` is the unit vector ``axis``."""
-    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
-    e1 = np.cross(axis, helper)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(axis, e1)
-    cols = [e1, e2]
-    cols.insert(column, axis)
-    R = np.column_stack(cols)
-    if np.linalg.det(R) < 0:
-        R[:, (column + 1) % 3] *= -1.0
-    return R
-
-
-@dataclass(frozen=True)
-class Sphere:
-    """A ball.
-
-    Attributes:
-        center: (3,) centre in the world [m].
-        radius: radius [m], > 0.
-    """
-
-    center: tuple[float, float, float]
-    radius: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _vec3(self.center, "center", "Sphere"))
-        object.__setattr__(self, "radius", _nonneg(self.radius, "radius", "Sphere", True))
-
-    def rounded_box(self) -> np.ndarray:
-        """(16,) rounded-box parameters: centre, rotation (row-major), half-extents, r."""
-        return np.concatenate([self.center, np.eye(3).ravel(), np.zeros(3), [self.radius]])
-
-    def moved_to(self, center: np.ndarray) -> Sphere:
-        """The same sphere centred at ``center`` (3,) [m]."""
-        return Sphere(center, self.radius)  # type: ignore[arg-type]
-
-
-@dataclass(frozen=True)
-class Box:
-    """An oriented box (exact signed distance; see the module docstring on smoothness).
-
-    Attributes:
-        center: (3,) centre in the world [m].
-        half_extents: (3,) half side lengths along the box axes [m], >= 0.
-        rotation: (3, 3) box axes in the world (columns), a rotation matrix.
-    """
-
-    center: tuple[float, float, float]
-    half_extents: tuple[float, float, float]
-    rotation: tuple[tuple[float, ...], ...] = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "center", _vec3(self.center, "center", "Box"))
-        h = _vec3(self.half_extents, "half_extents", "Box")
-        if min(h) < 0.0:
-            raise InvalidObstacle(f"Box.half_extents must be >= 0 [m], got {h}")
-        object.__setattr__(self, "half_extents", h)
-        try:
-            R = np.asarray(self.rotation, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise InvalidObstacle(
-                f"Box.rotation must be a (3, 3) rotation matrix, got {self.rotation!r}"
-            ) from err
-        if (
-            R.shape != (3, 3)
-            or not np.all(np.isfinite(R))
-            or np.max(np.abs(R.T @ R - np.eye(3))) > _ORTHO_TOL
-            or np.linalg.det(R) < 0.0
-        ):
-            raise InvalidObstacle(
-                f"Box.rotation must be a (3, 3) rotation matrix (R^T R = I within "
-                f"{_ORTHO_TOL}, det +1), got {self.rotation!r}"
-            )
-        object.__setattr__(self, "rotation", tuple(tuple(map(float, r)) for r in R))
-
-    def rounded_box(self) -> np.ndarray:
-        """(16,) rounded-box parameters: centre, rotation (row-major), half-extents, r."""
-        R = np.asarray(self.rotation)
-        return np.concatenate([self.center, R.ravel(), self.half_extents, [0.0]])
-
-    def moved_to(self, center: np.ndarray) -> Box:
-        """The same box centred at ``center`` (3,) [m]."""
-        return Box(center, self.half_extents, self.rotation)  # type: ignore[arg-type]
-
-
-@dataclass(frozen=True)
-class Capsule:
-    """The set of points within ``radius`` of the segment ``p0 p1``.
-
-    Attributes:
-        p0: (3,) first end point in the world [m].
-        p1: (3,) second end point in the world [m].
-        radius: radius [m], > 0.
-    """
-
-    p0: tuple[float, float, float]
-    p1: tuple[float, float, float]
-    radius: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "p0", _vec3(self.p0, "p0", "Capsule"))
-        object.__setattr__(self, "p1", _vec3(self.p1, "p1", "Capsule"))
-        object.__setattr__(self, "radius", _nonneg(self.radius, "radius", "Capsule", True))
-
-    def rounded_box(self) -> np.ndarray:
-        """(16,) rounded-box parameters: centre, rotation (row-major), half-extents, r."""
-        p0, p1 = np.asarray(self.p0), np.asarray(self.p1)
-        seg = p1 - p0
-        length = float(np.linalg.norm(seg))
-        R = np.eye(3) if length == 0.0 else _frame_with_axis(seg / length, 0)
-        c = 0.5 * (p0 + p1)
-        return np.concatenate([c, R.ravel(), [0.5 * length, 0.0, 0.0], [self.radius]])
-
-    def moved_to(self, center: np.ndarray) -> Capsule:
-        """The same capsule translated so that its midpoint is ``center`` (3,) [m]."""
-        d = np.asarray(center, dtype=np.float64) - 0.5 * (np.asarray(self.p0) + self.p1)
-        return Capsule(np.asarray(self.p0) + d, np.asarray(self.p1) + d, self.radius)  # type: ignore[arg-type]
-
-
-@dataclass(frozen=True)
-class HalfSpace:
-    """The half-space ``{x : normal . x <= offset}`` (free space is ``normal . x > offset``).
-
-    Example: a floor at z = 0 is ``HalfSpace((0, 0, 1), 0.0)``.
-
-    Attributes:
-        normal: (3,) unit normal pointing out of the obstacle, into free space.
-        offset: plane offset along the normal [m].
-    """
-
-    normal: tuple[float, float, float]
-    offset: float
-
-    def __post_init__(self) -> None:
-        n = _vec3(self.normal, "normal", "HalfSpace")
-        if abs(math.sqrt(sum(x * x for x in n)) - 1.0) > _ORTHO_TOL:
-            raise InvalidObstacle(f"HalfSpace.normal must be a unit vector, got {n}")
-        object.__setattr__(self, "normal", n)
-        try:
-            off = float(self.offset)
-        except (TypeError, ValueError) as err:
-            raise InvalidObstacle(
-                f"HalfSpace.offset must be a number [m], got {self.offset!r}"
-            ) from err
-        if not math.isfinite(off):
-            raise InvalidObstacle(f"HalfSpace.offset must be finite [m], got {self.offset!r}")
-        object.__setattr__(self, "offset", off)
-
-    def rounded_box(self) -> np.ndarray:
-        """(16,) rounded-box parameters: a 100 m cube with one face on the plane."""
-        n = np.asarray(self.normal)
-        R = _frame_with_axis(n, 2)
-        c = (self.offset - HALFSPACE_EXTENT) * n
-        return np.concatenate([c, R.ravel(), [HALFSPACE_EXTENT] * 3, [0.0]])
-
-    def moved_to(self, center: np.ndarray) -> HalfSpace:
-        """The same half-space with its plane through the point ``center`` (3,) [m]."""
-        return HalfSpace(self.normal, float(np.dot(self.normal, center)))
-
-
-Obstacle = Sphere | Box | Capsule | HalfSpace
-_OBSTACLE_TYPES = (Sphere, Box, Capsule, HalfSpace)
 
 
 # -- weight profiles w(d) and velocity gates ---------------------------------------------
@@ -298,29 +80,6 @@ GATES: dict[str, Callable[[ca.SX, ObstacleTerm], ca.SX | float]] = {
     "approach": _gate_approach,
 }
 """Registry of velocity gates by name (see `ObstacleTerm`)."""
-
-
-def _rounded_box_distance() -> ca.Function:
-    """``(x (3), prm (16)) -> (sd, d sd / dx)`` for the rounded-box primitive."""
-    x = ca.SX.sym("x", 3)
-    prm = ca.SX.sym("prm", PARAMS_PER_OBSTACLE - 1)
-    c = prm[0:3]
-    R = ca.reshape(prm[3:12], 3, 3).T  # row-major storage
-    h = prm[12:15]
-    r = prm[15]
-    p = ca.mtimes(R.T, x - c)
-    # Closest point of the box, by branches rather than fabs/fmax: at a tie (h_i = 0 and
-    # p_i = 0, e.g. a planar scene) the outer branch is taken, so the derivatives of a
-    # sphere's or capsule's distance are exact there too (AD through fabs at 0 is not).
-    b = ca.vertcat(
-        *[ca.if_else(p[i] >= h[i], h[i], ca.if_else(p[i] <= -h[i], -h[i], p[i])) for i in range(3)]
-    )
-    # The 1e-24 m^2 keeps the gradient finite (zero) at and inside the surface; it is below
-    # round-off of any clearance above 1e-8 m.
-    outside = ca.sqrt(ca.sumsqr(p - b) + 1e-24)
-    inside = ca.fmin(ca.mmax(ca.fabs(p) - h), 0.0)
-    sd = outside + inside - r
-    return ca.Function("rounded_box_distance", [x, prm], [sd, ca.gradient(sd, x)])
 
 
 class ObstacleTerm(MetricTerm):
@@ -367,7 +126,8 @@ class ObstacleTerm(MetricTerm):
     function of a `ShapedMetric` using the term stays valid.
 
     Args:
-        obstacles: initial obstacles (`Sphere`, `Box`, `Capsule`, `HalfSpace`).
+        obstacles: initial obstacles, shapes of `geosyn.world` (`Sphere`, `Box`,
+            `Capsule`, `HalfSpace`).
         capacity: number of obstacle slots, >= 1.
         spheres: robot collision spheres; None uses ``robot.collision_spheres()``.
         profile: name of the weight profile in `PROFILES`.
@@ -381,13 +141,13 @@ class ObstacleTerm(MetricTerm):
 
     Raises:
         InvalidTermArgument: a setting is out of range or names an unknown profile/gate.
-        UnknownObstacleType: an obstacle is not a supported shape.
+        geosyn.world.InvalidGeometry: an obstacle is not a shape of `geosyn.world`.
         CapacityExceeded: more obstacles than ``capacity``.
     """
 
     def __init__(
         self,
-        obstacles: Sequence[Obstacle] = (),
+        obstacles: Sequence[Shape] = (),
         capacity: int = 16,
         spheres: Sequence[CollisionSphere] | None = None,
         *,
@@ -401,43 +161,26 @@ class ObstacleTerm(MetricTerm):
         gate_speed: float = 0.05,
     ) -> None:
         super().__init__()
-        if (
-            isinstance(capacity, bool)
-            or not isinstance(capacity, (int, np.integer))
-            or capacity < 1
-        ):
-            raise InvalidTermArgument(f"capacity must be an int >= 1, got {capacity!r}")
         if profile not in PROFILES:
             raise InvalidTermArgument(
                 f"profile {profile!r} is unknown; allowed: {', '.join(PROFILES)}"
             )
         if gate not in GATES:
             raise InvalidTermArgument(f"gate {gate!r} is unknown; allowed: {', '.join(GATES)}")
-        for name, val in (
-            ("gain", gain),
-            ("cutoff", cutoff),
-            ("d_min", d_min),
-            ("length", length),
-            ("epsilon", epsilon),
-            ("gate_speed", gate_speed),
-        ):
-            if not isinstance(val, (int, float, np.floating)) or not (
-                math.isfinite(val) and val > 0
-            ):
-                raise InvalidTermArgument(f"{name} must be finite and > 0, got {val!r}")
-        if d_min >= cutoff:
+        with term_arguments():
+            self.capacity = check_int(capacity, "capacity", low=1)
+            self.gain = check_positive(gain, "gain")
+            self.cutoff = check_positive(cutoff, "cutoff", "m")
+            self.d_min = check_positive(d_min, "d_min", "m")
+            self.length = check_positive(length, "length", "m")
+            self.epsilon = check_positive(epsilon, "epsilon")
+            self.gate_speed = check_positive(gate_speed, "gate_speed", "m/s")
+        if self.d_min >= self.cutoff:
             raise InvalidTermArgument(
                 f"d_min must be < cutoff [m], got d_min={d_min!r}, cutoff={cutoff!r}"
             )
-        self.capacity = int(capacity)
         self.profile = profile
-        self.gain = float(gain)
-        self.cutoff = float(cutoff)
-        self.d_min = float(d_min)
-        self.length = float(length)
-        self.epsilon = float(epsilon)
         self.gate = gate
-        self.gate_speed = float(gate_speed)
         self.velocity_dependent = gate != "none"
         self._spheres_arg = None if spheres is None else tuple(spheres)
         if self._spheres_arg is not None:
@@ -451,7 +194,7 @@ class ObstacleTerm(MetricTerm):
         self._p = ca.SX.sym("obstacle_params", self.capacity * PARAMS_PER_OBSTACLE)
         self._values = np.zeros(self.capacity * PARAMS_PER_OBSTACLE)
         self._slots = self._values.reshape(self.capacity, PARAMS_PER_OBSTACLE)
-        self._obstacles: list[Obstacle] = []
+        self._obstacles: list[Shape] = []
         self._clearance_call: Callable[..., tuple[np.ndarray, ...]] | None = None
         self.set_obstacles(obstacles)
 
@@ -463,62 +206,59 @@ class ObstacleTerm(MetricTerm):
 
     # -- obstacles (parameter writes only) -------------------------------------------
     @property
-    def obstacles(self) -> tuple[Obstacle, ...]:
+    def obstacles(self) -> tuple[Shape, ...]:
         """The active obstacles, in slot order."""
         return tuple(self._obstacles)
 
-    @staticmethod
-    def _check_obstacle(ob: object, where: str) -> None:
-        if not isinstance(ob, _OBSTACLE_TYPES):
-            raise UnknownObstacleType(
-                f"{where} is a {type(ob).__name__}, not a supported obstacle; allowed: "
-                "Sphere, Box, Capsule, HalfSpace (geosyn.metrics.shaping)"
-            )
+    def _write_slot(self, index: int, obstacle: Shape) -> None:
+        self._slots[index, :ROUNDED_BOX_SIZE] = obstacle.rounded_box()
+        self._slots[index, ROUNDED_BOX_SIZE] = 1.0
 
-    def set_obstacles(self, obstacles: Sequence[Obstacle]) -> None:
+    def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Replace all obstacles (a parameter write; rebuilds nothing).
 
         Args:
             obstacles: at most ``capacity`` obstacles.
 
         Raises:
-            UnknownObstacleType: an element is not a supported shape.
+            geosyn.world.InvalidGeometry: an element is not a shape.
             CapacityExceeded: more than ``capacity`` obstacles.
         """
         obstacles = list(obstacles)
         if len(obstacles) > self.capacity:
             raise CapacityExceeded(
                 f"obstacles has {len(obstacles)} elements but the term's capacity is "
-                f"{self.capacity}; create the ObstacleTerm with capacity >= {len(obstacles)}"
+                f"{self.capacity}; create the ObstacleTerm with capacity >= {len(obstacles)}",
+                self.capacity,
+                len(obstacles),
             )
-        for i, ob in enumerate(obstacles):
-            self._check_obstacle(ob, f"obstacles[{i}]")
+        obstacles = [check_shape(ob, f"obstacles[{i}]") for i, ob in enumerate(obstacles)]
         slots = self._slots
         slots[:] = 0.0
         slots[:, 3:12] = np.eye(3).ravel()  # harmless identity rotation in empty slots
         for i, ob in enumerate(obstacles):
-            slots[i, :16] = ob.rounded_box()
-            slots[i, 16] = 1.0
+            self._write_slot(i, ob)
         self._obstacles = obstacles
 
-    def set_obstacle(self, index: int, obstacle: Obstacle) -> None:
+    def set_obstacle(self, index: int, obstacle: Shape) -> None:
         """Replace obstacle ``index``, or append it when ``index == len(obstacles)``.
 
         Raises:
-            UnknownObstacleType: not a supported shape.
+            geosyn.world.InvalidGeometry: ``obstacle`` is not a shape.
             InvalidTermArgument: ``index`` out of range.
             CapacityExceeded: appending beyond the capacity.
         """
-        self._check_obstacle(obstacle, "obstacle")
+        obstacle = check_shape(obstacle, "obstacle")
         k = len(self._obstacles)
         if index == k and k == self.capacity:
             raise CapacityExceeded(
-                f"cannot add obstacle {index}: the term's capacity is {self.capacity}"
+                f"cannot add obstacle {index}: the term's capacity is {self.capacity}",
+                self.capacity,
+                k + 1,
             )
-        if not (isinstance(index, (int, np.integer)) and 0 <= index <= k):
-            raise InvalidTermArgument(f"index must be in [0, {k}], got {index!r}")
-        self._slots[index, :16] = obstacle.rounded_box()
-        self._slots[index, 16] = 1.0
+        with term_arguments():
+            index = check_int(index, "index", low=0, high=k)
+        self._write_slot(index, obstacle)
         if index == k:
             self._obstacles.append(obstacle)
         else:
@@ -536,14 +276,12 @@ class ObstacleTerm(MetricTerm):
 
         Raises:
             InvalidTermArgument: ``index`` out of range.
-            InvalidObstacle: ``center`` is not a finite (3,) vector.
+            geosyn.world.InvalidGeometry: ``center`` is not a finite (3,) vector.
         """
-        if not (isinstance(index, (int, np.integer)) and 0 <= index < len(self._obstacles)):
-            raise InvalidTermArgument(
-                f"index must be in [0, {len(self._obstacles)}), got {index!r}"
-            )
+        with term_arguments():
+            index = check_int(index, "index", low=0, high=len(self._obstacles) - 1)
         ob = self._obstacles[index].moved_to(center)  # type: ignore[arg-type]
-        self._slots[index, :16] = ob.rounded_box()
+        self._write_slot(index, ob)
         self._obstacles[index] = ob
 
     def symbolic_parameters(self) -> ca.SX:
@@ -597,7 +335,7 @@ class ObstacleTerm(MetricTerm):
 
     def _pairs(self, q: ca.SX) -> list[tuple[ca.SX, list[tuple[ca.SX, ca.SX, ca.SX]]]]:
         """Per sphere: (centre, [(clearance, normal, active) per slot])."""
-        dist = _rounded_box_distance()
+        dist = rounded_box_distance()
         P = PARAMS_PER_OBSTACLE
         out = []
         for s, x in zip(self.spheres, self._sphere_centers(q), strict=True):

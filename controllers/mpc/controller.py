@@ -1,0 +1,357 @@
+"""`GeodesicMPC`: the receding-horizon controller (warm starts, plan following, fallbacks).
+
+The OCP is built once by `geosyn.controllers.mpc.ocp.OCPBuilder`; this class only
+re-solves it every ``dt`` seconds (when ``t`` has advanced by at least ``dt`` since the
+last solve) and follows the plan in between (`geosyn.controllers.mpc.plan.PlanFollower`).
+Each solve warm-starts from the previous plan shifted by the elapsed stages (its
+multipliers too, which IPOPT uses and fatrop ignores), else cold-starts from the
+reference samples.
+
+A failed solve (solver status not successful, an exception, non-finite numbers) is
+flagged in the diagnostics (``fallback_used``, ``solver_status``, ``iterations``) and
+falls back to the previous plan, if it still covers ``t`` and the measured state is
+within ``plan_tolerance`` of it (``extra["fallback"] == 1``), else to a computed torque on
+the reference (``extra["fallback"] == 2``, clipped to the limits by `Controller.compute`).
+A setting changed at build time (no C compiler: ``hessian`` ``"exact"``) is warned and
+recorded in ``diagnostics.notes``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from geosyn.controllers.base import Controller, check_gain
+from geosyn.controllers.errors import NoReference
+from geosyn.controllers.mpc.gauss_newton import compiled_dynamics
+from geosyn.controllers.mpc.ocp import OCPBuilder
+from geosyn.controllers.mpc.open_loop import OpenLoopOCP, OpenLoopSolution
+from geosyn.controllers.mpc.plan import (
+    EPS_T,
+    MPCPlan,
+    PlanFollower,
+    ReferenceSamples,
+    sample_reference,
+)
+from geosyn.controllers.mpc.problem import ShootingNLP, SolveResult, pack_parameters
+from geosyn.controllers.mpc.settings import HESSIANS, ocp_settings, solver_settings
+from geosyn.controllers.reference import Reference
+from geosyn.core.codegen import CodegenError
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.types import Vector
+from geosyn.core.validation import check_choice, check_float, check_vector
+from geosyn.metrics.base import Metric
+from geosyn.robots.robot import Robot
+
+__all__ = ["GeodesicMPC"]
+
+
+class GeodesicMPC(Controller):
+    """Geodesic-tracking MPC: a multiple-shooting OCP in CasADi, solved by fatrop or IPOPT.
+
+    The OCP over ``N = horizon`` stages of length ``dt``, solved at time ``t`` from the
+    measured state ``(q_m, v_m)``, with the reference sampled at ``t_k = t + k dt``:
+
+    .. math::
+        \\min_{x, u} \\sum_{k=0}^{N-1} \\|q_k - q^r_k\\|^2_{W_q} + \\|v_k - v^r_k\\|^2_{W_v}
+            + \\ell(x_k, u_k) + \\|x_N - x^r_N\\|^2_{W_N}
+
+    subject to ``x_0 = (q_m, v_m)``, ``x_{k+1} = F(x_k, u_k)`` (RK4, ``rk4_steps`` steps
+    per stage, on ``qdd = ABA(q, v, tau)`` with gravity when ``control="torque"``; the
+    exact double integrator with ``tau = RNEA(q, v, u)`` when ``control="acceleration"``),
+    ``|tau_k| <= tau_max``, ``q_min <= q_k <= q_max`` and ``|v_k| <= v_max`` for k >= 1.
+    Defaults: ``control="acceleration"`` with ``effort="acceleration"``, the fastest
+    configuration (per-solve times on panda in benchmarks/RESULTS.md); torque control
+    costs more per iteration, for the Jacobian of the RK4 step on the ABA.
+
+    The effort ``ell`` is
+
+    - ``effort="torque"``: ``w_tau |tau_k - tau^r_k|^2`` with ``tau^r`` the inverse
+      dynamics of the reference (so perfect tracking costs nothing);
+    - ``effort="acceleration"`` (acceleration control only): ``w_tau |u_k - a^r_k|^2``, a
+      quadratic regulariser towards the reference acceleration; the torque then enters
+      only the limits, which keeps the Hessian cheap;
+    - ``effort="metric"``: ``w_tau (tau_k - g(q_k))^T G(q_k)^{-1} (tau_k - g(q_k))``, the
+      squared Riemannian norm of the covariant acceleration ``D v / dt`` (for the kinetic
+      energy metric ``G = M``: ``M qdd + C v``). Without gravity and constraints its
+      minimisers between fixed end points are geodesics (zero cost): see
+      `solve_open_loop`.
+
+    Re-solves, plan following and fallbacks: see `geosyn.controllers.mpc.controller`.
+
+    Args:
+        robot: the robot (its model is the OCP's dynamics).
+        metric: the metric of the geodesic reference; weighs the ``"metric"`` effort.
+        horizon: number of stages N (>= 1).
+        dt: stage length and re-solve period [s] (> 0).
+        solver: ``"fatrop"`` or ``"ipopt"``.
+        q_weight: scalar or (nv,) weight on the position error [1/rad^2].
+        v_weight: scalar or (nv,) weight on the velocity error [s^2/rad^2].
+        tau_weight: scalar or (nv,) effort weight: [1/(N m)^2] for the torque and metric
+            efforts (the metric effort uses its first entry, a scalar weight on the
+            Riemannian norm), [s^4/rad^2] for the acceleration effort. None: 1e-3, 1e-3
+            and 1e-2 respectively.
+        terminal_weight: scalar or (2 nv,) weight on the terminal state error (q then v).
+        effort: ``"torque"``, ``"metric"`` or ``"acceleration"``; None picks
+            ``"acceleration"`` with acceleration control and ``"torque"`` with torque control.
+        control: ``"torque"`` or ``"acceleration"``.
+        rk4_steps: RK4 steps per stage (torque control), 1 or 2.
+        hessian: ``"gauss-newton"`` (per-stage dynamics compiled without second
+            derivatives, `geosyn.controllers.mpc.gauss_newton`) or ``"exact"`` (exact
+            Hessian of an SX graph on CasADi's VM).
+            Without a C compiler ``"gauss-newton"`` becomes ``"exact"``, with a
+            ``RuntimeWarning`` and ``diagnostics.notes["hessian"]``.
+        kp: scalar or (nv,) plan-tracking stiffness [1/s^2].
+        kd: scalar or (nv,) plan-tracking damping [1/s].
+        max_iter: solver iteration limit per tick.
+        tol: solver tolerance.
+        mu_init: initial barrier parameter of cold solves; warm solves use ``mu_warm``.
+        mu_warm: initial barrier parameter of warm-started solves.
+        plan_tolerance: max joint deviation [rad] for reusing the previous plan as fallback.
+        solver_options: extra options for the solver plugin (fatrop or ipopt options), e.g.
+            ``{"max_iter": 1}``; unknown keys are rejected by the plugin at build time.
+        reference: optional reference.
+
+    Attributes:
+        settings: the validated OCP settings (`OCPSettings`: weights, effort, ...).
+        solver_settings: the validated `SolverSettings`.
+        N: horizon; dt: stage length [s]; control, effort, hessian: the modes in use.
+        ocp: the `OCPBuilder` of this controller's problems.
+        build_time: wall-clock time of building the tracking NLP [s].
+        solve_count: number of `solve` calls.
+
+    Raises:
+        InvalidArgument: a bad argument (the message names it and lists what is allowed).
+
+    The constructor builds the solvers (allocates; seconds, up to minutes on first use
+    when the compiled dynamics are not cached yet); `compute` allocates only small arrays.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        metric: Metric,
+        horizon: int = 40,
+        dt: float = 0.02,
+        *,
+        solver: str = "fatrop",
+        q_weight: float | np.ndarray = 1e4,
+        v_weight: float | np.ndarray = 1e1,
+        tau_weight: float | np.ndarray | None = None,
+        terminal_weight: float | np.ndarray = 1e5,
+        effort: str | None = None,
+        control: str = "acceleration",
+        rk4_steps: int = 1,
+        hessian: str = "gauss-newton",
+        kp: float | np.ndarray = 400.0,
+        kd: float | np.ndarray = 40.0,
+        max_iter: int = 50,
+        tol: float = 1e-6,
+        mu_init: float = 1e-1,
+        mu_warm: float = 1e-8,
+        plan_tolerance: float = 0.05,
+        solver_options: dict | None = None,
+        reference: Reference | None = None,
+    ) -> None:
+        super().__init__(robot, None)
+        n = self.nv
+        if not isinstance(metric, Metric) or metric.n != n:
+            raise InvalidArgument(
+                f"metric must be a geosyn Metric of dimension nv={n}, got {metric!r}"
+            )
+        self.metric = metric
+        weights = (q_weight, v_weight, tau_weight, terminal_weight)
+        self.settings = ocp_settings(n, horizon, dt, control, effort, rk4_steps, *weights)
+        self.solver_settings = solver_settings(
+            solver, tol, max_iter, mu_init, mu_warm, solver_options
+        )
+        self.hessian = check_choice(hessian, HESSIANS, "hessian")
+        self.kp = check_gain(kp, n, "kp")
+        self.kd = check_gain(kd, n, "kd")
+        self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
+        s = self.settings
+        self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
+        self.ocp = OCPBuilder(robot, metric, s, self.solver_settings)
+        self._follower = PlanFollower(
+            self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance
+        )
+        self._open_loop = OpenLoopOCP(self.ocp)
+        start = time.perf_counter()
+        self._nlp = self._build_tracking()
+        self.build_time = time.perf_counter() - start
+        self._plan: MPCPlan | None = None
+        self._lam: tuple[np.ndarray, np.ndarray] | None = None
+        self._t_solve = -math.inf
+        self._using_fallback = False
+        self.solve_count = 0
+        if reference is not None:
+            self.set_reference(reference)
+
+    def _build_tracking(self) -> ShootingNLP:
+        dynamics = self.ocp.dynamics(gravity=True)
+        if self.hessian == "gauss-newton":
+            try:
+                dynamics = compiled_dynamics(dynamics, self.control, self.robot.name)
+            except CodegenError as err:
+                self.hessian = "exact"
+                self._note(
+                    "hessian", f"'exact' instead of 'gauss-newton': no compiled dynamics ({err})"
+                )
+        return self.ocp.tracking(dynamics, gauss_newton=self.hessian == "gauss-newton")
+
+    # -- controller hooks ------------------------------------------------------------
+    def _on_reset(self, q: Vector, v: Vector, t: float) -> None:
+        self._on_reference_changed()
+        self._using_fallback = False
+
+    def _on_reference_changed(self) -> None:
+        # A new reference invalidates the warm start (a different task).
+        self._plan = None
+        self._lam = None
+        self._t_solve = -math.inf
+
+    @property
+    def plan(self) -> MPCPlan | None:
+        """The plan of the last successful solve (None before)."""
+        return self._plan
+
+    # -- solving ---------------------------------------------------------------------
+    def problem_parameters(
+        self, t: float, x_init: np.ndarray
+    ) -> tuple[np.ndarray, ReferenceSamples]:
+        """The tracking NLP's parameters at time ``t`` and the reference samples in them.
+
+        Args:
+            t: time of the solve [s].
+            x_init: (2 nv,) measured state ``(q, v)`` [rad, rad/s].
+
+        Returns:
+            The parameter vector (`pack_parameters`) and the `ReferenceSamples`.
+
+        Raises:
+            NoReference: no reference was set.
+        """
+        if self._reference is None:
+            raise NoReference(f"{type(self).__name__}.solve called before set_reference")
+        N = self.N
+        ref = sample_reference(self._reference, self._model, self._data, t, N, self.dt)
+        effort_ref = ref.a[:N] if self.effort == "acceleration" else ref.tau
+        p = pack_parameters(
+            x_init, ref.q[N], ref.q, ref.v, effort_ref, self.ocp.metric_parameters()
+        )
+        return p, ref
+
+    def solve(self, t: float, q: Vector, v: Vector) -> MPCPlan:
+        """Solve the tracking OCP from the measured state at time ``t`` (no fallback).
+
+        Warm-starts from the previous plan shifted by the elapsed stages when there is
+        one (the last stage duplicated), else cold-starts from the reference samples.
+
+        Args:
+            t: time [s].
+            q: (nv,) joint positions [rad].
+            v: (nv,) joint velocities [rad/s].
+
+        Returns:
+            The `MPCPlan` (``success`` False on a failed solve; never raises for that).
+
+        Raises:
+            InvalidArgument: bad inputs; NoReference without a reference.
+        """
+        q = check_vector(q, self.nv, "q")
+        v = check_vector(v, self.nv, "v")
+        nlp, N = self._nlp, self.N
+        x_init = np.concatenate([q, v])
+        p, ref = self.problem_parameters(t, x_init)
+        prev, lam = self._plan, self._lam
+        j = -1 if prev is None or lam is None else int(round((t - prev.t) / self.dt))
+        if prev is not None and lam is not None and 0 <= j < N:
+            solver, guess = nlp.solver, nlp.shifted_guess(prev.x, prev.u, lam, j, x_init)
+        else:
+            x0 = np.hstack([ref.q, ref.v])
+            x0[0] = x_init
+            u0 = ref.tau if self.control == "torque" else ref.a[:N]
+            solver, guess = nlp.cold(), {"x0": nlp.pack(x0, u0)}
+        self.solve_count += 1
+        start = time.perf_counter()
+        try:
+            res = nlp.run(solver, p, guess)
+        except RuntimeError as err:
+            nan_u = np.full((N, self.nv), np.nan)
+            nan_x = np.full((N + 1, 2 * self.nv), np.nan)
+            status = f"exception: {err}".splitlines()[0][:200]
+            res = SolveResult(nan_x, nan_u, nan_u.copy(), math.nan, status, 0, False, None)
+        solve_time = time.perf_counter() - start
+        if res.success:
+            self._lam = res.multipliers
+        return MPCPlan(
+            t, res.x, res.u, res.tau, res.status, res.iterations, res.success, solve_time
+        )
+
+    # -- control ---------------------------------------------------------------------
+    def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
+        d = self.diagnostics
+        if t - self._t_solve >= self.dt - EPS_T:
+            self._t_solve = t
+            plan = self.solve(t, q, v)
+            d.solver_status = plan.status
+            d.iterations = plan.iterations
+            d.extra = {"solve_time": plan.solve_time}
+            if plan.success:
+                self._plan = plan
+                self._using_fallback = False
+            else:
+                # Keep the previous plan if it still covers t and the state is near it.
+                self._using_fallback = True
+                if not self._follower.usable(self._plan, t, q):
+                    self._plan = None
+                    self._lam = None
+        if self._using_fallback:
+            d.fallback_used = True
+            if self._plan is not None and self._follower.usable(self._plan, t, q):
+                d.extra["fallback"] = 1.0  # previous plan
+                return self._follower.torque(self._plan, t, q, v)
+            d.extra["fallback"] = 2.0  # computed torque
+            return self._follower.reference_torque(self._reference, t, q, v)  # type: ignore[arg-type]
+        return self._follower.torque(self._plan, t, q, v)  # type: ignore[arg-type]
+
+    # -- the minimum-effort Riemannian OCP -------------------------------------------
+    def solve_open_loop(
+        self,
+        q0: Vector,
+        q_goal: Vector,
+        v0: Vector | None = None,
+        *,
+        free_initial_velocity: bool = True,
+        gravity: bool = False,
+    ) -> OpenLoopSolution:
+        """The minimum-effort OCP from ``q0`` to ``q_goal`` in time ``T = N dt``.
+
+        Minimises the metric effort (see `geosyn.controllers.mpc.open_loop`): for the
+        kinetic-energy metric without gravity and with inactive limits, the minimiser is
+        the geodesic from ``q0`` to ``q_goal``. The NLP is built on the first call for
+        each ``(free_initial_velocity, gravity)`` pair and kept.
+
+        Args:
+            q0: (nv,) start configuration [rad].
+            q_goal: (nv,) end configuration [rad].
+            v0: (nv,) initial velocity [rad/s]: the fixed value, or the initial guess when
+                free (default: ``(q_goal - q0) / T``).
+            free_initial_velocity: make ``v(0)`` a decision variable.
+            gravity: include the robot's gravity in the dynamics and the effort.
+
+        Returns:
+            The `OpenLoopSolution`.
+
+        Raises:
+            InvalidArgument: bad shapes or values.
+            SolverFailed: the solver raised an exception.
+        """
+        q0 = check_vector(q0, self.nv, "q0")
+        q_goal = check_vector(q_goal, self.nv, "q_goal")
+        v_init = (
+            (q_goal - q0) / (self.N * self.dt) if v0 is None else check_vector(v0, self.nv, "v0")
+        )
+        return self._open_loop.solve(q0, q_goal, v_init, free_initial_velocity, gravity)

@@ -1,0 +1,169 @@
+"""The choices, defaults and validated settings of the geodesic-tracking MPC.
+
+`OCPSettings` says what the optimal-control problem is (horizon, control mode, weights);
+`SolverSettings` how it is solved (plugin, tolerances, barrier parameters). Both are
+frozen; `ocp_settings` and `solver_settings` validate `GeodesicMPC`'s arguments into them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from geosyn.controllers.base import check_gain
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.types import Vector
+from geosyn.core.validation import check_choice, check_int, check_positive
+
+__all__ = [
+    "CONTROLS",
+    "DEFAULT_EFFORT_WEIGHT",
+    "EFFORTS",
+    "HESSIANS",
+    "SOLVERS",
+    "OCPSettings",
+    "SolverSettings",
+    "ocp_settings",
+    "solver_settings",
+]
+
+SOLVERS = ("fatrop", "ipopt")
+"""Names accepted by ``GeodesicMPC(solver=...)``."""
+EFFORTS = ("torque", "metric", "acceleration")
+"""Names accepted by ``GeodesicMPC(effort=...)``."""
+CONTROLS = ("torque", "acceleration")
+"""Names accepted by ``GeodesicMPC(control=...)``."""
+HESSIANS = ("gauss-newton", "exact")
+"""Names accepted by ``GeodesicMPC(hessian=...)``."""
+
+DEFAULT_EFFORT_WEIGHT = {"torque": 1e-3, "metric": 1e-3, "acceleration": 1e-2}
+"""Effort weight when none is given: [1/(N m)^2] for the torque and metric efforts,
+[s^4/rad^2] for the acceleration effort (tuned on panda, see benchmarks/RESULTS.md)."""
+
+
+@dataclass(frozen=True)
+class OCPSettings:
+    """What the tracking OCP is: horizon, dynamics and cost weights (validated).
+
+    Attributes:
+        N: number of stages (>= 1).
+        dt: stage length [s].
+        control: ``"torque"`` or ``"acceleration"``: what the decision ``u_k`` is.
+        effort: ``"torque"``, ``"metric"`` or ``"acceleration"``: the effort cost.
+        rk4_steps: RK4 steps per stage (torque control).
+        q_weight: (nv,) position-error weight [1/rad^2].
+        v_weight: (nv,) velocity-error weight [s^2/rad^2].
+        effort_weight: (nv,) effort weight ([1/(N m)^2] or [s^4/rad^2]).
+        terminal_weight: (2 nv,) terminal state-error weight (q then v).
+    """
+
+    N: int
+    dt: float
+    control: str
+    effort: str
+    rk4_steps: int
+    q_weight: Vector
+    v_weight: Vector
+    effort_weight: Vector
+    terminal_weight: Vector
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """How the NLPs are solved (validated).
+
+    Attributes:
+        name: ``"fatrop"`` or ``"ipopt"``.
+        tol: solver tolerance.
+        max_iter: iteration limit per solve.
+        mu_init: initial barrier parameter of cold solves.
+        mu_warm: initial barrier parameter of warm-started solves.
+        options: extra plugin options, applied last (they win).
+    """
+
+    name: str
+    tol: float
+    max_iter: int
+    mu_init: float
+    mu_warm: float
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def ocp_settings(
+    nv: int,
+    horizon: object,
+    dt: object,
+    control: object,
+    effort: object,
+    rk4_steps: object,
+    q_weight: object,
+    v_weight: object,
+    tau_weight: object,
+    terminal_weight: object,
+) -> OCPSettings:
+    """Validate the OCP arguments of `GeodesicMPC` (same names and meaning).
+
+    Args:
+        nv: number of joints.
+        horizon: number of stages (integer >= 1).
+        dt: stage length [s] (> 0).
+        control: one of `CONTROLS`.
+        effort: one of `EFFORTS`, or None for the cheapest one the control allows.
+        rk4_steps: 1 or 2.
+        q_weight: scalar or (nv,) [1/rad^2].
+        v_weight: scalar or (nv,) [s^2/rad^2].
+        tau_weight: scalar or (nv,), or None for `DEFAULT_EFFORT_WEIGHT`.
+        terminal_weight: scalar or (2 nv,).
+
+    Raises:
+        InvalidArgument: a bad argument (named in the message, with what is allowed).
+    """
+    N = check_int(horizon, "horizon", low=1)
+    dt_s = check_positive(dt, "dt", "s")
+    control_ = check_choice(control, CONTROLS, "control")
+    if effort is None:  # the cheapest effort each control mode allows
+        effort = "acceleration" if control_ == "acceleration" else "torque"
+    effort_ = check_choice(effort, EFFORTS, "effort")
+    if effort_ == "acceleration" and control_ != "acceleration":
+        raise InvalidArgument(
+            f"effort 'acceleration' needs control='acceleration', got control={control!r}; "
+            "with torque control use effort 'torque' or 'metric'"
+        )
+    return OCPSettings(
+        N=N,
+        dt=dt_s,
+        control=control_,
+        effort=effort_,
+        rk4_steps=check_int(rk4_steps, "rk4_steps", low=1, high=2),
+        q_weight=check_gain(q_weight, nv, "q_weight"),
+        v_weight=check_gain(v_weight, nv, "v_weight"),
+        effort_weight=check_gain(
+            DEFAULT_EFFORT_WEIGHT[effort_] if tau_weight is None else tau_weight, nv, "tau_weight"
+        ),
+        terminal_weight=check_gain(terminal_weight, 2 * nv, "terminal_weight"),
+    )
+
+
+def solver_settings(
+    solver: object,
+    tol: object,
+    max_iter: object,
+    mu_init: object,
+    mu_warm: object,
+    solver_options: object,
+) -> SolverSettings:
+    """Validate the solver arguments of `GeodesicMPC` (same names and meaning).
+
+    Raises:
+        InvalidArgument: a bad argument (named in the message, with what is allowed).
+    """
+    if solver_options is not None and not isinstance(solver_options, dict):
+        raise InvalidArgument(f"solver_options must be a dict or None, got {solver_options!r}")
+    return SolverSettings(
+        name=check_choice(solver, SOLVERS, "solver"),
+        tol=check_positive(tol, "tol"),
+        max_iter=check_int(max_iter, "max_iter", low=1),
+        mu_init=check_positive(mu_init, "mu_init"),
+        mu_warm=check_positive(mu_warm, "mu_warm"),
+        options=dict(solver_options or {}),
+    )

@@ -1,0 +1,88 @@
+"""Solver front-ends of the MPC: option builders for fatrop and IPOPT, and the pair of
+solvers (warm-started and cold) built for one NLP graph."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import casadi as ca
+
+from geosyn.controllers.mpc.problem import NLPGraph
+from geosyn.controllers.mpc.settings import SolverSettings
+
+__all__ = ["build_solvers", "fatrop_options", "ipopt_options"]
+
+# No SX expansion step: an exact-Hessian graph is SX already, and a Gauss-Newton graph
+# calls compiled code, which cannot be expanded.
+_COMMON: dict[str, Any] = {"expand": False, "print_time": False, "error_on_fail": False}
+
+
+def fatrop_options(settings: SolverSettings, equality: list[bool], mu: float) -> dict[str, Any]:
+    """``casadi.nlpsol`` options for fatrop.
+
+    fatrop ignores the multipliers passed as a warm start; only the primal guess and the
+    initial barrier parameter ``mu`` make a warm start.
+
+    Args:
+        settings: tolerances, iteration limit and extra plugin options (applied last).
+        equality: per constraint row, whether it is an equality (structure detection).
+        mu: initial barrier parameter.
+    """
+    plugin: dict[str, Any] = {
+        "mu_init": mu,
+        "print_level": 0,
+        "tol": settings.tol,
+        "max_iter": settings.max_iter,
+    }
+    plugin.update(settings.options)
+    return {**_COMMON, "structure_detection": "auto", "equality": equality, "fatrop": plugin}
+
+
+def ipopt_options(settings: SolverSettings, mu: float, warm: bool) -> dict[str, Any]:
+    """``casadi.nlpsol`` options for IPOPT.
+
+    Args:
+        settings: tolerances, iteration limit and extra plugin options (applied last).
+        mu: initial barrier parameter.
+        warm: start from the given primal-dual point (``warm_start_init_point``), with a
+            monotone barrier strategy.
+    """
+    plugin: dict[str, Any] = {
+        "print_level": 0,
+        "sb": "yes",
+        "tol": settings.tol,
+        "max_iter": settings.max_iter,
+        "mu_init": mu,
+    }
+    if warm:
+        plugin.update(
+            warm_start_init_point="yes",
+            warm_start_bound_push=1e-6,
+            warm_start_mult_bound_push=1e-6,
+            mu_strategy="monotone",
+        )
+    plugin.update(settings.options)
+    return {**_COMMON, "ipopt": plugin}
+
+
+def build_solvers(graph: NLPGraph, settings: SolverSettings) -> tuple[ca.Function, ca.Function]:
+    """The warm-start and cold-start solvers of an NLP graph (allocates; seconds).
+
+    Args:
+        graph: the NLP graph (`geosyn.controllers.mpc.problem.transcribe`).
+        settings: the solver settings; warm solves start with ``mu_warm``, cold ones
+            with ``mu_init``.
+
+    Returns:
+        ``(warm, cold)`` ``casadi.nlpsol`` functions.
+    """
+    name, nlp = settings.name, graph.nlp
+    if name == "fatrop":
+        warm_opts = fatrop_options(settings, graph.equality, settings.mu_warm)
+        cold_opts = fatrop_options(settings, graph.equality, settings.mu_init)
+    else:
+        warm_opts = ipopt_options(settings, settings.mu_warm, warm=True)
+        cold_opts = ipopt_options(settings, settings.mu_init, warm=False)
+    warm = ca.nlpsol("mpc_warm", name, nlp, warm_opts)
+    cold = ca.nlpsol("mpc_cold", name, nlp, cold_opts)
+    return warm, cold

@@ -1,0 +1,104 @@
+"""Config sections of the controllers; each stands for its `geosyn.controllers` class and
+takes its defaults from that class's constructor.
+
+The robot, the metric and the reference come from the experiment, and the QP's period
+``dt`` is ``simulation.control_dt``. Feedback gains that a constructor requires have the
+config defaults given to `python_defaults` here (and nowhere else).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from geosyn.controllers import ComputedTorque, GeodesicMPC, QPController, RiemannianPD
+from geosyn.experiments.schema.section import Section, python_defaults
+from geosyn.experiments.schema.values import Gain, NonNegFloat, PositiveFloat
+
+Label = Annotated[str, Field(pattern=r"^[A-Za-z0-9_\-]+$")]
+Iterations = Annotated[int, Field(ge=1)]
+
+_COMPUTED_TORQUE = python_defaults(ComputedTorque, kp=400.0, kd=40.0)
+_RIEMANNIAN_PD = python_defaults(RiemannianPD, lam=20.0, k=50.0)
+_QP = python_defaults(QPController, kp=400.0, kd=40.0)
+_MPC = python_defaults(GeodesicMPC)
+
+
+class _ControllerBase(Section):
+    """A controller section; ``label`` names its runs (default: its type, numbered)."""
+
+    label: Label | None = None
+
+
+class ComputedTorqueConfig(_ControllerBase):
+    """`ComputedTorque`: gains ``kp`` [1/s^2] and ``kd`` [1/s]."""
+
+    builds = (ComputedTorque,)
+    type: Literal["computed_torque"]
+    kp: Gain = _COMPUTED_TORQUE["kp"]
+    kd: Gain = _COMPUTED_TORQUE["kd"]
+
+
+class RiemannianPDConfig(_ControllerBase):
+    """`RiemannianPD`: gains ``lam`` [1/s] and ``k`` [N m s/rad]."""
+
+    builds = (RiemannianPD,)
+    type: Literal["riemannian_pd"]
+    lam: Gain = _RIEMANNIAN_PD["lam"]
+    k: Gain = _RIEMANNIAN_PD["k"]
+
+
+class QPConfig(_ControllerBase):
+    """`QPController` (period ``simulation.control_dt``): gains ``kp`` [1/s^2], ``kd``
+    [1/s], solver tolerances and iterations, braking settings [s], [rad/s^2]."""
+
+    builds = (QPController,)
+    type: Literal["qp"]
+    kp: Gain = _QP["kp"]
+    kd: Gain = _QP["kd"]
+    eps: PositiveFloat = _QP["eps"]
+    eps_abs: PositiveFloat = _QP["eps_abs"]
+    position_horizon: PositiveFloat | None = _QP["position_horizon"]
+    braking_acceleration: PositiveFloat | None = _QP["braking_acceleration"]
+    max_iter: Iterations = _QP["max_iter"]
+
+
+class MPCConfig(_ControllerBase):
+    """`GeodesicMPC`. ``effort``/``tau_weight`` None: chosen from ``control`` by the
+    controller; ``solver_options`` are passed to the NLP solver as they are."""
+
+    builds = (GeodesicMPC,)
+    type: Literal["mpc"]
+    horizon: Annotated[int, Field(ge=1, le=1000)] = _MPC["horizon"]
+    dt: PositiveFloat = _MPC["dt"]
+    solver: Literal["fatrop", "ipopt"] = _MPC["solver"]
+    q_weight: NonNegFloat = _MPC["q_weight"]
+    v_weight: NonNegFloat = _MPC["v_weight"]
+    tau_weight: NonNegFloat | None = _MPC["tau_weight"]
+    terminal_weight: NonNegFloat = _MPC["terminal_weight"]
+    effort: Literal["torque", "metric", "acceleration"] | None = _MPC["effort"]
+    control: Literal["torque", "acceleration"] = _MPC["control"]
+    rk4_steps: Literal[1, 2] = _MPC["rk4_steps"]
+    hessian: Literal["gauss-newton", "exact"] = _MPC["hessian"]
+    kp: Gain = _MPC["kp"]
+    kd: Gain = _MPC["kd"]
+    max_iter: Iterations = _MPC["max_iter"]
+    tol: PositiveFloat = _MPC["tol"]
+    mu_init: PositiveFloat = _MPC["mu_init"]
+    mu_warm: PositiveFloat = _MPC["mu_warm"]
+    plan_tolerance: NonNegFloat = _MPC["plan_tolerance"]
+    solver_options: dict[str, bool | int | float | str] | None = _MPC["solver_options"]
+
+
+ControllerConfig = Annotated[
+    ComputedTorqueConfig | RiemannianPDConfig | QPConfig | MPCConfig, Field(discriminator="type")
+]
+
+__all__ = [
+    "ComputedTorqueConfig",
+    "ControllerConfig",
+    "MPCConfig",
+    "QPConfig",
+    "RiemannianPDConfig",
+]

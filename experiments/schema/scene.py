@@ -1,0 +1,124 @@
+"""Config sections of the robot and the scene: robot options, obstacles, payload bodies."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+from pydantic import Field, field_validator
+
+from geosyn.experiments.schema.section import Section, Strict, python_defaults
+from geosyn.experiments.schema.values import FiniteFloat, NonNegFloat, PositiveFloat, Vec3
+from geosyn.world import Payload
+
+
+class RobotOptions(Strict):
+    """Options of `geosyn.robots.load_robot` (only these are accepted; None: the robot's own)."""
+
+    armature: NonNegFloat | None = None
+    gravity: Vec3 | None = None
+    ee_frame: str | None = None
+
+
+class RobotConfig(Strict):
+    """The robot: a built-in name (see ``geosyn robots``) or a URDF/MJCF path."""
+
+    name: str
+    options: RobotOptions = RobotOptions()
+
+    @field_validator("name")
+    @classmethod
+    def _known(cls, name: str) -> str:
+        from geosyn.robots import BUILTINS
+
+        if name in BUILTINS or name.lower().endswith((".urdf", ".xml", ".mjcf")):
+            return name
+        raise ValueError(
+            f"{name!r} is not a built-in robot; available: {', '.join(sorted(BUILTINS))}"
+            " (or a path to a .urdf/.xml/.mjcf file)"
+        )
+
+
+class SphereConfig(Strict):
+    type: Literal["sphere"]
+    center: Vec3
+    radius: PositiveFloat
+
+
+class BoxConfig(Strict):
+    type: Literal["box"]
+    center: Vec3
+    half_extents: Annotated[list[PositiveFloat], Field(min_length=3, max_length=3)]
+    #: orientation as roll, pitch, yaw [rad] about the world's x, y, z (URDF convention:
+    #: R = Rz(yaw) Ry(pitch) Rx(roll)).
+    rpy: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+class CapsuleConfig(Strict):
+    type: Literal["capsule"]
+    p0: Vec3
+    p1: Vec3
+    radius: PositiveFloat
+
+
+class HalfSpaceConfig(Strict):
+    """``{x : normal . x <= offset}`` is the obstacle; ``normal`` is normalised."""
+
+    type: Literal["halfspace"]
+    normal: Vec3
+    offset: FiniteFloat
+
+    @field_validator("normal")
+    @classmethod
+    def _nonzero(cls, n: list[float]) -> list[float]:
+        norm = math.sqrt(sum(x * x for x in n))
+        if norm < 1e-12:
+            raise ValueError("normal must be a nonzero vector")
+        return [x / norm for x in n]
+
+
+ObstacleConfig = Annotated[
+    SphereConfig | BoxConfig | CapsuleConfig | HalfSpaceConfig, Field(discriminator="type")
+]
+
+# frame None: the robot's end-effector frame (known once the robot is loaded)
+_PAYLOAD = python_defaults(Payload, frame=None)
+
+
+class PayloadConfig(Section):
+    """A rigid payload welded to a link (`geosyn.world.Payload`): ``offset`` is its centre
+    of mass in ``frame`` [m]; ``inertia`` its (3, 3) inertia about it [kg m^2], None: a
+    solid ball of ``radius`` [m]."""
+
+    builds = (Payload,)
+    parameter_names = {"offset": "com"}
+    to_python = {
+        "offset": tuple,
+        "inertia": lambda rows: None if rows is None else tuple(map(tuple, rows)),
+    }
+    frame: str | None = _PAYLOAD["frame"]
+    mass: NonNegFloat
+    offset: Vec3 = _PAYLOAD["com"]
+    inertia: Annotated[list[Vec3], Field(min_length=3, max_length=3)] | None = _PAYLOAD["inertia"]
+    radius: NonNegFloat = _PAYLOAD["radius"]
+    name: str | None = _PAYLOAD["name"]
+
+
+class SceneConfig(Strict):
+    """Payload bodies and obstacles of the MuJoCo scene (also seen by shaping terms)."""
+
+    payloads: list[PayloadConfig] = []
+    obstacles: list[ObstacleConfig] = []
+
+
+__all__ = [
+    "BoxConfig",
+    "CapsuleConfig",
+    "HalfSpaceConfig",
+    "ObstacleConfig",
+    "PayloadConfig",
+    "RobotConfig",
+    "RobotOptions",
+    "SceneConfig",
+    "SphereConfig",
+]

@@ -1,0 +1,104 @@
+"""Config sections of the synergies (explicit, designed, extracted by PGA) and of the
+reference a controller tracks (a synergy combination, or the geodesic to a goal).
+
+Reference defaults come from the calls they configure: `GeodesicSynergy.trajectory` and
+`combine` (combination) or `geosyn.metrics.exp` and `log` (log) for ``duration``,
+``steps`` and ``q_start``, `GeodesicReference` for ``time_scale``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import Field
+
+from geosyn.controllers import GeodesicReference
+from geosyn.experiments.schema.section import Section, Strict, python_defaults
+from geosyn.experiments.schema.values import FiniteFloat, JointVector, PositiveFloat
+from geosyn.metrics import exp, log
+from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies
+
+Count = Annotated[int, Field(ge=1)]
+Steps = Annotated[int, Field(ge=2, le=100_000)]
+
+
+class ExplicitSynergy(Strict):
+    q0: JointVector
+    v0: JointVector
+
+
+class ExplicitSynergies(Strict):
+    """Synergies given by their base configuration and initial velocity."""
+
+    type: Literal["explicit"]
+    items: Annotated[list[ExplicitSynergy], Field(min_length=1)]
+
+
+class DesignedSynergies(Section):
+    """``orthonormal_synergies(metric, q0, k)``: G-orthonormal, ordered by hand motion."""
+
+    builds = (orthonormal_synergies,)
+    type: Literal["designed"]
+    q0: JointVector
+    k: Count
+    frame: str | None = python_defaults(orthonormal_synergies)["frame"]
+
+
+class PGASynergies(Strict):
+    """PGA of generated demonstrations: ``n_demos`` endpoints of geodesics from ``q0``
+    with random G-orthonormal-basis velocities of standard deviation ``spread`` over the
+    first ``latent`` designed directions (the config's own generator: its defaults are
+    the config's)."""
+
+    type: Literal["pga"]
+    q0: JointVector
+    k: Count
+    n_demos: Annotated[int, Field(ge=2, le=500)] = 20
+    spread: PositiveFloat = 0.5
+    latent: Count = 2
+
+
+SynergyConfig = Annotated[
+    ExplicitSynergies | DesignedSynergies | PGASynergies, Field(discriminator="type")
+]
+
+_COMBINATION = python_defaults(GeodesicSynergy.trajectory, combine, GeodesicReference)
+_LOG = python_defaults(exp, log, GeodesicReference)
+
+
+class CombinationReference(Section):
+    """``combine(synergies, weights, q_start)`` traversed over ``duration * time_scale``."""
+
+    builds = (GeodesicSynergy.trajectory, combine, GeodesicReference)
+    type: Literal["combination"]
+    weights: Annotated[list[FiniteFloat], Field(min_length=1)]
+    q_start: JointVector | None = _COMBINATION["q_start"]
+    duration: PositiveFloat = _COMBINATION["duration"]
+    time_scale: PositiveFloat = _COMBINATION["time_scale"]
+    steps: Steps = _COMBINATION["steps"]
+
+
+class LogReference(Section):
+    """The geodesic from ``q_start`` to ``goal`` (``log`` then ``exp``)."""
+
+    builds = (exp, log, GeodesicReference)
+    type: Literal["log"]
+    q_start: JointVector
+    goal: JointVector
+    duration: PositiveFloat = _LOG["duration"]
+    time_scale: PositiveFloat = _LOG["time_scale"]
+    steps: Steps = _LOG["steps"]
+
+
+ReferenceConfig = Annotated[CombinationReference | LogReference, Field(discriminator="type")]
+
+__all__ = [
+    "CombinationReference",
+    "DesignedSynergies",
+    "ExplicitSynergies",
+    "ExplicitSynergy",
+    "LogReference",
+    "PGASynergies",
+    "ReferenceConfig",
+    "SynergyConfig",
+]

@@ -1,0 +1,244 @@
+"""The exponential map: the geodesic from an initial position and velocity.
+
+A geodesic of the metric G(q) solves
+
+.. math:: G(q)\\,\\ddot q + \\Gamma(\\dot q, \\dot q) = 0, \\qquad
+    \\Gamma(a, b)_i = \\sum_{jk} \\Gamma_{ijk} a_j b_k
+
+(Christoffel symbols of the first kind), i.e. ``qdd = metric.geodesic_acceleration(q, qd)``.
+
+`exp` integrates it with a fixed-step RK4 whose whole loop runs in compiled code: one RK4
+step of the state ``x = (q, v)`` is built as a CasADi SX function from
+``metric.symbolic_geodesic_acceleration``, compiled to C with
+`geosyn.core.codegen.compile_function` (cached on disk) and repeated with ``mapaccum``.
+Metrics without a symbolic form fall back to a numpy RK4 loop. ``method="dop853"``
+integrates with SciPy's DOP853 at rtol = atol = 1e-12 instead.
+
+The step and its repetitions are kept in ``metric.functions`` (see
+`geosyn.metrics.functions`), like every compiled function of a metric.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import casadi as ca
+import numpy as np
+
+from geosyn.core.codegen import compile_function
+from geosyn.core.types import Vector
+from geosyn.core.validation import check_choice, check_int, check_positive, check_vector
+from geosyn.metrics.base import Metric, check_metric
+from geosyn.metrics.errors import GeodesicNotFound, NoSymbolicForm
+
+__all__ = ["METHODS", "Geodesic", "exp", "numpy_rk4", "rk4_map", "rk4_step", "step_input"]
+
+METHODS = ("rk4", "dop853", "adaptive")
+"""Integration methods of `exp`."""
+_DOP853_TOL = 1e-12
+
+
+class Geodesic(NamedTuple):
+    """A sampled path in configuration space (a geodesic, or a baseline path).
+
+    Attributes:
+        t: (T,) time stamps [s].
+        q: (T, n) joint positions [rad].
+        v: (T, n) joint velocities [rad/s].
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+
+
+def step_input(metric: Metric, dt: float) -> np.ndarray:
+    """(1 + p,) input ``theta`` of the RK4 step: the time step [s], then the parameters.
+
+    Parameterised metrics (obstacle poses in a shaped metric) are read here, at call time,
+    so moving an obstacle changes an input and rebuilds nothing.
+
+    Args:
+        metric: the metric.
+        dt: time step [s].
+    """
+    return np.concatenate([[dt], metric.parameter_values()])
+
+
+def _build_step(metric: Metric) -> ca.Function:
+    """One RK4 step of x = (q, v): (x (2n,), theta = [dt; p]) -> x', compiled to C."""
+    n = metric.n
+    q = ca.SX.sym("q", n)
+    v = ca.SX.sym("v", n)
+    p = metric.symbolic_parameters()
+    acc = ca.Function(
+        "geodesic_acceleration", [q, v, p], [metric.symbolic_geodesic_acceleration(q, v)]
+    )
+    x = ca.SX.sym("x", 2 * n)
+    dt = ca.SX.sym("dt")
+    theta = ca.vertcat(dt, p)
+
+    def f(s: ca.SX) -> ca.SX:
+        return ca.vertcat(s[n:], acc(s[:n], s[n:], p))
+
+    k1 = f(x)
+    k2 = f(x + 0.5 * dt * k1)
+    k3 = f(x + 0.5 * dt * k2)
+    k4 = f(x + dt * k3)
+    x_next = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    step = ca.Function(
+        "geodesic_rk4_step", [x, theta], [x_next], ["x", "theta"], ["x_next"], {"cse": True}
+    )
+    return compile_function(step, fallback=True)
+
+
+def rk4_step(metric: Metric) -> ca.Function | None:
+    """The compiled RK4 step ``(x (2n,), theta (1 + p,)) -> x'`` of ``metric``.
+
+    Built (and compiled, cached on disk) on first use and kept in ``metric.functions``.
+
+    Args:
+        metric: the metric.
+
+    Returns:
+        The step, or None when the metric has no symbolic form.
+    """
+    try:
+        return metric.functions.get("geodesic_rk4_step", lambda: _build_step(metric))
+    except NoSymbolicForm:
+        return None
+
+
+def rk4_map(metric: Metric, steps: int) -> ca.Function:
+    """``(x0 (2n,), thetas (1 + p, steps)) -> states (2n, steps)``: ``steps`` RK4 steps.
+
+    Built on first use (from `rk4_step`) and kept in ``metric.functions``.
+
+    Args:
+        metric: the metric.
+        steps: number of steps, >= 1.
+
+    Raises:
+        NoSymbolicForm: the metric has no symbolic form.
+    """
+    step = rk4_step(metric)
+    if step is None:
+        raise NoSymbolicForm(f"{type(metric).__name__} has no symbolic form")
+    return metric.functions.get(
+        ("geodesic_rk4", steps), lambda: step.mapaccum("geodesic_rk4", steps)
+    )
+
+
+def numpy_rk4(metric: Metric, q0: Vector, v0: Vector, dt: float, steps: int) -> np.ndarray:
+    """Fixed-step RK4 on ``metric.geodesic_acceleration`` in numpy (no symbolic form needed).
+
+    Args:
+        metric: the metric.
+        q0: (n,) initial joint positions [rad].
+        v0: (n,) initial joint velocities [rad/s].
+        dt: time step [s].
+        steps: number of steps.
+
+    Returns:
+        (steps + 1, 2n) states ``(q, v)``; NaN from the first non-finite state on.
+    """
+    n = metric.n
+    X = np.empty((steps + 1, 2 * n))
+    X[0, :n], X[0, n:] = q0, v0
+    acc = metric.geodesic_acceleration
+
+    def f(s: np.ndarray) -> np.ndarray:
+        return np.concatenate([s[n:], acc(s[:n], s[n:])])
+
+    x = X[0].copy()
+    for k in range(steps):
+        k1 = f(x)
+        k2 = f(x + 0.5 * dt * k1)
+        k3 = f(x + 0.5 * dt * k2)
+        k4 = f(x + dt * k3)
+        x = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        if not np.all(np.isfinite(x)):
+            X[k + 1 :] = np.nan
+            break
+        X[k + 1] = x
+    return X
+
+
+def _rk4_states(metric: Metric, q0: Vector, v0: Vector, duration: float, steps: int) -> np.ndarray:
+    """(steps + 1, 2n) states of the fixed-step RK4 solution (compiled when possible)."""
+    dt = duration / steps
+    if rk4_step(metric) is None:
+        return numpy_rk4(metric, q0, v0, dt, steps)
+    fun = rk4_map(metric, steps)
+    out = fun(np.concatenate([q0, v0]), np.tile(step_input(metric, dt)[:, None], (1, steps)))
+    X = np.empty((steps + 1, 2 * metric.n))
+    X[0, : metric.n], X[0, metric.n :] = q0, v0
+    X[1:] = np.asarray(out).T
+    return X
+
+
+def exp(
+    metric: Metric,
+    q0: Vector,
+    v0: Vector,
+    duration: float = 1.0,
+    steps: int = 100,
+    method: str = "rk4",
+) -> Geodesic:
+    """Exponential map: the geodesic from q0 with initial velocity v0.
+
+    Args:
+        metric: the metric.
+        q0: (n,) initial joint positions [rad].
+        v0: (n,) initial joint velocities [rad/s].
+        duration: integration time [s], > 0.
+        steps: number of intervals, >= 1; the result has ``steps + 1`` samples,
+            uniformly spaced, t = 0 included.
+        method: ``"rk4"`` (fixed step, compiled loop; global error O(dt^4)) or
+            ``"dop853"`` / ``"adaptive"`` (SciPy DOP853 with rtol = atol = 1e-12 on
+            ``metric.geodesic_acceleration``, sampled at the same times).
+
+    Returns:
+        The sampled geodesic; ``q[-1]`` is exp_q0(duration * v0).
+
+    The first call for a metric builds (and compiles, cached on disk) the RK4 step;
+    later calls allocate only the result.
+
+    Raises:
+        InvalidArgument: bad shapes, non-finite values, steps < 1, duration <= 0, or an
+            unknown method.
+        GeodesicNotFound: DOP853 failed.
+    """
+    metric = check_metric(metric)
+    n = metric.n
+    q0 = check_vector(q0, n, "q0")
+    v0 = check_vector(v0, n, "v0")
+    duration = check_positive(duration, "duration")
+    steps = check_int(steps, "steps", low=1)
+    method = check_choice(method, METHODS, "method")
+    t = np.linspace(0.0, duration, steps + 1)
+    if method == "rk4":
+        X = _rk4_states(metric, q0, v0, duration, steps)
+    else:
+        from scipy.integrate import solve_ivp
+
+        acc = metric.geodesic_acceleration
+
+        def rhs(_t: float, x: np.ndarray) -> np.ndarray:
+            return np.concatenate([x[n:], acc(x[:n], x[n:])])
+
+        sol = solve_ivp(
+            rhs,
+            (0.0, duration),
+            np.concatenate([q0, v0]),
+            method="DOP853",
+            t_eval=t,
+            rtol=_DOP853_TOL,
+            atol=_DOP853_TOL,
+        )
+        if not sol.success:
+            raise GeodesicNotFound(
+                f"exp: DOP853 failed: {sol.message}", residual=float("nan"), v0=v0
+            )
+        X = sol.y.T
+    return Geodesic(t, X[:, :n].copy(), X[:, n:].copy())

@@ -1,0 +1,166 @@
+"""Obstacles of a simulation scene: `geosyn.world` shapes as MuJoCo geoms, and the minimum
+clearance between them and the robot's collision spheres.
+
+=============  ==========================================  ===================
+shape          fields                                      MuJoCo geom
+=============  ==========================================  ===================
+Sphere         ``center`` (3,) [m], ``radius`` [m]         ``sphere``
+Box            ``center``, ``half_extents`` (3,) [m],      ``box``
+               ``rotation`` (3, 3) world-from-box
+Capsule        ``p0``, ``p1`` (3,) [m], ``radius`` [m]     ``capsule``
+HalfSpace      ``normal`` (3,), ``offset`` [m]             ``plane``
+=============  ==========================================  ===================
+
+Minimum clearance: the robot's collision spheres (`Robot.collision_spheres`) are placed
+with the MuJoCo body poses (a MuJoCo body frame is its Pinocchio joint frame) and their
+signed distances to the obstacles (`geosyn.world.signed_distance`) are taken, minus the
+sphere radius. This is the geometry the obstacle shaping terms see; negative means
+penetration.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from xml.sax.saxutils import quoteattr
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+import geosyn.world as world
+from geosyn.robots.mjcf import body_name
+from geosyn.robots.mjcf import mjcf_number as _f
+from geosyn.robots.mjcf import mjcf_vector as _vec
+from geosyn.robots.robot import Robot
+from geosyn.world.pose import quaternion_wxyz
+from geosyn.world.shapes import check_shape
+
+#: Collision bit of the robot's and payloads' geoms when ``contact=True``.
+ROBOT_BIT = 2
+
+
+def _quat_z_to(n: np.ndarray) -> np.ndarray:
+    """(4,) wxyz quaternion rotating the z axis onto the unit vector ``n``."""
+    q = pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), n)
+    return np.array([q.w, q.x, q.y, q.z])
+
+
+def _sphere_geom(s: world.Sphere) -> str:
+    return f'type="sphere" size="{_f(s.radius)}" pos="{_vec(s.center)}"'
+
+
+def _box_geom(s: world.Box) -> str:
+    size = np.maximum(s.half_extents, 1e-4)  # MuJoCo needs positive sizes; the distance uses h
+    quat = quaternion_wxyz(np.asarray(s.rotation))
+    return f'type="box" size="{_vec(size)}" pos="{_vec(s.center)}" quat="{_vec(quat)}"'
+
+
+def _capsule_geom(s: world.Capsule) -> str:
+    if np.allclose(s.p0, s.p1):
+        return f'type="sphere" size="{_f(s.radius)}" pos="{_vec(s.p0)}"'
+    return f'type="capsule" size="{_f(s.radius)}" fromto="{_vec(s.p0)} {_vec(s.p1)}"'
+
+
+def _halfspace_geom(s: world.HalfSpace) -> str:
+    n = np.asarray(s.normal)
+    pos, quat = n * s.offset, _quat_z_to(n)
+    return f'type="plane" size="1.5 1.5 0.02" pos="{_vec(pos)}" quat="{_vec(quat)}"'
+
+
+#: The MuJoCo geom attributes of each shape class.
+GEOMS: dict[type, Callable[..., str]] = {
+    world.Sphere: _sphere_geom,
+    world.Box: _box_geom,
+    world.Capsule: _capsule_geom,
+    world.HalfSpace: _halfspace_geom,
+}
+
+
+@dataclass(frozen=True)
+class ObstacleGeom:
+    """An obstacle shape and its MuJoCo geom.
+
+    Attributes:
+        shape: the `geosyn.world` shape.
+        xml: the ``<geom>`` element.
+    """
+
+    shape: world.Shape
+    xml: str
+
+    def signed_distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance of points to the shape [m], negative inside.
+
+        Args:
+            points: (S, 3) points in the world frame [m].
+
+        Returns:
+            (S,) distances [m].
+        """
+        return world.signed_distance(self.shape, points)
+
+
+def obstacle_geom(obstacle: world.Shape, index: int, contact: bool = False) -> ObstacleGeom:
+    """The MuJoCo geom ``obstacle<index>`` of a shape.
+
+    Args:
+        obstacle: a `Sphere`, `Box`, `Capsule` or `HalfSpace` of `geosyn.world`.
+        index: index in the scene, used for the geom name ``obstacle<index>``.
+        contact: whether the geom collides with the robot.
+
+    Raises:
+        geosyn.world.InvalidGeometry: ``obstacle`` is not a shape.
+    """
+    shape = check_shape(obstacle, f"obstacles[{index}]")
+    name = quoteattr(f"obstacle{index}")
+    flags = f'contype="0" conaffinity="{ROBOT_BIT if contact else 0}"'
+    style = 'rgba="0.85 0.3 0.25 0.6" group="2"'
+    return ObstacleGeom(shape, f"<geom name={name} {flags} {style} {GEOMS[type(shape)](shape)}/>")
+
+
+# -- clearance ------------------------------------------------------------------------
+class Clearance:
+    """Minimum signed distance between the robot's collision spheres and the obstacles.
+
+    Built once per scene; each call only evaluates (allocates a few (S, 3) arrays).
+    """
+
+    def __init__(
+        self, robot: Robot, model: mujoco.MjModel, obstacles: Sequence[ObstacleGeom]
+    ) -> None:
+        spheres = robot.collision_spheres()
+        self.obstacles = tuple(obstacles)
+        self.body_ids = np.array(
+            [
+                mujoco.mj_name2id(
+                    model, mujoco.mjtObj.mjOBJ_BODY, body_name(robot.model, robot.joint_id(s.joint))
+                )
+                for s in spheres
+            ],
+            dtype=np.int64,
+        )
+        self.centers = np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3)
+        self.radii = np.array([s.radius for s in spheres], dtype=np.float64)
+
+    def sphere_centers(self, xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
+        """(S, 3) world positions of the sphere centres [m] from MuJoCo body poses.
+
+        Args:
+            xpos: (nbody, 3) body positions [m] (``MjData.xpos``).
+            xmat: (nbody, 9) body orientations, row-major (``MjData.xmat``).
+        """
+        R = xmat[self.body_ids].reshape(-1, 3, 3)
+        return xpos[self.body_ids] + np.einsum("sij,sj->si", R, self.centers)
+
+    def __call__(self, xpos: np.ndarray, xmat: np.ndarray) -> float:
+        """Minimum clearance [m] (``inf`` without obstacles or spheres; < 0 penetrating)."""
+        if not self.obstacles or len(self.radii) == 0:
+            return float("inf")
+        pts = self.sphere_centers(xpos, xmat)
+        return float(
+            min(float(np.min(o.signed_distance(pts) - self.radii)) for o in self.obstacles)
+        )
+
+
+__all__ = ["GEOMS", "ROBOT_BIT", "Clearance", "ObstacleGeom", "obstacle_geom"]
