@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint bench clean browser
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -16,13 +16,19 @@ $(STAMP): pyproject.toml | $(PY)
 	touch $@
 
 $(TSTAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet -e ".[test,dev,distributed,video]"
+	$(PY) -m pip install --quiet -e ".[test,dev,distributed,video,viewer]"
 	touch $@ $(STAMP)
+
+# Headless Chromium for tests/test_viewer.py (Debian's packages; installed once, as root).
+browser:
+	@command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1 || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    chromium chromium-driver >/dev/null; }
 
 run: $(STAMP)
 	$(VENV)/bin/geosyn run panda_push_recovery
 
-test: $(TSTAMP)
+test: $(TSTAMP) browser
 	$(PY) -m pytest -q
 
 lint: $(TSTAMP)

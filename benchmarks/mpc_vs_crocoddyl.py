@@ -9,7 +9,7 @@ Run (in geosyn's venv)::
 
     .venv/bin/python benchmarks/mpc_vs_crocoddyl.py [--rounds 3] [--horizon 10 40]
         [--scenario on_reference offset_at_rest] [--skip-geosyn] [--croc-python PATH]
-        [--croc-threads 1] [--save summaries.json]
+        [--croc-threads 1] [--save summaries.json] [--geosyn-option tol=1e-4 ...]
 
 Crocoddyl comes from PyPI into its own venv (``.venv-croc``, gitignored), never into
 geosyn's: ``pip install crocoddyl`` pulls pin 4.1.0, with which the crocoddyl 3.2.1 wheel's
@@ -54,6 +54,7 @@ Timings are wall-clock and depend on the machine's load; numbers go to RESULTS.m
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import os
 import subprocess
@@ -192,7 +193,7 @@ def run_crocoddyl(
 class GeosynSide:
     """geosyn's torque-level MPC, built once per horizon and reused across rounds."""
 
-    def __init__(self, ref: ReferenceSamples) -> None:
+    def __init__(self, ref: ReferenceSamples, options: dict | None = None) -> None:
         from geosyn.controllers import JointTrajectoryReference
         from geosyn.metrics import KineticEnergyMetric
         from geosyn.robots import load_robot
@@ -200,6 +201,7 @@ class GeosynSide:
         self.robot = load_robot("panda")
         self.metric = KineticEnergyMetric(self.robot)
         self.reference = JointTrajectoryReference(ref.t, ref.q, ref.v, ref.a)
+        self.options = dict(options or {})  # GeodesicMPC keyword arguments (--geosyn-option)
         self.mpcs: dict[int, object] = {}
         self.build_time: dict[int, float] = {}
 
@@ -215,6 +217,7 @@ class GeosynSide:
                 dt=MPC_DT,
                 control="torque",
                 reference=self.reference,
+                **self.options,
             )
             self.build_time[horizon] = time.perf_counter() - start
         return self.mpcs[horizon]
@@ -344,6 +347,14 @@ def main(argv: list[str] | None = None) -> int:
         help="Crocoddyl's OpenMP threads (1: like geosyn's solver; see croc_runner.THREADS)",
     )
     parser.add_argument("--save", type=Path, help="write all summaries to this JSON file")
+    parser.add_argument(
+        "--geosyn-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a GeodesicMPC keyword argument for geosyn's side, e.g. tol=1e-4 (repeatable;"
+        " the value is parsed as a Python literal)",
+    )
     args = parser.parse_args(argv)
     if max(args.horizon) > MAX_HORIZON:
         parser.error(f"--horizon at most {MAX_HORIZON} (the saved reference's lookahead)")
@@ -358,7 +369,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"creating the reference {REFERENCE.relative_to(HERE.parent)} (geosyn exp)")
         ref = make_reference()
     results: dict[tuple[str, int, str], list[dict]] = {}
-    side = None if args.skip_geosyn else GeosynSide(ref)
+    options = {}
+    for item in args.geosyn_option:
+        key, _, value = item.partition("=")
+        try:
+            options[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            options[key] = value  # a plain string, e.g. solver=ipopt
+    side = None if args.skip_geosyn else GeosynSide(ref, options)
     croc_info: dict = {}
     with tempfile.TemporaryDirectory(prefix="mpc_vs_croc_") as tmp:
         work = Path(tmp)

@@ -25,14 +25,11 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import multiprocessing as mp
 import os
 import subprocess
 import sys
 import tempfile
 import time
-import traceback
-from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import NamedTuple
 
@@ -196,102 +193,77 @@ CAPACITY = max(len(s.obstacles) for s in ps.SCENES)
 class GeosynSetup:
     """What geosyn builds once per robot and obstacle capacity, before any query.
 
-    Today: the panda (armature 0), its `KineticEnergyMetric` (for scenes without
-    obstacles) and a `ShapedMetric` of it plus an `ObstacleTerm` (default profile, gain
-    1e-3 kg m^2, cutoff 0.2 m, geosyn's 15 collision spheres) with `CAPACITY` slots, both
-    compiled to C, and the log map's shooting functions of both (built by warm-up solves).
-    ``build_time`` [s] is the first-use cost, reported apart.
+    A `geosyn.metrics.planning.Planner` on the panda's `KineticEnergyMetric` (armature 0)
+    with `CAPACITY` obstacle slots and the given collision spheres (the benchmark passes
+    geodex's 59, so both planners avoid the same robot geometry): its collocation NLP with
+    obstacle poses as parameters, the per-node functions compiled to C (disk cache; the
+    clearances' Hessian stays in CasADi's VM, ``compile="first-order"``), and
+    the free-metric shooting functions of the geodesic refinement (built by a warm-up
+    query). ``build_time`` [s] is the first-use cost, reported apart.
     """
 
-    def __init__(self, robot: Robot, steps: int = 100) -> None:
+    def __init__(
+        self,
+        robot: Robot,
+        spheres: tuple[CollisionSphere, ...] | None = None,
+        *,
+        margin: float = 0.005,
+        nodes: int = 24,
+        compile: bool | str = "first-order",
+    ) -> None:
+        from geosyn.metrics.planning import Planner
+
         t0 = time.perf_counter()
         self.robot = robot
-        self.steps = steps
-        self.term = shaping.ObstacleTerm((), capacity=CAPACITY)
-        self.free_metric = KineticEnergyMetric(robot, compile=True)
-        self.metric = shaping.ShapedMetric(self.free_metric, [self.term], compile=True)
-        from geosyn.metrics.geodesic import exp, log_solve
-
+        self.metric = KineticEnergyMetric(robot, compile=True)
+        self.planner = Planner(
+            self.metric, capacity=CAPACITY, spheres=spheres, margin=margin, nodes=nodes,
+            compile=compile,
+        )  # fmt: skip
+        self.planner.collocation(2 * nodes)  # the NLP of the between-node refinement
         q0 = np.asarray(ps.PANDA_HOME)
-        for metric in (self.free_metric, self.metric):
-            try:  # builds (and compiles) the shooting maps at steps and 2 x steps
-                log_solve(metric, q0, q0 + 0.01, steps=steps, max_iter=2, continuation=False)
-            except Exception:  # noqa: BLE001 - only the build matters here
-                pass
-            exp(metric, q0, np.full(7, 0.01), 1.0, steps)
+        self.planner.plan(q0, q0 + 0.05, [], budget=30.0)  # builds the shooting functions
         self.build_time = time.perf_counter() - t0
 
-    def metric_for(self, scene: ps.Scene):  # type: ignore[no-untyped-def]
-        """The metric of ``scene``: kinetic energy alone without obstacles, else shaped."""
-        if not scene.obstacles:
-            return self.free_metric
-        self.term.set_obstacles([to_geosyn(ob) for ob in scene.obstacles])
-        return self.metric
-
-
-def _current_log_child(setup: GeosynSetup, scene: ps.Scene, conn: Connection) -> None:
-    """Child process of `solve_geosyn`: geosyn's current shaped-metric log, then exp."""
-    from geosyn.metrics.geodesic import exp, log_solve
-
-    try:
-        metric = setup.metric_for(scene)
-        res = log_solve(metric, np.array(scene.q_start), np.array(scene.q_goal), steps=setup.steps)
-        geo = exp(metric, np.array(scene.q_start), res.v0, 1.0, setup.steps)
-        conn.send(
-            (
-                "ok",
-                geo.q,
-                f"log: {res.method}, residual {res.residual:.1e} rad, "
-                f"{res.iterations} Newton iterations",
-                {
-                    "residual": res.residual,
-                    "iterations": res.iterations,
-                    "discretization_error": res.discretization_error,
-                },
-            )
-        )
-    except Exception as err:  # noqa: BLE001 - reported to the parent, never swallowed
-        extra = {"residual": getattr(err, "residual", None)}
-        conn.send(("fail", None, f"{type(err).__name__}: {err}", extra))
-    except BaseException:
-        conn.send(("fail", None, traceback.format_exc()[-300:], {}))
-
 
 # =====================================================================================
-# solve_geosyn: THE geosyn SIDE OF THE BENCHMARK. The new boundary-value solver of
-# issue 11 (deliver 1) replaces the body below; keep the signature and return a
-# PlannerRun (solved, wall time without the first-use build, (T, 7) path, message).
+# solve_geosyn: THE geosyn SIDE OF THE BENCHMARK (issue 11, deliver 1): collocation of
+# the kinetic energy with clearance constraints, RRT-Connect seed when it fails.
 # =====================================================================================
 def solve_geosyn(scene: ps.Scene, setup: GeosynSetup, budget: float) -> PlannerRun:
-    """Solve ``scene`` with geosyn within ``budget`` seconds of wall time.
+    """Solve ``scene`` with geosyn's `Planner` within ``budget`` seconds of wall time.
 
-    Today: geosyn's current `log_solve` on the obstacle-shaped metric (Newton shooting,
-    then parameter and target continuation), straight-line initial guess, then `exp`
-    with the same steps for the path. `log_solve` has no time budget of its own, so it
-    runs in a forked child process (which inherits the built metric) and is killed after
-    ``budget`` seconds; a timeout is reported as a failure.
+    The planner stops by itself at the budget (its IPOPT iteration callback and the
+    sampler check the clock), so no child process is needed; a failure is reported with
+    the planner's error message (which says why and what was tried).
     """
-    ctx = mp.get_context("fork")
-    recv, send = ctx.Pipe(duplex=False)
+    from geosyn.metrics.planning import PlanningError
+
     t0 = time.perf_counter()
-    proc = ctx.Process(target=_current_log_child, args=(setup, scene, send), daemon=True)
-    proc.start()
-    send.close()
-    got = recv.poll(budget)
-    wall = time.perf_counter() - t0
-    if not got:
-        proc.kill()
-        proc.join()
-        return PlannerRun(
-            False, wall, None, f"timeout: no result within the {budget:g} s budget", {}
-        )
     try:
-        status, path, message, extra = recv.recv()
-    except EOFError:
-        status, path, message, extra = "fail", None, "child process died", {}
+        plan = setup.planner.plan(
+            np.array(scene.q_start), np.array(scene.q_goal),
+            [to_geosyn(ob) for ob in scene.obstacles], budget=budget,
+        )  # fmt: skip
+    except PlanningError as err:
+        return PlannerRun(False, time.perf_counter() - t0, None, f"{type(err).__name__}: {err}", {})
     wall = time.perf_counter() - t0
-    proc.join()
-    return PlannerRun(status == "ok", wall, path, message, extra)
+    res = plan.result
+    return PlannerRun(
+        True,
+        wall,
+        plan.q,
+        f"{res.kind} (seed: {plan.seed}; {res.iterations} IPOPT iterations, {res.status})",
+        {
+            "kind": res.kind,
+            "seed": plan.seed,
+            "collocation_energy": res.energy,
+            "geodesic_residual": res.geodesic_residual,
+            "active_constraints": res.active,
+            "check_clearance": plan.check_clearance,
+            "attempts": list(plan.attempts),
+        },
+    )
 
 
 # -- judging both paths the same way ----------------------------------------------------
@@ -333,7 +305,7 @@ def _fmt(x: float | None, spec: str) -> str:
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description="geosyn vs geodex on the Panda planning suite")
     p.add_argument("--scenes", default="", help="comma-separated scene names (default: all)")
-    p.add_argument("--budget", type=float, default=20.0, help="geosyn time budget per scene [s]")
+    p.add_argument("--budget", type=float, default=10.0, help="geosyn time budget per scene [s]")
     p.add_argument(
         "--geodex-time",
         type=float,
@@ -353,6 +325,8 @@ def main(argv: list[str] | None = None) -> None:
         default=1e-3,
         help="resampling step of every path for lengths and checks [rad]",
     )
+    p.add_argument("--margin", type=float, default=0.005, help="geosyn node clearance [m]")
+    p.add_argument("--nodes", type=int, default=24, help="geosyn collocation segments")
     p.add_argument("--skip-geosyn", action="store_true", help="geodex only (no geosyn build)")
     p.add_argument("--out", default=str(ROOT / "runs" / "planning" / "planning.json"))
     args = p.parse_args(argv)
@@ -443,7 +417,7 @@ def main(argv: list[str] | None = None) -> None:
     build_time = None
     if not args.skip_geosyn:
         print("geosyn: building the shaped metric (first use) ...", flush=True)
-        setup = GeosynSetup(robot)
+        setup = GeosynSetup(robot, gdx_spheres, margin=args.margin, nodes=args.nodes)
         build_time = setup.build_time
         print(f"geosyn: build {build_time:.1f} s; solving ...", flush=True)
         for sc in scenes:

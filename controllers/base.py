@@ -21,7 +21,7 @@ from geosyn.controllers.errors import ControllerError, NoReference
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_float, check_vector
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
@@ -230,9 +230,8 @@ class Controller(ABC):
         ):
             q = check_vector(q, self.robot.nq, "q")
             v = check_vector(v, nv, "v")
-        t = float(t)
-        if not math.isfinite(t):
-            raise InvalidArgument(f"t must be a finite time [s], got {t!r}")
+        if t.__class__ is not float or not math.isfinite(t):
+            t = check_float(t, "t", unit="s")  # refuses strings, complex, bools, None, NaN
         if self._reference is None:
             raise NoReference(
                 f"{type(self).__name__}.compute called before set_reference; set a reference first"

@@ -80,9 +80,17 @@ class QPController(ComputedTorque):
         braking_acceleration: optional scalar or (nv,) deceleration [rad/s^2] of the
             braking-curve constraint; None disables it.
         eps_abs: proxsuite absolute tolerance (primal and dual residuals).
-        max_iter: proxsuite iteration limit.
+        max_iter: proxsuite outer-iteration limit per tick.
+        max_inner_iter: proxsuite inner-iteration limit per outer iteration
+            (``max_iter_in``). Together they bound one tick's solve to ``max_iter *
+            max_inner_iter`` inner iterations: proxsuite has no wall-time limit, and with
+            its defaults (1500 per outer iteration) one tick under velocity noise took
+            8 s and a million iterations. A solve that hits the bound falls back, flagged
+            (``solver_status = "max_iter"``).
         metric: optional metric used only for reference generation and replanning.
         reference: optional reference to track.
+        compensate_friction, friction_velocity: joint friction in the bias torques, as
+            for `ComputedTorque`.
 
     Attributes:
         qp: the proxsuite ``dense.QP`` (its ``results`` hold the last solve).
@@ -101,11 +109,22 @@ class QPController(ComputedTorque):
         position_horizon: float | None = None,
         braking_acceleration: float | np.ndarray | None = None,
         eps_abs: float = 1e-7,
-        max_iter: int = 1000,
+        max_iter: int = 100,
+        max_inner_iter: int = 30,
         metric: Metric | None = None,
         reference: Reference | None = None,
+        compensate_friction: bool | None = None,
+        friction_velocity: float = 0.01,
     ) -> None:
-        super().__init__(robot, kp, kd, metric, reference)
+        super().__init__(
+            robot,
+            kp,
+            kd,
+            metric,
+            reference,
+            compensate_friction=compensate_friction,
+            friction_velocity=friction_velocity,
+        )
         n = self.nv
         self.dt = check_positive(dt, "dt")
         self.eps = check_positive(eps, "eps")
@@ -126,6 +145,7 @@ class QPController(ComputedTorque):
             self.braking_acceleration = b
         self.eps_abs = check_positive(eps_abs, "eps_abs")
         self.max_iter = check_int(max_iter, "max_iter", low=1)
+        self.max_inner_iter = check_int(max_inner_iter, "max_inner_iter", low=1)
         # Bounds are computed for both sides at once on stacked (2 nv,) arrays: the upper
         # limit as is, the lower one mirrored (distance q - q_min, velocity -v).
         self._lim = np.concatenate([robot.q_max, -np.asarray(robot.q_min)]).astype(np.float64)
@@ -166,6 +186,8 @@ class QPController(ComputedTorque):
         model, data = self._model, self._data
         self._A[:, :n] = pin.crba(model, data, q)
         np.negative(pin.rnea(model, data, q, v, self._zero), out=self._b)
+        if self.compensate_friction:  # joint friction joins the bias torques
+            self._b -= self.joint_friction(v)
         dt = self.dt
         x, w, d, bound = self._x2, self._w2, self._d2, self._bound2
         x[:n] = q
@@ -203,6 +225,7 @@ class QPController(ComputedTorque):
         s.eps_abs = self.eps_abs
         s.eps_rel = 0.0
         s.max_iter = self.max_iter
+        s.max_iter_in = self.max_inner_iter
         s.verbose = False
         s.initial_guess = proxsuite.proxqp.InitialGuess.EQUALITY_CONSTRAINED_INITIAL_GUESS
         self.qp.init(self._H, self._g, self._A, self._b, None, None, None, self._lbox, self._ubox)

@@ -8,6 +8,8 @@ compiled once per machine, whichever process asks first; files appear atomically
 (written under a temporary name, then ``os.replace``), so concurrent processes never
 load a half-written library. :func:`compile_library` compiles several functions into one
 library through the same cache (e.g. a function with hand-made derivatives).
+:func:`compile_recipe` finds such a library from a caller's description of it (a
+recipe) instead of its source, so a cache hit builds no symbolic graph at all.
 
 Cache location, first that applies: the ``cache_dir`` argument,
 ``$GEOSYN_CACHE_DIR/codegen``, ``$XDG_CACHE_HOME/geosyn/codegen``,
@@ -26,6 +28,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+import time
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -33,13 +36,14 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from geosyn.core import GeosynError, InvalidArgument
+from geosyn.core import GeosynError, InvalidArgument, library_digest
 
 __all__ = [
     "CodegenError",
     "clear_cache",
     "compile_function",
     "compile_library",
+    "compile_recipe",
     "default_cache_dir",
     "find_compiler",
     "numpy_function",
@@ -54,8 +58,9 @@ LARGE_SOURCE_CHARS = 500_000
 """Source length [characters] from which :func:`compile_library` uses LARGE_SOURCE_FLAGS."""
 _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
-# <function name>_<24 hex digits of the key>.<so|c>; clear_cache deletes only these.
-_CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c)$")
+# <function name>_<24 hex digits of the key>.<so|c|recipe|so.sha256>; clear_cache deletes
+# only these.
+_CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c|recipe|so\.sha256)$")
 _TMP_PREFIX = ".tmp-geosyn-"
 # Temporary folders clear_cache removes: this module's, and those of the MPC's former
 # private copy of this cache (left behind by a compile killed midway).
@@ -206,6 +211,12 @@ def _compile_cached(
     return _build_cached(name, source, [name], cache_dir, flags, compiler)[name]
 
 
+def _library_stem(name: str, source: str, cc: str, flags: Sequence[str]) -> str:
+    """``<name>_<24 hex>``: the cache file name (without suffix) of a compiled source."""
+    key = hashlib.sha256("\0".join([source, cc, *flags]).encode()).hexdigest()[:24]
+    return f"{name}_{key}"
+
+
 def _build_cached(
     name: str,
     source: str,
@@ -221,15 +232,21 @@ def _build_cached(
             "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
             f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
         )
-    key = hashlib.sha256("\0".join([source, cc, *flags]).encode()).hexdigest()[:24]
-    stem = f"{name}_{key}"
+    stem = _library_stem(name, source, cc, flags)
     library = cache_dir / f"{stem}.so"
     if library.is_file():
-        try:
-            return {n: _load(n, library) for n in load}
-        except CodegenError as err:
-            # A damaged file (a full disk, a killed copy from elsewhere): build it anew.
-            warnings.warn(f"{err}; recompiling it", RuntimeWarning, stacklevel=4)
+        damage = library_digest.damage(library)
+        if damage is None:
+            try:
+                return {n: _load(n, library) for n in load}
+            except CodegenError as err:
+                damage = str(err)
+        # A damaged file (a full disk, a killed copy, a bit flip): never dlopen it, build anew.
+        warnings.warn(
+            f"compiled-code cache: {library.name} is damaged ({damage}); recompiling it",
+            RuntimeWarning,
+            stacklevel=4,
+        )
     try:
         cache_dir.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=_TMP_PREFIX, dir=cache_dir))
@@ -240,8 +257,12 @@ def _build_cached(
         c_file.write_text(source)
         built = work / f"{stem}.so"
         _compile(cc, flags, c_file, built)
-        # Same folder, so os.replace is an atomic rename: readers see all or nothing.
+        digest = work / f"{stem}.so{library_digest.DIGEST_SUFFIX}"
+        digest.write_text(library_digest.sha256_hex(built.read_bytes()) + "\n")
+        # Same folder, so os.replace is an atomic rename: readers see all or nothing. The
+        # digest goes first: a reader that pairs it with an older library rebuilds (safe).
         os.replace(c_file, cache_dir / c_file.name)
+        os.replace(digest, library_digest.digest_path(library))
         os.replace(built, library)
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -310,6 +331,100 @@ def compile_library(
     return _build_cached(
         name, source, wanted, _resolve_cache_dir(cache_dir), tuple(flags), compiler
     )
+
+
+def compile_recipe(
+    name: str,
+    recipe: str,
+    make_functions: Callable[[], Sequence[ca.Function]],
+    cache_dir: str | os.PathLike[str] | None = None,
+    *,
+    load: Sequence[str],
+    flags: Sequence[str] | None = None,
+    compiler: str | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, ca.Function]:
+    """:func:`compile_library` keyed by a recipe: a cache hit builds no CasADi graph.
+
+    Building large symbolic functions (e.g. the Jacobian of an RK4 step on the ABA) and
+    generating their C source takes seconds even when the library is cached, because the
+    library's key is the hash of that source. Here the caller names everything the
+    functions depend on in ``recipe`` (a model description, the settings, a digest of the
+    code that builds them); a small index file ``<name>_<24 hex>.recipe`` maps the
+    recipe's hash to the library, and a hit only loads the library (milliseconds). On a
+    miss ``make_functions`` builds the functions, :func:`compile_library`'s cache compiles
+    them (or finds them compiled), and the index is written atomically afterwards, so
+    concurrent processes only ever see a complete index pointing at a complete library.
+
+    Args:
+        name: library name, a C identifier.
+        recipe: text determining the functions completely; a different text, a new key.
+        make_functions: builds the functions (called on a miss only).
+        cache_dir: folder of the compiled libraries; default :func:`default_cache_dir`.
+        load: names of the functions to load back.
+        flags: as for :func:`compile_library` (part of the key).
+        compiler: C compiler executable; default :func:`find_compiler`.
+        progress: called with a line of text before and after each slow step of a miss
+            (building the graph, compiling); None reports nothing.
+
+    Returns:
+        ``{function name: casadi.Function}`` for the names in ``load``.
+
+    Raises:
+        InvalidArgument: ``name`` is not a C identifier, or ``load`` names a function
+            that ``make_functions`` did not build.
+        CodegenError: no compiler, compilation or loading failed.
+    """
+    if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
+        raise InvalidArgument(f"name: {name!r} is not a C identifier")
+    cc = compiler if compiler is not None else find_compiler()
+    if cc is None:
+        raise CodegenError(
+            "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
+            f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
+        )
+    folder = _resolve_cache_dir(cache_dir)
+    extra = () if flags is None else tuple(flags)
+    index_key = hashlib.sha256("\0".join([recipe, cc, *extra]).encode()).hexdigest()[:24]
+    index = folder / f"{name}_{index_key}.recipe"
+    stem = index.read_text().strip() if index.is_file() else ""
+    library = folder / f"{stem}.so"
+    if (
+        re.fullmatch(rf"{re.escape(name)}_[0-9a-f]{{24}}", stem)
+        and library.is_file()
+        and library_digest.damage(library) is None  # else rebuilt below (never dlopen it)
+    ):
+        try:
+            return {n: _load(n, library) for n in load}
+        except CodegenError as err:  # damaged: rebuild below
+            warnings.warn(f"{err}; rebuilding it", RuntimeWarning, stacklevel=2)
+    report = progress if progress is not None else (lambda _line: None)
+    start = time.perf_counter()
+    report(f"{name}: building the symbolic functions (first use; cached afterwards)")
+    funs = list(make_functions())
+    source = _generate_source(name, funs)
+    used = tuple(flags) if flags is not None else None
+    if used is None:
+        used = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
+    report(
+        f"{name}: {time.perf_counter() - start:.1f} s; compiling {len(source) / 1e6:.1f} MB "
+        f"of C with {' '.join(used)} (skipped if already compiled)"
+    )
+    names = [f.name() for f in funs]
+    unknown = sorted(set(load) - set(names))
+    if unknown:
+        raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
+    result = _build_cached(name, source, list(load), folder, used, cc)
+    try:  # the index appears atomically, after the library it names
+        fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, dir=folder)
+        os.chmod(tmp, 0o644)  # like the library it names (mkstemp makes it private)
+        with os.fdopen(fd, "w") as fh:
+            fh.write(_library_stem(name, source, cc, used) + "\n")
+        os.replace(tmp, index)
+    except OSError as err:
+        warnings.warn(f"could not write the recipe index {index}: {err}", RuntimeWarning, 2)
+    report(f"{name}: ready in {time.perf_counter() - start:.1f} s")
+    return result
 
 
 def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:

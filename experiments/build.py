@@ -41,7 +41,7 @@ from geosyn.sim import (
     TorqueNoise,
     Wrench,
 )
-from geosyn.sim.log import ARRAY_FIELDS
+from geosyn.sim.log import ARRAY_FIELDS, RUN_META
 from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies, pga
 from geosyn.world import Box, Capsule, HalfSpace, Payload, Shape, Sphere, rotation_from_rpy
 
@@ -156,6 +156,10 @@ def reference_geodesic(
     ref: S.ReferenceConfig, metric: Metric, synergies: Sequence[GeodesicSynergy]
 ) -> Geodesic:
     """The geodesic of a reference section over ``ref.duration`` (before time scaling)."""
+    if ref.type == "goals" or ref.type == "planned":
+        from geosyn.experiments.errors import ProcedureFailed
+
+        raise ProcedureFailed(f"a {ref.type!r} reference is built by kind tracking")
     if ref.type == "combination":
         q_start = None if ref.q_start is None else np.array(ref.q_start)
         syn = combine(list(synergies), ref.weights, q_start)
@@ -173,17 +177,23 @@ def build_reference(
 
         raise ProcedureFailed(f"experiment {cfg.name!r} has no reference section")
     geo = reference_geodesic(cfg.reference, metric, synergies)
-    return tracked_reference(geo, metric, cfg.reference.time_scale), geo
+    ref = tracked_reference(geo, metric, cfg.reference.time_scale, cfg.reference.rest_to_rest)
+    return ref, geo
 
 
-def tracked_reference(geo: Geodesic, metric: Metric, time_scale: float = 1.0) -> GeodesicReference:
-    """The reference a controller tracks along ``geo``.
+def tracked_reference(
+    geo: Geodesic, metric: Metric, time_scale: float = 1.0, rest_to_rest: bool = False
+) -> GeodesicReference:
+    """The reference a controller tracks along ``geo`` (``rest_to_rest``: the quintic
+    rest-to-rest time law of `GeodesicReference`).
 
     Accelerations are the metric's exact geodesic accelerations at the samples, interpolated
     between them: a shaped metric's exact geodesic acceleration is too costly to evaluate at
     every control tick.
     """
-    return GeodesicReference(geo, metric, time_scale=time_scale, exact_acceleration=False)
+    return GeodesicReference(
+        geo, metric, time_scale=time_scale, rest_to_rest=rest_to_rest, exact_acceleration=False
+    )
 
 
 CONTROLLERS: dict[str, Callable[[Any, Robot, Metric, float], Controller]] = {
@@ -242,6 +252,7 @@ def simulate(
         obstacles=build_obstacles(cfg) if obstacles is None else obstacles,
         disturbances=build_disturbances(cfg) if disturbances is None else disturbances,
         seed=cfg.seed,
+        plant=cfg.robot.plant,
         **sim.kwargs(),
     )
     return s.run(q0, v0, sim.duration if duration is None else duration, reference)
@@ -259,10 +270,12 @@ SIM_FIELDS = tuple(f for f in ARRAY_FIELDS if f not in _NOT_SAVED)
 
 
 def sim_arrays(prefix: str, res: SimResult) -> dict[str, np.ndarray]:
-    """The per-tick log of a run as ``{prefix}__{field}`` arrays, plus its status."""
+    """The per-tick log of a run as ``{prefix}__{field}`` arrays, plus its status and its
+    metadata (``{prefix}__meta``: joint names, control period, ...)."""
     out = {f"{prefix}__{f}": np.asarray(getattr(res, f)) for f in SIM_FIELDS}
     out[f"{prefix}__status"] = np.array(res.status)
     out[f"{prefix}__wall_time"] = np.array(res.wall_time)
+    out[f"{prefix}{RUN_META}"] = np.array(res.metadata_json())  # SimResult.load(path, run)
     return out
 
 

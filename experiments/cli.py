@@ -12,6 +12,7 @@ import inspect
 import os
 import re
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -31,27 +32,50 @@ def command(name: str, help_text: str) -> Callable:
     return wrap
 
 
-@command("robots", "list the built-in robots with DoF and total mass")
+@command("robots", "list the robots known by name: DoF, mass, end-effector, source")
 def cmd_robots(args: argparse.Namespace) -> int:
-    from geosyn.robots import BUILTINS, load_robot
+    from pathlib import Path
 
-    print(f"{'robot':<10} {'DoF':>3} {'mass [kg]':>10}  end-effector")
+    from geosyn.robots import BUILTINS, load_robot
+    from geosyn.robots.catalog import catalog
+
+    entries = catalog()
+    print(f"{'robot':<28} {'DoF':>3} {'mass [kg]':>10}  {'end-effector':<30} source")
     for name in BUILTINS:
-        r = load_robot(name)
-        print(f"{name:<10} {r.nv:>3} {r.total_mass:>10.3f}  {r.ee_frame}")
+        entry = entries.get(name)
+        floating = entry is not None and entry.floating
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                r = load_robot(name, fixed_base=True) if floating else load_robot(name)
+            except GeosynError as err:
+                print(f"{name:<28}   -          -  {'-':<30} cannot load: {err}")
+                continue
+        source = "built-in" if r.source_file is None else Path(r.source_file).name
+        notes = ["floating base: needs fixed_base=True"] if floating else []
+        notes += [f"{len(caught)} warning(s) on loading"] if caught else []
+        extra = f" ({'; '.join(notes)})" if notes else ""
+        print(f"{name:<28} {r.nv:>3} {r.total_mass:>10.3f}  {r.ee_frame:<30} {source}{extra}")
     return 0
 
 
 @command("list", "list the built-in experiments and robots")
 def cmd_list(args: argparse.Namespace) -> int:
-    from geosyn.experiments.loader import builtin_names, load_config
-    from geosyn.robots import BUILTINS
+    # The descriptions are read from the YAML files without validating them: validation
+    # imports the whole library (MuJoCo, CasADi), and `geosyn list` must answer at once.
+    from pathlib import Path
+
+    import yaml
+
+    from geosyn.experiments import configs
+    from geosyn.robots.builtins import BUILTINS
 
     print("experiments:")
-    for name in builtin_names():
-        cfg, _ = load_config(name)
-        first = re.split(r"(?<=\.)\s", " ".join(cfg.description.split()), maxsplit=1)[0]
-        print(f"  {name:<31} {first}")
+    for path in sorted(Path(configs.__file__).parent.glob("*.yaml")):
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        text = data.get("description", "") if isinstance(data, dict) else ""
+        first = re.split(r"(?<=\.)\s", " ".join(str(text).split()), maxsplit=1)[0]
+        print(f"  {path.stem:<31} {first}")
     print("robots:")
     print("  " + ", ".join(BUILTINS))
     return 0
@@ -79,7 +103,8 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     _experiment_arguments(
         p,
         "run directory (default runs/<name>-<timestamp>)",
-        "override a config field, e.g. --set simulation.duration=1.0 (repeatable)",
+        "override a config field, e.g. --set simulation.duration=1.0; KEY+=VALUE appends"
+        " to a list, e.g. --set 'controllers+={type: qp}' (repeatable)",
     )
     p.add_argument("--video", action="store_true", help="also render videos")
     p.add_argument("--force", action="store_true", help="replace an existing run directory")
@@ -125,6 +150,14 @@ def _sweep_arguments(p: argparse.ArgumentParser) -> None:
         metavar="ADDRESS",
         help="run on Ray: a cluster address, or 'local'",
     )
+    p.add_argument(
+        "--max-runs",
+        dest="max_runs",
+        type=int,
+        default=1000,
+        metavar="N",
+        help="refuse a sweep of more runs (grid points x seeds) than N (default 1000)",
+    )
 
 
 @command("sweep", "run an experiment over a grid of settings and seeds")
@@ -142,10 +175,18 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _report_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("run_dir", metavar="RUN_DIR", help="a run directory written by geosyn run")
+    p.add_argument(
+        "run_dir",
+        metavar="RUN_DIR",
+        help="a run directory (geosyn run) or sweep directory (geosyn sweep)",
+    )
 
 
-@command("report", "regenerate summary.md, summary.json and plots of a run directory")
+@command(
+    "report",
+    "regenerate summary.md, summary.json and plots of a run directory (of a sweep"
+    " directory: its tables and a plot per grid axis)",
+)
 def cmd_report(args: argparse.Namespace) -> int:
     from geosyn.experiments.report import report
 
@@ -175,6 +216,11 @@ ARGUMENTS: dict[str, Callable[[argparse.ArgumentParser], None]] = {
     "sweep": _sweep_arguments,
     "report": _report_arguments,
 }
+
+
+# The browser viewers register `view` and `explore` (viser is imported only when they run);
+# `cli_schema` registers `schema` and `init` (the schema is imported only when they run).
+from geosyn.experiments import cli_schema, viewer_cli  # noqa: E402, F401
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -53,9 +53,34 @@ class RunDirectoryExists(ExperimentError):
         super().__init__(f"out {str(path)!r} {reason}")
 
 
+class OutputNotWritable(ExperimentError):
+    """A run or sweep directory could not be written (disk full, read-only, no permission).
+
+    Attributes:
+        path: the directory.
+        errno: the operating system's error number (e.g. ``errno.ENOSPC``), if known.
+    """
+
+    def __init__(self, path: str | Path, err: OSError) -> None:
+        self.path = Path(path)
+        self.errno = err.errno
+        what = err.strerror or str(err)
+        where = f" ({err.filename})" if err.filename else ""
+        super().__init__(
+            f"out {str(path)!r} cannot be written: {what}{where}; free disk space, fix the"
+            " permissions or choose another --out"
+        )
+
+
 class ProcedureFailed(ExperimentError):
     """A procedure could not produce its results (a solver failed, a run diverged, a
     sweep's run failed, ...)."""
 
 
-__all__ = ["ConfigError", "ExperimentError", "ProcedureFailed", "RunDirectoryExists"]
+__all__ = [
+    "ConfigError",
+    "ExperimentError",
+    "OutputNotWritable",
+    "ProcedureFailed",
+    "RunDirectoryExists",
+]

@@ -1,15 +1,21 @@
 """Loading experiment configs: YAML files or built-in names, ``--set`` overrides, validation.
 
-Every problem is reported as a `ConfigError` naming the file and the field path, e.g.
-``panda_push_recovery.yaml: controllers.1.kp: Input should be greater than or equal to 0``.
-Validation order: YAML syntax, overrides, ``robot`` (the robot is loaded to learn its
-DoF), the whole document with the DoF as context, ``kind`` against the registered
-procedures, ``params`` against the procedure's ``Params`` model, cross-field checks.
+Problems are reported as one `ConfigError` naming the file and the field path, e.g.
+``panda_push_recovery.yaml: controllers.1.kp: Input should be greater than or equal to 0``,
+with every other problem of the same stage listed after the first
+(`geosyn.experiments.config_errors`; unknown keys and types name the closest valid ones).
+Validation order: YAML syntax, overrides, then one stage: ``robot`` (the robot is loaded
+to learn its DoF), the whole document with the DoF as context, ``kind`` against the
+registered procedures, ``params`` against the procedure's ``Params`` model; then
+resource limits, cross-field checks and names only the built scene knows.
+
+``--set key.path=value`` sets a field; ``--set key.path+=value`` appends to a list.
 """
 
 from __future__ import annotations
 
 import copy
+import difflib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -18,7 +24,15 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from geosyn.core.errors import GeosynError
+from geosyn.experiments.config_errors import raise_problems, validation_errors
 from geosyn.experiments.errors import ConfigError
+from geosyn.experiments.limits import (
+    MAX_DEPTH,
+    SAFE_LOADER,
+    check_structure,
+    read_text,
+    resource_errors,
+)
 from geosyn.experiments.schema import ExperimentConfig, RobotConfig, consistency_errors
 
 #: Folder of the built-in experiment configs.
@@ -55,12 +69,15 @@ def read_yaml(path: Path) -> dict[str, Any]:
     Raises:
         ConfigError: unreadable file, bad syntax or not a mapping.
     """
+    text = read_text(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(path.name, None, f"cannot read: {err.strerror or err}") from err
-    try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=SAFE_LOADER)
+    except RecursionError:
+        raise ConfigError(
+            path.name, None, f"nested deeper than Python can parse; at most {MAX_DEPTH} levels"
+        ) from None
+    except (ValueError, TypeError, OverflowError) as err:  # e.g. a date 2001-13-01
+        raise ConfigError(path.name, None, f"invalid YAML value: {err}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
@@ -72,11 +89,13 @@ def read_yaml(path: Path) -> dict[str, Any]:
         raise ConfigError(
             path.name, None, f"must be a YAML mapping of sections, got {type(data).__name__}"
         )
+    check_structure(data, path.name)
     return data
 
 
 def parse_override(text: str) -> tuple[str, Any]:
-    """Split ``key.path=value``; the value is parsed as YAML (``0.5``, ``[1, 2]``, ``true``).
+    """Split ``key.path=value`` (or ``key.path+=value``, which appends: the key keeps its
+    ``+``); the value is parsed as YAML (``0.5``, ``[1, 2]``, ``true``, ``{type: qp}``).
 
     Raises:
         ConfigError: no ``=`` or an empty key.
@@ -86,19 +105,34 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep or not key or any(not part for part in key.split(".")):
         raise ConfigError("--set", text, "expected key.path=value (e.g. simulation.duration=1.0)")
     try:
-        parsed = yaml.safe_load(value) if value.strip() else ""
+        parsed = yaml.load(value, Loader=SAFE_LOADER) if value.strip() else ""
+    except RecursionError:
+        raise ConfigError("--set", key, f"nested deeper than {MAX_DEPTH} levels") from None
+    except (ValueError, TypeError, OverflowError) as err:
+        raise ConfigError("--set", key, f"invalid YAML value: {err}") from None
     except yaml.YAMLError:
         parsed = value
+    check_structure(parsed, f"--set {key}")
     return key, parsed
 
 
 def apply_override(data: dict[str, Any], key: str, value: Any) -> None:
     """Set ``data[key.path] = value`` in place; missing mapping levels are created.
 
+    A key ending in ``+`` appends to the list there instead (``--set
+    controllers+={type: qp}`` adds a controller; a missing list is created).
+
     Raises:
-        ConfigError: the path goes through a scalar, or a list index is not an index in
-            range.
+        ConfigError: the path goes through a scalar, a list index is not an index in
+            range, or ``+`` names something that is not a list.
     """
+    if key.endswith("+"):
+        path = key[:-1]
+        current = _get(data, path)
+        if current is not None and not isinstance(current, list):
+            raise ConfigError("--set", key, f"{path} is not a list; '+=' appends to a list")
+        apply_override(data, path, [*(current or []), value])
+        return
     parts = key.split(".")
     node: Any = data
     for depth, part in enumerate(parts):
@@ -127,53 +161,21 @@ def apply_override(data: dict[str, Any], key: str, value: Any) -> None:
             raise ConfigError("--set", key, f"{here} is a value ({node!r}), not a section")
 
 
-def _field_path(loc: tuple[Any, ...], data: Any) -> str:
-    """Dotted field path of a pydantic error location, without union/tag members."""
-    out: list[str] = []
+def _get(data: Any, path: str) -> Any:
+    """The value at a dotted path (None when any level is missing)."""
     node = data
-    for item in loc:
+    for part in path.split("."):
         if isinstance(node, dict):
-            if item in node:
-                out.append(str(item))
-                node = node[item]
-            elif isinstance(item, str) and node.get("type") == item:
-                continue  # discriminated-union tag
-            elif isinstance(item, str) and ("[" in item or item.startswith("function-")):
-                continue  # union member or validator name
-            else:
-                out.append(str(item))
-                node = None
-        elif isinstance(node, list) and isinstance(item, int):
-            out.append(str(item))
-            node = node[item] if 0 <= item < len(node) else None
-        elif node is None:
-            if not (isinstance(item, str) and ("[" in item or item.startswith("function-"))):
-                out.append(str(item))
+            node = node.get(part)
+        elif (
+            isinstance(node, list)
+            and part.lstrip("-").isdigit()
+            and -len(node) <= int(part) < len(node)
+        ):
+            node = node[int(part)]
         else:
-            break  # a scalar: the remaining items name union members
-    return ".".join(out) or "<top level>"
-
-
-def _raise_validation(err: ValidationError, file: str, data: Any, prefix: str = "") -> None:
-    first = err.errors()[0]
-    field = _field_path(tuple(first["loc"]), data)
-    if prefix:
-        field = prefix if field == "<top level>" else f"{prefix}.{field}"
-    msg = first["msg"]
-    if first["type"] == "extra_forbidden":
-        msg = "unknown key (Extra inputs are not permitted)"
-    elif first["type"] == "union_tag_invalid":
-        ctx = first.get("ctx", {})
-        msg = f"unknown type {ctx.get('tag')!r}; allowed: {ctx.get('expected_tags')}"
-    elif first["type"] == "union_tag_not_found":
-        msg = f"missing 'type'; allowed: {first.get('ctx', {}).get('expected_tags', '')}"
-    if msg.startswith("Value error, "):
-        msg = msg[len("Value error, ") :]
-    paths = {_field_path(tuple(e["loc"]), data) for e in err.errors()}
-    more = len(paths) - 1
-    if more:
-        msg += f" (and errors in {more} more field{'s' if more > 1 else ''})"
-    raise ConfigError(file, field, msg) from None
+            return None
+    return node
 
 
 def scene_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
@@ -244,41 +246,60 @@ def validate_config(data: Mapping[str, Any], file: str = "<config>") -> Experime
         The config; ``params`` holds the procedure's validated parameters with defaults.
 
     Raises:
-        ConfigError: the first problem found, naming ``file`` and the field path.
+        ConfigError: naming ``file`` and the field path of the first problem, with every
+            other problem of the same stage listed after it (the structure, robot, kind
+            and params are one stage; resource limits, cross-field and procedure checks
+            and scene names come after it).
     """
     from geosyn.experiments.procedures import PROCEDURES
     from geosyn.robots import load_robot
 
+    check_structure(dict(data), file)
     data = copy.deepcopy(dict(data))
+    problems: dict[str, str] = {}  # every problem of the file, one per field
+    robot = None
     if "robot" not in data:
-        raise ConfigError(file, "robot", "Field required")
+        problems["robot"] = "Field required"
+    else:
+        try:
+            robot_cfg = RobotConfig.model_validate(data["robot"])
+            robot = load_robot(robot_cfg.name, **robot_cfg.options.model_dump(exclude_none=True))
+        except ValidationError as err:
+            problems.update(validation_errors(err, data["robot"], RobotConfig, "robot"))
+        except GeosynError as err:
+            problems["robot"] = str(err)
+    context = {"nv": robot.nv} if robot is not None else None
+    cfg = None
     try:
-        robot_cfg = RobotConfig.model_validate(data["robot"])
+        cfg = ExperimentConfig.model_validate(data, context=context)
     except ValidationError as err:
-        _raise_validation(err, file, data["robot"], "robot")
-    try:
-        robot = load_robot(robot_cfg.name, **robot_cfg.options.model_dump(exclude_none=True))
-    except GeosynError as err:
-        raise ConfigError(file, "robot", str(err)) from None
-    try:
-        cfg = ExperimentConfig.model_validate(data, context={"nv": robot.nv})
-    except ValidationError as err:
-        _raise_validation(err, file, data)
-    if cfg.kind not in PROCEDURES:
-        raise ConfigError(
-            file, "kind", f"unknown kind {cfg.kind!r}; registered: {', '.join(sorted(PROCEDURES))}"
+        for field, reason in validation_errors(err, data, ExperimentConfig):
+            if not any(field == f or field.startswith(f + ".") for f in problems):
+                problems[field] = reason
+    kind = data.get("kind")
+    params: Any = None
+    if isinstance(kind, str) and kind not in PROCEDURES:
+        close = difflib.get_close_matches(kind, list(PROCEDURES), n=1, cutoff=0.6)
+        hint = f"; did you mean {close[0]!r}?" if close else ";"
+        problems["kind"] = (
+            f"unknown kind {kind!r}{hint} registered: {', '.join(sorted(PROCEDURES))}"
         )
-    params_model: type[BaseModel] = PROCEDURES[cfg.kind].Params
-    try:
-        params = params_model.model_validate(cfg.params, context={"nv": robot.nv})
-    except ValidationError as err:
-        _raise_validation(err, file, cfg.params, "params")
+    elif isinstance(kind, str) and isinstance(data.get("params", {}), dict):
+        params_model: type[BaseModel] = PROCEDURES[kind].Params
+        raw = data.get("params") or {}
+        try:
+            params = params_model.model_validate(raw, context=context)
+        except ValidationError as err:
+            problems.update(validation_errors(err, raw, params_model, "params"))
+    if problems or cfg is None or robot is None or params is None:
+        raise_problems(file, list(problems.items()) or [("<top level>", "invalid config")])
     cfg.params = params.model_dump(mode="json")
-    problems = consistency_errors(cfg, robot.nv) + PROCEDURES[cfg.kind].check(cfg, params, robot)
-    problems += scene_errors(cfg, robot) if not problems else []
-    if problems:
-        field, reason = problems[0]
-        raise ConfigError(file, field, reason)
+    later = resource_errors(cfg)
+    later += consistency_errors(cfg, robot.nv) if not later else []
+    later += PROCEDURES[cfg.kind].check(cfg, params, robot) if not later else []
+    later += scene_errors(cfg, robot) if not later else []
+    if later:
+        raise_problems(file, later)
     return cfg
 
 

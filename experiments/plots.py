@@ -47,72 +47,231 @@ def save(fig: Figure, path: Path) -> Path:
     return path
 
 
+#: Smallest value a log axis shows [same unit as the data]: zeros are drawn there.
+LOG_FLOOR = 1e-12
+
+
+def reference_end(run: dict[str, np.ndarray], rtol: float = 1e-12) -> float | None:
+    """Time [s] at which a run's reference stops moving, if that is before the run ends.
+
+    A reference that ends is held at its last configuration (`GeodesicReference`), so the
+    velocity steps to zero there: the tracking error and torques may jump at that time.
+
+    Args:
+        run: arrays with ``t`` (T,) [s] and ``q_ref`` (T, nq) [rad] (NaN: no reference).
+        rtol: changes smaller than this (relative to the reference's range) are "held".
+
+    Returns:
+        The first time of the held tail, or None (no reference, or it moves to the end).
+    """
+    q_ref, t = run.get("q_ref"), run.get("t")
+    if q_ref is None or t is None or len(t) < 3 or not np.all(np.isfinite(q_ref[-1])):
+        return None
+    scale = max(float(np.nanmax(np.abs(q_ref - q_ref[0]))), 1.0)
+    moving = np.nonzero(np.any(np.abs(q_ref - q_ref[-1]) > rtol * scale, axis=1))[0]
+    if moving.size == 0 or moving[-1] >= len(t) - 2:
+        return None
+    return float(t[moving[-1] + 1])
+
+
+def log_floor(values: Sequence[np.ndarray]) -> float:
+    """A log axis bottom just below the smallest positive value (at least `LOG_FLOOR`)."""
+    pos = np.concatenate([np.ravel(v)[np.ravel(v) > 0] for v in values] or [np.ones(1)])
+    if pos.size == 0:
+        return 1e-6
+    return max(LOG_FLOOR, 10.0 ** np.floor(np.log10(np.percentile(pos, 0.5))))
+
+
+def shade_windows(ax: Any, windows: Sequence[tuple[float, float, str]]) -> None:
+    """Shade (start, stop, label) time windows [s] and label each at the top of the axes."""
+    for start, stop, text in windows:
+        ax.axvspan(start, max(stop, start + 0.005), color="0.85", zorder=0)
+        ax.annotate(
+            text,
+            (start, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(2, -2),
+            textcoords="offset points",
+            fontsize=8,
+            va="top",
+        )
+
+
+def mark_reference_end(ax: Any, t_end: float | None) -> None:
+    """A dotted vertical line where the reference stops (its velocity steps to zero)."""
+    if t_end is None:
+        return
+    ax.axvline(t_end, color="0.35", ls=":", lw=1.2, label=f"reference ends ({t_end:g} s)")
+
+
 def tracking_error_plot(
     path: Path,
     runs: dict[str, dict[str, np.ndarray]],
     threshold: float | None = None,
     windows: Sequence[tuple[float, float, str]] = (),
+    t_ref_end: float | None = None,
 ) -> Path:
-    """Tracking error norm ``||q_ref - q||`` [rad] against time, one line per run.
+    """Tracking error norm ``||q_ref - q||`` [rad] against time, one line per run (log axis).
+
+    The axis bottom sits just below the smallest positive error, so no series is hidden
+    below it (exact zeros are drawn at the bottom). Where the reference ends before the
+    run (`reference_end`, found from the runs when ``t_ref_end`` is None) a dotted line
+    explains the step there.
 
     Args:
         path: PNG to write.
-        runs: label -> arrays with ``t`` (T,) [s] and ``tracking_error`` (T, n) [rad].
-        threshold: horizontal line [rad].
+        runs: label -> arrays with ``t`` (T,) [s] and ``tracking_error`` (T, n) [rad]
+            (and ``q_ref`` (T, n) [rad] to find the reference's end).
+        threshold: horizontal line [rad] (the recovery threshold).
         windows: (start, stop, label) time windows to shade [s] (pushes, ...).
+        t_ref_end: time the reference ends [s]; None: found from the runs.
     """
     fig, ax = figure((8, 4))
+    norms = {label: np.linalg.norm(r["tracking_error"], axis=1) for label, r in runs.items()}
+    floor = log_floor(list(norms.values()))
     for (label, r), c in zip(runs.items(), COLORS * 4, strict=False):
-        err = np.linalg.norm(r["tracking_error"], axis=1)
-        ax.semilogy(r["t"], np.maximum(err, 1e-12), color=c, lw=1.4, label=label)
-    for start, stop, text in windows:
-        ax.axvspan(start, stop, color="0.85", zorder=0)
-        ax.text(start, ax.get_ylim()[1], text, fontsize=8, va="top")
-    ax.set_ylim(bottom=1e-6)
+        ax.semilogy(r["t"], np.maximum(norms[label], floor), color=c, lw=1.4, label=label)
+    ax.set_ylim(bottom=floor)
+    shade_windows(ax, windows)
+    if t_ref_end is None:
+        t_ref_end = next((e for e in map(reference_end, runs.values()) if e is not None), None)
+    mark_reference_end(ax, t_ref_end)
     if threshold is not None:
         ax.axhline(threshold, color="k", ls="--", lw=0.8, label=f"threshold {threshold:g} rad")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel(r"$\|q_{ref} - q\|$ [rad]")
+    ax.set_ylabel(r"$\|q_{ref} - q\|$ [rad] (log)")
     ax.set_title("tracking error")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right", framealpha=0.9)
     ax.grid(True, which="both", alpha=0.3)
     return save(fig, path)
 
 
-def torque_plot(path: Path, runs: dict[str, dict[str, np.ndarray]]) -> Path:
-    """Applied joint torques ``tau_applied`` (T, nv) [N m] against ``t`` (T,) [s], one
-    panel per run."""
-    fig, axes = figure((8, 2.4 * len(runs)), len(runs), 1, sharex=True, squeeze=False)
+def torque_limits(run: dict[str, np.ndarray]) -> np.ndarray:
+    """(nv,) torque limits [N m] seen in a run: ``|tau_applied|`` where it was clipped
+    (``saturated``), NaN for joints never clipped."""
+    tau, sat = np.abs(run["tau_applied"]), np.asarray(run.get("saturated", False), dtype=bool)
+    sat = np.broadcast_to(sat, tau.shape)
+    return np.array(
+        [tau[sat[:, j], j].max() if sat[:, j].any() else np.nan for j in range(tau.shape[1])]
+    )
+
+
+def torque_plot(
+    path: Path,
+    runs: dict[str, dict[str, np.ndarray]],
+    limits: np.ndarray | None = None,
+    windows: Sequence[tuple[float, float, str]] = (),
+    joint_names: Sequence[str] | None = None,
+) -> Path:
+    """Applied joint torques ``tau_applied`` (T, nv) [N m] against ``t`` (T,) [s], one panel
+    per run, with each joint's torque limit as a dashed line of its colour.
+
+    Args:
+        path: PNG to write.
+        runs: label -> arrays with ``t``, ``tau_applied`` (and ``saturated``, ``q_ref``).
+        limits: (nv,) torque limits [N m]; None: the limits the runs were clipped at
+            (`torque_limits`; joints never clipped get no line).
+        windows: (start, stop, label) time windows to shade [s].
+        joint_names: legend names of the joints; default ``joint 1..nv``.
+    """
+    fig, axes = figure((9, 2.4 * len(runs) + 0.6), len(runs), 1, sharex=True, squeeze=False)
     for ax, (label, r) in zip(axes[:, 0], runs.items(), strict=True):
         tau = r["tau_applied"]
+        lim = torque_limits(r) if limits is None else np.asarray(limits, dtype=np.float64)
+        colors = []
         for j in range(tau.shape[1]):
-            ax.plot(r["t"], tau[:, j], lw=0.9, label=f"joint {j + 1}")
+            name = joint_names[j] if joint_names is not None else f"joint {j + 1}"
+            (line,) = ax.plot(r["t"], tau[:, j], lw=0.9, label=name)
+            colors.append(line.get_color())
+        for value in np.unique(lim[np.isfinite(lim)]):  # one line per distinct limit
+            joints = [j for j in range(len(lim)) if lim[j] == value]
+            color = colors[joints[0]] if len(joints) == 1 else "0.4"
+            for sign in (-1.0, 1.0):
+                ax.axhline(sign * value, color=color, ls="--", lw=0.8, alpha=0.9)
+            which = ", ".join(str(j + 1) for j in joints)
+            ax.annotate(
+                f"limit {value:g} N m (joint{'s' if len(joints) > 1 else ''} {which})",
+                (1.0, value),
+                xycoords=("axes fraction", "data"),
+                xytext=(-3, 2),
+                textcoords="offset points",
+                ha="right",
+                fontsize=7,
+                color=color,
+            )
+        lo, hi = ax.get_ylim()  # room for the limit labels
+        ax.set_ylim(lo - 0.06 * (hi - lo), hi + 0.1 * (hi - lo))
+        shade_windows(ax, windows)
+        mark_reference_end(ax, reference_end(r))
         ax.set_ylabel(r"$\tau$ [N m]")
-        ax.set_title(label, fontsize=9)
+        what = "torque limits" if limits is not None else "limits of the clipped joints"
+        ax.set_title(f"{label}  (dashed: {what})", fontsize=9)
         ax.grid(True, alpha=0.3)
-    axes[0, 0].legend(fontsize=6, ncol=4)
+    axes[0, 0].legend(fontsize=7, ncol=1, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("t [s]")
     return save(fig, path)
 
 
+def use_log_axis(values: Sequence[float] | np.ndarray, ratio: float = 30.0) -> bool:
+    """Whether bars of these values belong on a log axis: all positive and spanning more
+    than a factor ``ratio`` (the point is then a ratio, and small bars must stay visible)."""
+    vals = np.asarray(values, dtype=np.float64)
+    return bool(vals.size > 1 and np.all(vals > 0) and vals.max() / vals.min() > ratio)
+
+
 def bar_plot(
-    path: Path, labels: Sequence[str], values: Sequence[float], ylabel: str, title: str
+    path: Path,
+    labels: Sequence[str],
+    values: Sequence[float],
+    ylabel: str,
+    title: str,
+    log: bool | None = None,
 ) -> Path:
-    """One bar per label."""
+    """One bar per label, its value written on it.
+
+    Args:
+        path: PNG to write.
+        labels: bar names.
+        values: bar heights (in the unit of ``ylabel``).
+        ylabel: axis label, with its unit.
+        title: figure title.
+        log: log axis; None: when the positive values span more than a factor 30 (a
+            ratio is the point, and small bars stay visible).
+    """
+    vals = np.asarray(values, dtype=np.float64)
+    pos = vals[vals > 0]
+    if log is None:
+        log = use_log_axis(vals)
     fig, ax = figure((5, 3.5))
-    ax.bar(list(labels), list(values), color=COLORS[: len(labels)])
-    ax.set_ylabel(ylabel)
+    bottom = 10.0 ** np.floor(np.log10(pos.min())) / 2 if log and pos.size else 0.0
+    ax.bar(list(labels), vals - bottom, bottom=bottom, color=COLORS[: len(labels)])
+    for i, v in enumerate(vals):
+        ax.annotate(
+            f"{v:.3g}", (i, v), xytext=(0, 2), textcoords="offset points", ha="center", fontsize=8
+        )
+    if log:
+        ax.set_yscale("log")
+        ax.set_ylim(bottom=bottom)
+    ax.set_ylabel(ylabel + (" (log)" if log else ""))
     ax.set_title(title)
-    ax.grid(True, axis="y", alpha=0.3)
+    ax.set_axisbelow(True)
+    ax.grid(True, axis="y", which="both", alpha=0.3)
     return save(fig, path)
 
 
 __all__ = [
     "COLORS",
+    "LOG_FLOOR",
     "RESIDUAL_LABEL",
     "bar_plot",
     "figure",
+    "log_floor",
+    "mark_reference_end",
+    "reference_end",
     "save",
+    "shade_windows",
+    "torque_limits",
     "torque_plot",
     "tracking_error_plot",
+    "use_log_axis",
 ]

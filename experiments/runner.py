@@ -3,20 +3,26 @@
 The directory is created only after the config validated, and atomically: everything is
 written into a hidden temporary directory next to the target, which is renamed at the
 end; on any failure the temporary directory is removed, so a failed run leaves nothing.
-An existing run directory is never overwritten unless ``force=True``.
+The target is claimed first (`geosyn.experiments.rundir`: a lock held for the whole run),
+so a second writer to the same directory fails at once; an existing run directory is
+never overwritten unless ``force=True``, and never while another process writes it.
 
 Files of a run: ``config.yaml`` (the resolved config, after ``--set``), ``results.npz``
-(the procedure's arrays), PNG plots, optional videos, ``run.json`` (timing, versions),
+(the procedure's arrays), ``data/<run>.csv`` (each closed-loop run with named columns,
+`geosyn.experiments.data`), ``run.log`` (what happened, warnings included), PNG plots,
+optional videos, ``run.json`` (timing, versions, geosyn version and git commit),
 ``summary.md`` and ``summary.json`` (written last: its presence marks a complete run).
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import platform
 import shutil
+import sys
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -25,10 +31,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from geosyn.experiments import termination
-from geosyn.experiments.errors import RunDirectoryExists
+from geosyn.experiments import rundir, termination
+from geosyn.experiments.errors import OutputNotWritable, RunDirectoryExists
 from geosyn.experiments.loader import dump_config
 from geosyn.experiments.report import clean_summary, print_summary, write_summary
+from geosyn.experiments.runlog import RunLog, geosyn_version, git_commit
 from geosyn.experiments.schema import ExperimentConfig
 
 
@@ -51,7 +58,7 @@ def default_run_dir(cfg: ExperimentConfig, root: str | Path = "runs") -> Path:
     stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
     path = Path(root) / f"{cfg.name}-{stamp}"
     i = 2
-    while path.exists():
+    while path.exists() or rundir.lock_path(path).exists():  # taken, or being written
         path = Path(root) / f"{cfg.name}-{stamp}-{i}"
         i += 1
     return path
@@ -91,6 +98,12 @@ def _versions() -> dict[str, str]:
     }
 
 
+def _run_statuses(results: dict[str, Any]) -> dict[str, str]:
+    """Status of each closed-loop run stored in ``results`` (``ok``, ``diverged: ...``)."""
+    tail = "__status"
+    return {k[: -len(tail)]: str(v) for k, v in results.items() if k.endswith(tail)}
+
+
 def run_experiment(
     cfg: ExperimentConfig,
     out: str | Path | None = None,
@@ -114,27 +127,56 @@ def run_experiment(
         The `RunOutcome`.
 
     Raises:
-        RunDirectoryExists: ``out`` exists and ``force`` is False.
+        RunDirectoryExists: ``out`` exists and ``force`` is False, is a file, or another
+            process is writing it (see `geosyn.experiments.rundir`; ``force`` never
+            replaces a directory being written).
+        OutputNotWritable: disk full, read-only or no permission (nothing is left on disk).
         GeosynError: the procedure failed (nothing is left on disk).
     """
+    if out is not None:
+        with rundir.claim(Path(out), force):
+            return _run_claimed(cfg, Path(out), video, progress, quiet)
+    for _ in range(100):  # default name: the next free one (-2, -3, ...) if two runs race
+        path = default_run_dir(cfg)
+        try:
+            with rundir.claim(path, False):
+                return _run_claimed(cfg, path, video, progress, quiet)
+        except RunDirectoryExists as err:
+            if err.path != path:
+                raise
+    raise RunDirectoryExists(path, "and 99 other default names are taken; pass --out")
+
+
+def _run_claimed(
+    cfg: ExperimentConfig, out: Path, video: bool, progress: bool, quiet: bool
+) -> RunOutcome:
+    """`run_experiment` once ``out`` is claimed (see `geosyn.experiments.rundir`)."""
     from geosyn.experiments.build import build_robot
     from geosyn.experiments.procedures import PROCEDURES
     from geosyn.experiments.procedures.base import RunContext
 
-    out = default_run_dir(cfg) if out is None else Path(out)
-    if out.exists() and not force:
-        raise RunDirectoryExists(
-            out, "already exists; choose another --out or pass --force to replace it"
-        )
-    out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.partial-{uuid.uuid4().hex[:8]}"
-    tmp.mkdir()
+    try:
+        tmp.mkdir()
+    except OSError as err:
+        raise OutputNotWritable(out, err) from err
     t0 = time.perf_counter()
     started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     try:
         proc = PROCEDURES[cfg.kind]()
         params = proc.Params.model_validate(cfg.params)
+        if video and not cfg.outputs.video:  # the saved config says what was rendered
+            cfg = cfg.model_copy(update={"outputs": cfg.outputs.model_copy(update={"video": True})})
         (tmp / "config.yaml").write_text(dump_config(cfg))
+        log = RunLog(tmp / "run.log")
+        log.write(f"run {cfg.name!r} (kind {cfg.kind}, robot {cfg.robot.name}, seed {cfg.seed})")
+        log.write(f"geosyn {geosyn_version()}; into {out}")
+        from geosyn.experiments.procedures.base import ignored_sections
+
+        for section in ignored_sections(cfg, type(proc)):
+            log.write(
+                f"note: kind {cfg.kind!r} does not read section {section!r}; it has no effect"
+            )
         with _progress(progress) as factory:
             ctx = RunContext(
                 config=cfg,
@@ -144,12 +186,26 @@ def run_experiment(
                 video=video or cfg.outputs.video,
                 progress=factory,
             )
-            results = proc.run(ctx)
+            with log.warnings():
+                results = proc.run(ctx)
         arrays: dict[str, Any] = results  # numpy stubs match **kwds against allow_pickle: bool
         np.savez_compressed(tmp / "results.npz", **arrays)
-        summary = clean_summary(proc.summarize(cfg, params, results))
+        for name, status in _run_statuses(results).items():
+            log.write(f"closed-loop run {name}: {status}")
+        if cfg.outputs.csv:
+            from geosyn.experiments.data import write_csv
+
+            for path in write_csv(tmp, cfg.controller_labels()):
+                log.write(f"wrote {path.relative_to(tmp)}")
+        summary = clean_summary(proc.full_summary(cfg, params, results))
         if cfg.outputs.plots:
             proc.plot(cfg, params, results, tmp)
+        videos = None
+        if cfg.outputs.video:  # never raises: a failed video is recorded, the run kept
+            from geosyn.experiments.video import write_videos
+
+            videos = write_videos(cfg, ctx.robot, results, tmp)
+            log.write(f"videos: {videos}")
         wall = time.perf_counter() - t0
         meta = {
             "name": cfg.name,
@@ -161,18 +217,41 @@ def run_experiment(
             "wall_time": wall,
             "pid": os.getpid(),
             "versions": _versions(),
+            "geosyn": geosyn_version(),
+            "git": git_commit(),
+            **({"video": videos} if videos is not None else {}),
+            # checked by `geosyn report` (an altered or damaged results.npz is refused)
+            "results_sha256": hashlib.sha256((tmp / "results.npz").read_bytes()).hexdigest(),
         }
         (tmp / "run.json").write_text(json.dumps(meta, indent=1) + "\n")
         write_summary(tmp, cfg.name, cfg.description, summary, proc.units)
+        log.write(f"finished in {wall:.2f} s; {len(summary)} summary values")
         termination.raise_if_terminated()  # never commit a run whose SIGTERM was swallowed
-        if out.exists():  # force=True
-            shutil.rmtree(out)
-        os.replace(tmp, out)
+        rundir.commit(tmp, out)
+    except OSError as err:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if err.errno in rundir.WRITE_ERRNOS:  # disk full, read-only, ...: one line
+            raise OutputNotWritable(out, err) from err
+        raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    if videos is not None and videos["error"]:
+        print(f"{cfg.name}: no video: {videos['error']} (run kept)", file=sys.stderr)
     if not quiet:
         print_summary(cfg.name, summary, PROCEDURES[cfg.kind].units)
+        failed = int(summary.get("failed_runs", 0.0))
+        if failed:
+            reasons = [
+                f"{k[: -len('__status')]}: {v}"
+                for k, v in results.items()
+                if k.endswith("__status") and str(v) != "ok"
+            ]
+            print(
+                f"{cfg.name}: {failed} run(s) did not complete (their metrics are NaN): "
+                + "; ".join(reasons),
+                file=sys.stderr,
+            )
     return RunOutcome(out, summary, wall)
 
 

@@ -6,34 +6,48 @@ through `run_experiment`, atomically, as soon as it finishes; a run directory ho
 one) skips the complete runs and does only the missing ones. Runs execute in-process
 (``workers=1``), on local processes (``concurrent.futures.ProcessPoolExecutor``) or on Ray
 (``ray_address``: a cluster address, or ``"local"`` to start a local instance; the
-``distributed`` extra). At the end ``sweep_summary.json`` and ``sweep_summary.md`` give,
-per grid point, the mean and standard deviation over seeds of every scalar of the runs'
-``summary.json``.
+``distributed`` extra); see `geosyn.experiments.executors` (workers die with the sweep).
+At the end ``sweep_summary.json`` and ``sweep_summary.md`` give, per grid point, the mean
+and standard deviation over seeds of every scalar of the runs' ``summary.json`` (metrics
+of failed runs, NaN, left out and counted).
+
+Bounds: a sweep of more than ``max_runs`` runs (default `MAX_RUNS`; ``--max-runs``) is
+refused before anything runs; the size is announced before the runs start. One sweep at a
+time writes a sweep directory (a lock, `geosyn.experiments.rundir`).
 """
 
 from __future__ import annotations
 
 import itertools
 import json
+import math
 import os
 import re
 import shutil
 import sys
 import time
 from collections.abc import Iterable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 import yaml
 
-from geosyn.core.errors import GeosynError
 from geosyn.core.validation import check_int
-from geosyn.experiments import termination
-from geosyn.experiments.errors import ConfigError, ProcedureFailed, RunDirectoryExists
+from geosyn.experiments import rundir
+from geosyn.experiments.errors import (
+    ConfigError,
+    OutputNotWritable,
+    RunDirectoryExists,
+)
+from geosyn.experiments.executors import check_ray_address, run_local, run_ray
 from geosyn.experiments.loader import load_config
 from geosyn.experiments.report import fmt
+
+#: Default largest number of runs (grid points x seeds) of a sweep; raise with ``max_runs``.
+MAX_RUNS = 1000
+#: Largest number of local worker processes (or local Ray CPUs).
+MAX_WORKERS = 256
 
 
 class SweepJob(NamedTuple):
@@ -126,82 +140,14 @@ def _is_complete(run_dir: Path) -> bool:
     return (run_dir / "summary.json").is_file()
 
 
-def _run_local(jobs: Sequence[SweepJob], workers: int, advance: Any) -> None:
-    if workers == 1:
-        for job in jobs:
-            termination.raise_if_terminated()
-            _job_by_name(job)
-            advance()
-        return
-    import multiprocessing
-
-    # Linux: fork, so workers inherit the already imported pinocchio/casadi/mujoco (a
-    # forkserver re-imports them in every sweep; the speed-ups are in benchmarks/RESULTS.md).
-    # Workers only run experiments and never use the parent's progress thread. Elsewhere:
-    # a forkserver that preloads geosyn.
-    if sys.platform.startswith("linux"):
-        ctx = multiprocessing.get_context("fork")
-    else:
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["geosyn.experiments.sweep", "geosyn.experiments.procedures"])
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        pending = {pool.submit(run_job, job): job for job in jobs}
-        try:
-            while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                termination.raise_if_terminated()
-                for fut in done:
-                    job = pending.pop(fut)
-                    try:
-                        fut.result()
-                    except GeosynError as err:
-                        raise ProcedureFailed(
-                            f"run {job.out!r} failed: {type(err).__name__}: {err}"
-                        ) from err
-                    advance()
-        except BaseException:
-            for fut in pending:
-                fut.cancel()
-            raise
-
-
-def _run_ray(jobs: Sequence[SweepJob], address: str, workers: int, advance: Any) -> None:
-    try:
-        import ray
-    except ImportError as err:
-        raise ConfigError(
-            "--ray", address, "needs the 'distributed' extra: pip install 'geosyn[distributed]'"
-        ) from err
-    started = False
-    if not ray.is_initialized():
-        if address == "local":
-            ray.init(num_cpus=max(workers, 1), include_dashboard=False, log_to_driver=False)
-        else:
-            ray.init(address=address, include_dashboard=False, log_to_driver=False)
-        started = True
-    try:
-        remote = ray.remote(num_cpus=1)(run_job)
-        refs = {remote.remote(job): job for job in jobs}
-        pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            for ref in done:
-                try:
-                    ray.get(ref)
-                except Exception as err:
-                    for p in pending:
-                        ray.cancel(p)
-                    raise ProcedureFailed(
-                        f"run {refs[ref].out!r} failed on Ray: {err}".splitlines()[0]
-                    ) from err
-                advance()
-    finally:
-        if started:
-            ray.shutdown()
-
-
 def aggregate(out: Path, points: Sequence[dict[str, str]], seeds: int) -> list[dict[str, Any]]:
-    """Mean and std (over seeds) of each summary scalar, per grid point."""
+    """Mean and std (over seeds) of each summary scalar, per grid point.
+
+    NaN values (metrics of runs that did not complete, see
+    `geosyn.experiments.report.clean_summary`) are left out of the mean and std; ``n`` per
+    metric says how many runs entered them, ``n_failed`` per point how many runs had a
+    failed (diverged, stopped) controller run.
+    """
     rows = []
     for point in points:
         summaries = []
@@ -213,19 +159,38 @@ def aggregate(out: Path, points: Sequence[dict[str, str]], seeds: int) -> list[d
         metrics = {}
         for k in keys:
             vals = np.array([float(summ[k]) for summ in summaries if k in summ])
+            vals = vals[~np.isnan(vals)]  # NaN: not measured (a failed run), left out
             with np.errstate(invalid="ignore"):  # inf values (never recovered): std is nan
-                metrics[k] = {"mean": float(np.mean(vals)), "std": float(np.std(vals))}
-        rows.append({"point": point, "n_runs": len(summaries), "metrics": metrics})
+                metrics[k] = {
+                    "mean": float(np.mean(vals)) if vals.size else math.nan,
+                    "std": float(np.std(vals)) if vals.size else math.nan,
+                    "n": int(vals.size),
+                }
+        n_failed = sum(1 for summ in summaries if float(summ.get("failed_runs", 0.0)) > 0)
+        rows.append(
+            {"point": point, "n_runs": len(summaries), "n_failed": n_failed, "metrics": metrics}
+        )
     return rows
 
 
 def _write_aggregate(out: Path, name: str, rows: list[dict[str, Any]]) -> None:
+    from geosyn.experiments.metrics import unit_of
+
     (out / "sweep_summary.json").write_text(json.dumps(rows, indent=1, allow_nan=True) + "\n")
     keys = list(dict.fromkeys(k for r in rows for k in r["metrics"]))
-    lines = [f"# sweep: {name}", "", "mean ± std over seeds per grid point", ""]
+    lines = [
+        f"# sweep: {name}",
+        "",
+        "mean ± std over seeds per grid point; runs that failed (diverged, stopped) do not"
+        " enter the metrics they did not measure",
+        "",
+    ]
     lines.append(
         "| metric | "
-        + " | ".join(point_name(r["point"]) + f" (n={r['n_runs']})" for r in rows)
+        + " | ".join(
+            point_name(r["point"]) + f" (n={r['n_runs']}, failed={r.get('n_failed', 0)})"
+            for r in rows
+        )
         + " |"
     )
     lines.append("|---|" + "---|" * len(rows))
@@ -234,7 +199,9 @@ def _write_aggregate(out: Path, name: str, rows: list[dict[str, Any]]) -> None:
         for r in rows:
             m = r["metrics"].get(k)
             cells.append("" if m is None else f"{fmt(m['mean'])} ± {fmt(m['std'])}")
-        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+        unit = unit_of(k.rsplit(".", 1)[-1])
+        lines.append(f"| {k} [{unit}] | " if unit else f"| {k} | ")
+        lines[-1] += " | ".join(cells) + " |"
     (out / "sweep_summary.md").write_text("\n".join(lines) + "\n")
 
 
@@ -248,6 +215,7 @@ def sweep(
     ray_address: str | None = None,
     overrides: Sequence[str] = (),
     progress: bool = True,
+    max_runs: int = MAX_RUNS,
 ) -> SweepResult:
     """Run (or complete) a sweep; see the module doc.
 
@@ -262,22 +230,47 @@ def sweep(
         ray_address: run on Ray at this address (``"local"``: start one here).
         overrides: ``key=value`` overrides applied to every run before the grid values.
         progress: show a progress bar.
+        max_runs: refuse a sweep of more runs (grid points x seeds) than this, before
+            anything runs; default `MAX_RUNS`.
 
     Returns:
         The `SweepResult`.
 
     Raises:
-        InvalidArgument: ``seeds`` or ``workers`` is not an integer >= 1.
-        ConfigError: a grid point's config does not validate (checked before any run).
-        RunDirectoryExists: ``out`` holds another sweep or is not a sweep directory.
+        InvalidArgument: ``seeds``, ``max_runs`` or ``workers`` is not an integer >= 1
+            (``workers`` <= `MAX_WORKERS`).
+        ConfigError: a grid point's config does not validate (checked before any run),
+            more than ``max_runs`` runs, or a malformed or unreachable ``ray_address``.
+        RunDirectoryExists: ``out`` holds another sweep, is not a sweep directory, or
+            another process is running a sweep into it.
+        OutputNotWritable: ``out`` cannot be written (disk full, read-only, ...).
         ProcedureFailed: a run failed.
     """
     seeds = check_int(seeds, "seeds", low=1)
+    max_runs = check_int(max_runs, "max_runs", low=1)
     if workers is None:
         workers = (os.cpu_count() or 1) if ray_address == "local" else 1
-    workers = check_int(workers, "workers", low=1)
+    workers = check_int(workers, "workers", low=1, high=MAX_WORKERS)
+    n_runs = math.prod(len(v) for v in grid.values()) * seeds
+    if n_runs > max_runs:
+        raise ConfigError(
+            "--grid",
+            None,
+            f"the sweep has {n_runs} runs ({n_runs // seeds} grid point(s) x {seeds} seed(s)),"
+            f" more than the limit of {max_runs}; raise it with --max-runs {n_runs}"
+            " (max_runs=) if that is what you want",
+        )
+    if ray_address is not None:
+        ray_address = check_ray_address(ray_address)
     base_cfg, path = load_config(source, overrides)
     path = path.resolve()  # workers (Ray) may run in another directory
+    if n_runs > 50:  # validation takes a while: say what is going on
+        print(
+            f"sweep {base_cfg.name}: {n_runs} run(s) ({n_runs // seeds} grid point(s) x"
+            f" {seeds} seed(s)); validating their configs",
+            file=sys.stderr,
+            flush=True,
+        )
     keys = list(grid)
     points = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grid.values())]
     jobs_all: list[SweepJob] = []
@@ -303,6 +296,49 @@ def sweep(
         "seeds": seeds,
         "overrides": list(overrides),
     }
+    created = not out.exists()
+    try:
+        with rundir.claim(out, force=True):  # one sweep at a time into ``out``
+            try:
+                return _sweep_claimed(
+                    out,
+                    spec,
+                    points,
+                    seeds,
+                    jobs_all,
+                    base_cfg.name,
+                    workers,
+                    ray_address,
+                    progress,
+                )
+            except OSError as err:
+                if err.errno in rundir.WRITE_ERRNOS:
+                    raise OutputNotWritable(out, err) from err
+                raise
+    except BaseException:
+        # a failed precondition (Ray unreachable, ...) leaves no empty sweep directory
+        if (
+            created
+            and out.is_dir()
+            and not any(out.rglob("summary.json"))
+            and not any(rundir.is_locked(p.with_name(p.name[1:-5])) for p in out.rglob(".*.lock"))
+        ):  # (never while a run, e.g. a Ray task, still writes into it)
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+
+
+def _sweep_claimed(
+    out: Path,
+    spec: dict[str, Any],
+    points: list[dict[str, str]],
+    seeds: int,
+    jobs_all: list[SweepJob],
+    name: str,
+    workers: int,
+    ray_address: str | None,
+    progress: bool,
+) -> SweepResult:
+    """`sweep` once ``out`` is claimed: check it, run the missing runs, aggregate."""
     spec_file = out / "sweep.yaml"
     if spec_file.is_file():
         old = yaml.safe_load(spec_file.read_text())
@@ -317,22 +353,33 @@ def sweep(
     todo = []
     for job in jobs_all:
         run_dir = Path(job.out)
+        if rundir.is_locked(run_dir):  # e.g. a worker of a killed sweep still running
+            raise RunDirectoryExists(
+                run_dir, "is still being written by another process; wait for it and re-run"
+            )
         for stale in run_dir.parent.glob(f".{run_dir.name}.partial-*"):
             shutil.rmtree(stale, ignore_errors=True)  # left by a killed run
         if not _is_complete(run_dir):
             if run_dir.exists():
                 shutil.rmtree(run_dir)
             todo.append(job)
+    if progress or todo:
+        print(
+            f"sweep {name}: running {len(todo)} of {len(jobs_all)} run(s) ({len(points)} grid"
+            f" point(s) x {seeds} seed(s); {len(jobs_all) - len(todo)} already complete)",
+            file=sys.stderr,
+            flush=True,
+        )
     from geosyn.experiments.runner import _progress
 
     with _progress(progress) as factory:
-        advance = factory(f"sweep {base_cfg.name}", len(todo))
+        advance = factory(f"sweep {name}", len(todo))
         if ray_address is not None:
-            _run_ray(todo, ray_address, workers, advance)
+            run_ray(todo, ray_address, workers, advance, run_job)
         else:
-            _run_local(todo, workers, advance)
+            run_local(todo, workers, advance, _job_by_name)
     rows = aggregate(out, points, seeds)
-    _write_aggregate(out, base_cfg.name, rows)
+    _write_aggregate(out, name, rows)
     return SweepResult(out, len(todo), len(jobs_all) - len(todo), rows)
 
 

@@ -25,3 +25,16 @@ class GeodesicNotFound(MetricError):
         super().__init__(message)
         self.residual = float(residual)
         self.v0 = v0
+
+
+class NonFiniteResult(MetricError):
+    """A computation on finite inputs left the float64 range (inf or NaN): e.g. a geodesic
+    shot with a huge velocity, or a Coriolis term of velocities near 1e154.
+
+    Attributes:
+        quantity: what became non-finite (``"geodesic_acceleration"``, ``"exp"``, ...).
+    """
+
+    def __init__(self, message: str, quantity: str) -> None:
+        super().__init__(message)
+        self.quantity = quantity

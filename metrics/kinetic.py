@@ -11,7 +11,20 @@ import pinocchio as pin
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.base import Metric
+from geosyn.metrics.errors import NonFiniteResult
 from geosyn.robots.robot import Robot
+
+
+def _raise_non_finite(quantity: str, value: np.ndarray, v: np.ndarray) -> None:
+    """Raise `NonFiniteResult` if ``value`` holds inf/NaN (its squared norm may just
+    overflow for finite entries beyond ~1e154, which is returned as is)."""
+    if np.all(np.isfinite(value)):
+        return
+    raise NonFiniteResult(
+        f"{quantity}: not finite for v with max |v_i| = {np.max(np.abs(v)):.3g} rad/s"
+        " (float64 overflow); velocities this large are not physical",
+        quantity,
+    )
 
 
 class KineticEnergyMetric(Metric):
@@ -49,13 +62,13 @@ class KineticEnergyMetric(Metric):
         self._model0.gravity = pin.Motion.Zero()
         self._data0 = self._model0.createData()
         self._zero = np.zeros(self.n)
-        roots = [
-            robot.model.joints[j].idx_v
+        # Velocity indices of the root joints (children of the universe): one for a serial
+        # arm, several for hands and humanoids (see `G`).
+        self._roots = tuple(
+            int(robot.model.joints[j].idx_v)
             for j in range(1, robot.model.njoints)
             if robot.model.parents[j] == 0
-        ]
-        # One root joint (a serial arm) indexes a scalar; a tree with several roots sums.
-        self._root = roots[0] if len(roots) == 1 else np.array(roots)
+        )
 
     def __repr__(self) -> str:
         return f"KineticEnergyMetric({self.robot.name!r}, n={self.n})"
@@ -71,15 +84,20 @@ class KineticEnergyMetric(Metric):
             (n, n) symmetric positive-definite mass matrix [kg m^2].
         """
         # Fast path. Pinocchio itself rejects a wrong size (ValueError). A NaN or inf in
-        # the angle of a non-root joint propagates through the composite inertias into
-        # M[root, root]; only root-joint angles can leave M finite (M does not depend on
-        # them), so checking M[r, r] + q[r] for the root joints r covers every entry
-        # (tests inject NaN/inf into each coordinate of every built-in robot).
+        # the angle of a non-root joint propagates through the composite inertias into the
+        # diagonal entry M[r, r] of its root joint r; a root joint's own angle leaves M
+        # finite. So the sum of M[r, r] + q[r] over the root joints (one for a serial arm,
+        # several for a hand or a humanoid) is finite exactly when q and M are: a few
+        # scalar reads, no O(n) reduction (tests inject NaN/inf into each coordinate and
+        # count the pin.crba calls).
         try:
             M = pin.crba(self._model, self._data, q)
-            if math.isfinite(M[self._root, self._root] + q[self._root]):
+            check = 0.0
+            for r in self._roots:
+                check += M.item(r, r) + q[r]
+            if math.isfinite(check):
                 return M
-        except (TypeError, ValueError, IndexError):
+        except (AttributeError, TypeError, ValueError, IndexError):
             pass
         return pin.crba(self._model, self._data, self._check(q, "q"))
 
@@ -92,7 +110,10 @@ class KineticEnergyMetric(Metric):
         """
         q = self._check(q, "q")
         v = self._check(v, "v")
-        return pin.rnea(self._model0, self._data0, q, v, self._zero).copy()
+        c = pin.rnea(self._model0, self._data0, q, v, self._zero).copy()
+        if not math.isfinite(c.dot(c)):
+            _raise_non_finite("coriolis", c, v)
+        return c
 
     def geodesic_acceleration(self, q: Vector, v: Vector) -> Vector:
         """``-M(q)^-1 C(q, v) v`` [rad/s^2], by ``pin.aba`` with zero gravity and torque.
@@ -103,12 +124,17 @@ class KineticEnergyMetric(Metric):
         """
         try:
             if math.isfinite(q.dot(q) + v.dot(v)):
-                return pin.aba(self._model0, self._data0, q, v, self._zero)
+                a = pin.aba(self._model0, self._data0, q, v, self._zero)
+                if math.isfinite(a.dot(a)):
+                    return a
         except (AttributeError, TypeError, ValueError):
             pass
         q = self._check(q, "q")
         v = self._check(v, "v")
-        return pin.aba(self._model0, self._data0, q, v, self._zero)
+        a = pin.aba(self._model0, self._data0, q, v, self._zero)
+        if not math.isfinite(a.dot(a)):
+            _raise_non_finite("geodesic_acceleration", a, v)
+        return a
 
     # -- symbolic path ---------------------------------------------------------------
     def symbolic_G(self, q: ca.SX) -> ca.SX:

@@ -6,7 +6,14 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 
 
 from geosyn.robots.builtins import BUILTINS
-from geosyn.robots.errors import RobotError, RobotFileError, UnknownFrame, UnknownRobot
+from geosyn.robots.couplings import Coupling
+from geosyn.robots.errors import (
+    RobotError,
+    RobotFileError,
+    RobotWarning,
+    UnknownFrame,
+    UnknownRobot,
+)
 from geosyn.robots.files import load_file
 from geosyn.robots.from_model import robot_from_model
 from geosyn.robots.loading import load_robot
@@ -15,11 +22,13 @@ from geosyn.robots.robot import CollisionCapsule, CollisionSphere, Robot
 
 __all__ = [
     "BUILTINS",
+    "Coupling",
     "CollisionCapsule",
     "CollisionSphere",
     "Robot",
     "RobotError",
     "RobotFileError",
+    "RobotWarning",
     "UnknownFrame",
     "UnknownRobot",
     "load_file",

@@ -1,4 +1,5 @@
-"""Built-in robots: planar arms of uniform rods and arms from example-robot-data."""
+"""Built-in robots: planar arms of uniform rods, curated arms from example-robot-data, and
+every other URDF of example-robot-data by its name (`geosyn.robots.catalog`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
+from geosyn.robots.catalog import catalog_builders
 from geosyn.robots.files import example_robot_data_dir, load_file
 from geosyn.robots.from_model import NO_LIMIT, robot_from_model
 from geosyn.robots.robot import CollisionCapsule, Robot
@@ -41,8 +43,13 @@ def planar_arm(
         tau_max: torque limit of every joint [N m].
         v_max: velocity limit of every joint [rad/s].
     """
-    m = np.asarray(masses, dtype=np.float64)
-    lengths_arr = np.asarray(lengths, dtype=np.float64)
+    try:
+        m = np.asarray(masses, dtype=np.float64)
+        lengths_arr = np.asarray(lengths, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise InvalidArgument(
+            f"masses and lengths must be (n,) arrays of floats > 0, got {masses!r} and {lengths!r}"
+        ) from err
     if m.ndim != 1 or m.shape != lengths_arr.shape or m.size == 0:
         raise InvalidArgument(
             f"masses and lengths must be (n,) of equal length, got {m.shape} and {lengths_arr.shape}"
@@ -86,6 +93,7 @@ def planar_arm(
         armature=armature,
         gravity=gravity,
         capsules=caps,
+        limit_source=f"built-in: planar arm tau_max={tau_max:g}",
     )
 
 
@@ -133,9 +141,19 @@ def _example_robot(
         keep_joints: the joints kept (the others are locked), or None for all.
         options: forwarded to `geosyn.robots.from_model.robot_from_model`; armature
             defaults to 0.1 kg m^2 per joint (a typical reflected rotor inertia) and the
-            capsule radius to 0.06 m. ``keep_joints`` may not be overridden.
+            capsule radius to 0.06 m; joint damping and friction default to none (the
+            URDFs' ``<dynamics>`` values are left out, as the experiments and figures built
+            on these arms assume; pass ``damping=None, frictionloss=None`` to keep them).
+            ``keep_joints`` may not be overridden.
     """
-    defaults = {"name": name, "ee_frame": ee_frame, "armature": 0.1, "capsule_radius": 0.06}
+    defaults = {
+        "name": name,
+        "ee_frame": ee_frame,
+        "armature": 0.1,
+        "capsule_radius": 0.06,
+        "damping": {},
+        "frictionloss": {},
+    }
     for key, value in defaults.items():
         options.setdefault(key, value)
     keep = {} if keep_joints is None else {"keep_joints": keep_joints}
@@ -171,10 +189,17 @@ def ur5(**options: object) -> Robot:
     return _example_robot("ur_description/urdf/ur5_robot.urdf", "ur5", "tool0", None, options)
 
 
-BUILTINS: dict[str, Callable[..., Robot]] = {
+CURATED: dict[str, Callable[..., Robot]] = {
     "planar2": planar2,
     "planar3": planar3,
     "panda": panda,
     "talos_arm": talos_arm,
     "ur5": ur5,
 }
+"""The curated built-ins (fixed end-effector, armature and locked joints chosen by hand)."""
+
+BUILTINS: dict[str, Callable[..., Robot]] = {
+    **CURATED,
+    **{k: v for k, v in catalog_builders().items() if k not in CURATED},
+}
+"""Every robot `load_robot` knows by name: the curated ones first, then the catalog."""

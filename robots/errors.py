@@ -23,6 +23,11 @@ class RobotFileError(RobotError):
         self.path = None if path is None else str(path)
 
 
+class RobotWarning(UserWarning):
+    """A robot file was loaded with something assumed or changed (a default torque limit,
+    a welded floating base, an ignored property); the message says what."""
+
+
 class _UnknownName(RobotError, KeyError):
     """A name that is not among the available ones; the message lists them.
 
@@ -48,4 +53,11 @@ class UnknownFrame(_UnknownName):
     """A frame or joint name is not in the model."""
 
 
-__all__ = ["InvalidArgument", "RobotError", "RobotFileError", "UnknownFrame", "UnknownRobot"]
+__all__ = [
+    "InvalidArgument",
+    "RobotError",
+    "RobotFileError",
+    "RobotWarning",
+    "UnknownFrame",
+    "UnknownRobot",
+]

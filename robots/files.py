@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
+from typing import Any
 
 import pinocchio as pin
 
-from geosyn.robots.errors import RobotFileError
+from geosyn.core.validation import check_choice
+from geosyn.robots.couplings import LinearConstraint
+from geosyn.robots.errors import RobotFileError, RobotWarning
 from geosyn.robots.from_model import robot_from_model
 from geosyn.robots.robot import Robot
+from geosyn.robots.validity import check_urdf_inertials, urdf_mimics
 
 ROBOT_FILE_SUFFIXES = (".urdf", ".xml", ".mjcf")
 """File suffixes `load_file` reads (case-insensitive)."""
@@ -31,36 +36,78 @@ def example_robot_data_dir() -> Path:
     )
 
 
-def _read_model(path: Path) -> pin.Model:
-    """The Pinocchio model of a URDF or MJCF file."""
-    if not path.is_file():
-        raise RobotFileError(f"robot file {str(path)!r} does not exist", path)
-    suffix = path.suffix.lower()
+def _read_urdf(path: Path, inertia_check: str) -> pin.Model:
+    """The Pinocchio model of a URDF file, its inertials checked first."""
     try:
-        if suffix == ".urdf":
-            return pin.buildModelFromUrdf(str(path))
-        if suffix in (".xml", ".mjcf"):
-            return pin.buildModelFromMJCF(str(path))
+        check_urdf_inertials(path)
+    except RobotFileError as err:
+        if inertia_check == "error":
+            raise
+        warnings.warn(f"{err} (loaded anyway: inertia_check='warn')", RobotWarning, stacklevel=3)
+    try:
+        return pin.buildModelFromUrdf(str(path))
     except (RuntimeError, ValueError) as err:
         raise RobotFileError(f"could not parse robot file {str(path)!r}: {err}", path) from err
-    raise RobotFileError(
-        f"robot file {str(path)!r} has suffix {suffix!r}; allowed: {', '.join(ROBOT_FILE_SUFFIXES)}",
-        path,
-    )
 
 
-def load_file(path: str | Path, **options: object) -> Robot:
+def load_file(path: str | Path, **options: Any) -> Robot:
     """Load a robot from a URDF (``.urdf``) or MJCF (``.xml``/``.mjcf``) file.
+
+    An MJCF file is compiled by MuJoCo and the robot built from the compiled model
+    (`geosyn.robots.from_mjcf`): armature, damping, frictionloss, actuator torque limits,
+    the root body's pose and the file's gravity all carry over. A URDF goes through
+    Pinocchio's parser; its ``<limit effort>`` gives the torque limits.
 
     Args:
         path: file path.
-        **options: forwarded to `robot_from_model` (``keep_joints``, ``lock_q``,
-            ``ee_frame``, ``armature``, ``gravity``, ...).
+        **options: ``fixed_base`` (bool, default False) welds an MJCF free joint at its
+            initial pose instead of refusing the file (recorded in ``Robot.base`` and
+            warned about); ``inertia_check`` (``error``, the default, refuses a URDF link
+            whose inertial is not physical; ``warn`` reports it and loads the file, as some
+            published files have slightly invalid inertias). The rest is forwarded to
+            `robot_from_model` (``keep_joints``, ``lock_q``, ``ee_frame``, ``armature``,
+            ``gravity``, ``tau_max``, ``damping``, ...).
 
     Raises:
-        RobotFileError: missing, unreadable or malformed file.
+        RobotFileError: missing, unreadable, malformed or unsupported file (a floating
+            base without ``fixed_base``, a closed loop, no joints, unphysical inertia); the
+            message names the part of the file.
     """
+    fixed_base = bool(options.pop("fixed_base", False))
+    inertia_check = options.pop("inertia_check", "error")
+    check_choice(inertia_check, ("error", "warn"), "inertia_check")
     p = Path(path)
-    model = _read_model(p)
+    if not p.is_file():
+        raise RobotFileError(f"robot file {str(p)!r} does not exist", p)
+    suffix = p.suffix.lower()
     options.setdefault("name", p.stem)
-    return robot_from_model(model, **options)  # type: ignore[arg-type]
+    options.setdefault("source_file", str(p))
+    if suffix == ".urdf":
+        model = _read_urdf(p, inertia_check)
+        mimics = [
+            LinearConstraint(
+                f"<mimic> {m}", {m.joint: 1.0, m.leader: -m.multiplier}, m.offset, m.joint
+            )
+            for m in urdf_mimics(p)
+        ]
+        options.setdefault("couplings", mimics)
+        return robot_from_model(model, **options)
+    if suffix in (".xml", ".mjcf"):
+        # MuJoCo is imported only for MJCF files (the robot and controller layers stay
+        # importable without it)
+        from geosyn.robots.from_mjcf import compile_mjcf, pinocchio_from_mjmodel
+
+        read = pinocchio_from_mjmodel(compile_mjcf(p), fixed_base=fixed_base, path=p)
+        from_file = {
+            "file_tau_max": read.tau_max,
+            "damping": read.damping,
+            "frictionloss": read.frictionloss,
+            "actuators": read.actuators,
+            "base": read.base,
+            "couplings": read.couplings,
+        }
+        return robot_from_model(read.model, **{**from_file, **options})  # options override
+    raise RobotFileError(
+        f"robot file {str(p)!r} has suffix {suffix!r}; allowed: {', '.join(ROBOT_FILE_SUFFIXES)}",
+        p,
+    )

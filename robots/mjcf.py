@@ -2,8 +2,9 @@
 
 One MuJoCo body per Pinocchio joint, placed by ``model.jointPlacements``, with the joint
 at the body origin, the explicit inertial of ``model.inertias`` (never inferred from
-geoms), the same armature, and a ``motor`` actuator whose ctrlrange is the torque limit.
-Collision capsules are drawn as geoms that do not collide with each other.
+geoms), the same armature, damping and frictionloss, and a ``motor`` actuator whose ctrlrange is the torque limit.
+Collision capsules are drawn as geoms that do not collide with each other. Joint couplings
+(``robot.coupling``) become fixed tendons held by tendon equality constraints.
 """
 
 from __future__ import annotations
@@ -108,15 +109,14 @@ def robot_to_mjcf(
         )
         caps_by_joint.setdefault(c.joint, []).append(geom)
     ee = model.frames[robot.frame_id(robot.ee_frame)]
+    damping, friction = robot.damping, robot.frictionloss
 
-    def body(jid: int, indent: str) -> list[str]:
-        placement = model.jointPlacements[jid]
-        quat = pin.Quaternion(placement.rotation)
-        wxyz = (quat.w, quat.x, quat.y, quat.z)
+    def massless(jid: int) -> bool:
         inertia = model.inertias[jid]
-        Ic = np.asarray(inertia.inertia)
-        name = model.names[jid]
-        jtype, axis = joint_axis(model, jid)
+        return inertia.mass == 0.0 and not np.any(np.asarray(inertia.inertia))
+
+    def joint_line(jid: int, pos: np.ndarray, axis: np.ndarray, indent: str) -> str:
+        jtype = joint_axis(model, jid)[0]
         iq, iv = model.joints[jid].idx_q, model.joints[jid].idx_v
         lo, hi = robot.q_min[iq], robot.q_max[iq]
         limited = limits and np.isfinite(lo) and np.isfinite(hi)
@@ -125,25 +125,68 @@ def robot_to_mjcf(
             if limited
             else ' limited="false"'
         )
+        return (
+            f'{indent}  <joint name={quoteattr(model.names[jid])} type="{jtype}"'
+            f' pos="{mjcf_vector(pos)}" axis="{mjcf_vector(axis)}"'
+            f' armature="{mjcf_number(model.armature[iv])}" damping="{mjcf_number(damping[iv])}"'
+            f' frictionloss="{mjcf_number(friction[iv])}"{rng}/>'
+        )
+
+    def body(jid: int, indent: str) -> list[str]:
+        # A massless joint with one child joint and nothing attached (a MuJoCo body with
+        # several joints, loaded as a chain) shares its child's MuJoCo body: MuJoCo refuses
+        # moving bodies without mass. Each joint's anchor and axis are then expressed in
+        # the body frame at q = 0, which MuJoCo composes in order, as Pinocchio does.
+        chain = [jid]
+        while (
+            massless(chain[-1])
+            and len(children[chain[-1]]) == 1
+            and model.names[chain[-1]] not in caps_by_joint
+            and model.names[chain[-1]] not in body_extra
+            and ee.parentJoint != chain[-1]
+        ):
+            chain.append(children[chain[-1]][0])
+        placement = model.jointPlacements[jid]
+        quat = pin.Quaternion(placement.rotation)
         lines = [
             f'{indent}<body name={quoteattr(body_name(model, jid))} pos="{mjcf_vector(placement.translation)}"'
-            f' quat="{mjcf_vector(wxyz)}">',
-            f'{indent}  <joint name={quoteattr(name)} type="{jtype}" axis="{mjcf_vector(axis)}"'
-            f' armature="{mjcf_number(model.armature[iv])}" damping="0" frictionloss="0"{rng}/>',
-            f'{indent}  <inertial pos="{mjcf_vector(inertia.lever)}" mass="{mjcf_number(inertia.mass)}"'
-            f' fullinertia="{mjcf_vector([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]])}"/>',
+            f' quat="{mjcf_vector((quat.w, quat.x, quat.y, quat.z))}">'
         ]
-        lines += [f"{indent}  {g_}" for g_ in caps_by_joint.get(name, [])]
-        if ee.parentJoint == jid:
+        A = pin.SE3.Identity()
+        for k, j in enumerate(chain):
+            if k:
+                A = A * model.jointPlacements[j]
+            lines.append(joint_line(j, A.translation, A.rotation @ joint_axis(model, j)[1], indent))
+        last = chain[-1]
+        inner = indent
+        if len(chain) > 1:  # the last joint's frame, welded inside the shared body
+            inner = indent + "  "
+            q_a = pin.Quaternion(A.rotation)
+            lines.append(
+                f'{inner}<body name={quoteattr(body_name(model, last))} pos="{mjcf_vector(A.translation)}"'
+                f' quat="{mjcf_vector((q_a.w, q_a.x, q_a.y, q_a.z))}">'
+            )
+        inertia = model.inertias[last]
+        Ic = np.asarray(inertia.inertia)
+        name = model.names[last]
+        if not massless(last):
+            lines.append(
+                f'{inner}  <inertial pos="{mjcf_vector(inertia.lever)}" mass="{mjcf_number(inertia.mass)}"'
+                f' fullinertia="{mjcf_vector([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]])}"/>'
+            )
+        lines += [f"{inner}  {g_}" for g_ in caps_by_joint.get(name, [])]
+        if ee.parentJoint == last:
             q_ee = pin.Quaternion(ee.placement.rotation)
             lines.append(
-                f'{indent}  <site name={quoteattr(robot.ee_frame)} pos="{mjcf_vector(ee.placement.translation)}"'
+                f'{inner}  <site name={quoteattr(robot.ee_frame)} pos="{mjcf_vector(ee.placement.translation)}"'
                 f' quat="{mjcf_vector((q_ee.w, q_ee.x, q_ee.y, q_ee.z))}" size="0.01"/>'
             )
         if name in body_extra:
-            lines.append(f"{indent}  {body_extra[name]}")
-        for c in children[jid]:
-            lines += body(c, indent + "  ")
+            lines.append(f"{inner}  {body_extra[name]}")
+        for c in children[last]:
+            lines += body(c, inner + "  ")
+        if len(chain) > 1:
+            lines.append(f"{inner}</body>")
         lines.append(f"{indent}</body>")
         return lines
 
@@ -168,9 +211,41 @@ def robot_to_mjcf(
             *tree,
             *(["    " + worldbody_extra] if worldbody_extra else []),
             "  </worldbody>",
+            *_coupling_constraints(robot, timestep),
             "  <actuator>",
             *actuators,
             "  </actuator>",
             "</mujoco>",
         ]
     )
+
+
+def _coupling_constraints(robot: Robot, timestep: float) -> list[str]:
+    """The robot's joint couplings as fixed tendons held by tendon equalities.
+
+    Each dependent joint d gives ``q_d - sum_i S[d, i] z_i = c_d`` (a fixed tendon of
+    length 0 at q = 0 and an equality ``length = c_d``), with the stiffest time constant
+    MuJoCo accepts at this time step (``solref = 2 timestep``).
+    """
+    coupling = robot.coupling
+    if coupling is None:
+        return []
+    names = coupling.joint_names
+    tendons, equalities = ["  <tendon>"], ["  <equality>"]
+    for d, name in enumerate(names):
+        if name in coupling.independent:
+            continue
+        joints = [f'<joint joint={quoteattr(name)} coef="1.0"/>']
+        for i, ind in enumerate(coupling.independent):
+            if coupling.S[d, i] != 0.0:
+                joints.append(
+                    f"<joint joint={quoteattr(ind)} coef={quoteattr(mjcf_number(-coupling.S[d, i]))}/>"
+                )
+        tendon = f"coupling_{name}"
+        tendons.append(f"    <fixed name={quoteattr(tendon)}>{''.join(joints)}</fixed>")
+        equalities.append(
+            f"    <tendon tendon1={quoteattr(tendon)}"
+            f' polycoef="{mjcf_number(coupling.c[d])} 0 0 0 0"'
+            f' solref="{mjcf_number(2.0 * timestep)} 1"/>'
+        )
+    return [*tendons, "  </tendon>", *equalities, "  </equality>"]

@@ -12,9 +12,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_int, check_vector
+from geosyn.robots.couplings import Coupling
 from geosyn.robots.errors import UnknownFrame
+from geosyn.robots.limits import ActuatorInfo
 
 if TYPE_CHECKING:
     import mujoco
@@ -71,6 +74,16 @@ class Robot:
         ee_frame: name of the end-effector frame in ``model``.
         capsules: collision capsules per link.
         gravity: (3,) gravity vector in the world frame [m/s^2].
+        damping: (nv,) viscous joint damping stated by the file [N m s/rad or N s/m];
+            zeros when none. Not in M(q): the inverse-dynamics controllers can compensate it.
+        frictionloss: (nv,) dry joint friction stated by the file [N m or N]; zeros when none.
+        tau_max_source: (nv,) where each torque limit came from (``file: ...``, ``user``,
+            ``default ...``, ``built-in``).
+        actuators: the actuators the file declares (geosyn commands joint torques instead).
+        base: ``fixed``, or how a floating base was fixed (``fixed_base=True``).
+        source_file: the robot file loaded, or None for a robot built in code.
+        coupling: linear joint couplings of the file (``q = S z + c``), or None; the
+            model itself is the uncoupled tree.
     """
 
     name: str
@@ -84,6 +97,31 @@ class Robot:
     capsules: tuple[CollisionCapsule, ...] = ()
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     _spheres: tuple[CollisionSphere, ...] = field(default=(), repr=False)
+    damping: Vector = field(default_factory=lambda: np.zeros(0))
+    frictionloss: Vector = field(default_factory=lambda: np.zeros(0))
+    tau_max_source: tuple[str, ...] = ()
+    actuators: tuple[ActuatorInfo, ...] = ()
+    base: str = "fixed"
+    source_file: str | None = None
+    coupling: Coupling | None = None
+
+    def __post_init__(self) -> None:
+        n = int(self.model.nv)
+        for name in ("damping", "frictionloss"):
+            value = getattr(self, name)
+            empty = value is None or np.size(value) == 0
+            arr = np.zeros(n) if empty else np.array(check_vector(value, n, name))
+            if np.any(arr < 0):
+                raise InvalidArgument(f"{name} must be >= 0, got {arr.tolist()}")
+            arr.flags.writeable = False
+            object.__setattr__(self, name, arr)
+        if not self.tau_max_source:
+            object.__setattr__(self, "tau_max_source", ("given",) * n)
+
+    @property
+    def has_joint_friction(self) -> bool:
+        """Whether any joint has viscous damping or dry friction."""
+        return bool(np.any(self.damping) or np.any(self.frictionloss))
 
     # -- sizes ------------------------------------------------------------------------
     @property
@@ -123,7 +161,12 @@ class Robot:
                 name,
                 names,
             )
-        return int(self.model.getFrameId(name))
+        try:
+            return int(self.model.getFrameId(name))
+        except ValueError:  # several frames of that name (a joint and its link): prefer
+            rank = {pin.FrameType.OP_FRAME: 0, pin.FrameType.BODY: 1}  # the tool, the body
+            same = [i for i, f in enumerate(self.model.frames) if f.name == name]
+            return min(same, key=lambda i: (rank.get(self.model.frames[i].type, 2), i))
 
     def joint_id(self, name: str) -> int:
         """Index of a Pinocchio joint (1-based; 0 is the universe).

@@ -15,6 +15,7 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 
 
 from geosyn.sim.camera import CameraView
+from geosyn.sim.camera_sensor import CameraSensor, Frames, render_rgbd
 from geosyn.sim.disturbances import (
     Disturbance,
     Latency,
@@ -26,16 +27,21 @@ from geosyn.sim.disturbances import (
 )
 from geosyn.sim.errors import RenderError, SimError, UnknownBody
 from geosyn.sim.log import SimResult
-from geosyn.sim.render import Clip, render_video
+from geosyn.sim.perception import PinholeCamera, TargetEstimate, estimate_ball
+from geosyn.sim.render import Clip, Motion, render_video
 from geosyn.sim.scene import Scene, build_scene
 from geosyn.sim.simulation import Simulation
 
 __all__ = [
+    "CameraSensor",
     "CameraView",
     "Clip",
     "Disturbance",
+    "Frames",
     "Latency",
+    "Motion",
     "PayloadChange",
+    "PinholeCamera",
     "Push",
     "RenderError",
     "Scene",
@@ -43,9 +49,12 @@ __all__ = [
     "SimError",
     "SimResult",
     "Simulation",
+    "TargetEstimate",
     "TorqueNoise",
     "UnknownBody",
     "Wrench",
     "build_scene",
+    "estimate_ball",
+    "render_rgbd",
     "render_video",
 ]

@@ -88,8 +88,9 @@ def auto_camera(
 ) -> CameraView:
     """A camera that frames the robot's bodies and the obstacles over the configurations.
 
-    A spatial robot is seen from 135 deg azimuth, 25 deg above; a planar one (all joint
-    axes parallel) square to its plane of motion, from above.
+    A spatial robot is seen from 25 deg above, 45 deg beside the direction its end effector
+    reaches in (135 deg azimuth for an arm reaching along +x); a planar one (all joint axes
+    parallel) square to its plane of motion, from above.
 
     Args:
         robot: the robot.
@@ -118,7 +119,23 @@ def auto_camera(
         elevation = float(np.rad2deg(np.arcsin(np.clip(-n[2], -1.0, 1.0))))
         azimuth = 90.0 if abs(n[2]) > 0.999 else float(np.rad2deg(np.arctan2(-n[1], -n[0])))
         return CameraView(c, float(distance), azimuth, max(elevation, -89.9))
-    return CameraView(c, float(distance), 135.0, -25.0)
+    return CameraView(c, float(distance), _reach_azimuth(robot, np.asarray(q)), -25.0)
+
+
+def _reach_azimuth(robot: Robot, q: np.ndarray) -> float:
+    """Azimuth [deg] that sees the end effector from 45 deg beside the direction it reaches
+    in (from the first joint to its mean position): 135 deg for an arm reaching along +x,
+    and the robot's own body (a humanoid's torso) stays behind the arm, not in front."""
+    from geosyn.robots.kinematics import frame_positions
+
+    base = np.asarray(robot.model.jointPlacements[1].translation, dtype=np.float64)
+    ee = frame_positions(robot, q[:: max(1, len(q) // 20)], robot.ee_frame).mean(axis=0)
+    u = (ee - base)[:2]
+    if float(np.linalg.norm(u)) < 1e-3:
+        return 135.0
+    c, s = np.cos(np.deg2rad(-45.0)), np.sin(np.deg2rad(-45.0))
+    cam = np.array([c * u[0] - s * u[1], s * u[0] + c * u[1]])  # camera side of the look-at
+    return float(np.rad2deg(np.arctan2(-cam[1], -cam[0])))
 
 
 __all__ = ["CameraView", "auto_camera", "body_points"]

@@ -64,6 +64,7 @@ LOG_FIELDS: tuple[LogField, ...] = (
     LogField("effort", ("T",), "N^2 m^2 s", "derived"),
     LogField("saturated", ("T", "nv"), "", dtype=np.bool_),
     LogField("clearance", ("T",), "m", fill=np.inf),
+    LogField("contact_force", ("T",), "N", fill=0.0),
     LogField("payload_mass", ("T", "P"), "kg"),
     LogField("compute_time", ("T",), "s"),
     LogField("iterations", ("T",), "", dtype=np.int64, fill=-1),
@@ -134,9 +135,12 @@ class SimResult:
         power: (T,) mechanical power of the motors ``tau_applied . v`` [W].
         effort: (T,) cumulative effort: integral of ``||tau_applied||^2`` up to the end of
             tick k [N^2 m^2 s].
-        saturated: (T, nv) the torque sent to the motors was clipped on that joint.
+        saturated: (T, nv) the torque on that joint was clipped at its limit, by the
+            simulation or by the controller itself (its ``diagnostics.saturated``).
         clearance: (T,) minimum signed distance robot collision spheres to obstacles [m];
             ``inf`` without obstacles.
+        contact_force: (T,) sum of the normal forces of the robot-obstacle contacts at the
+            tick [N]; 0 when obstacles are visual only (``contact=False``).
         payload_mass: (T, P) mass of each payload during the tick [kg].
         compute_time: (T,) wall time of the controller's ``compute`` [s].
         iterations: (T,) solver iterations reported by the controller (-1: not reported).
@@ -172,6 +176,7 @@ class SimResult:
     effort: np.ndarray
     saturated: np.ndarray
     clearance: np.ndarray
+    contact_force: np.ndarray
     payload_mass: np.ndarray
     compute_time: np.ndarray
     iterations: np.ndarray
@@ -244,27 +249,47 @@ class SimResult:
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
+        arrays: dict[str, Any] = {name: np.asarray(getattr(self, name)) for name in ARRAY_FIELDS}
+        np.savez_compressed(path, __meta__=np.array(self.metadata_json()), **arrays)
+        return path
+
+    def metadata_json(self) -> str:
+        """The non-array attributes as JSON (what `load` needs besides the arrays)."""
         meta = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ARRAY_FIELDS}
         meta["solver_status_names"] = list(meta["solver_status_names"])
         meta["joint_names"] = list(meta["joint_names"])
-        arrays: dict[str, Any] = {name: np.asarray(getattr(self, name)) for name in ARRAY_FIELDS}
-        np.savez_compressed(path, __meta__=np.array(json.dumps(meta)), **arrays)
-        return path
+        return json.dumps(meta)
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> SimResult:
-        """Read a log written by `save`.
+    def load(cls, path: str | os.PathLike[str], run: str | None = None) -> SimResult:
+        """Read a log written by `save`, or one run of an experiment's ``results.npz``.
+
+        An experiment stores each closed-loop run under a prefix (its controller label,
+        or ``{path}_{label}``; see `geosyn.experiments.build.sim_arrays`) with its
+        metadata; `saved_runs` lists them. The arrays an experiment does not keep
+        (``q_meas``, ``v_meas``, ``tau``, ``v_ref``, ``compute_time``, ``q_final``,
+        ``v_final``) are NaN, ``iterations`` -1 and ``solver_status`` 0 (none reported).
+
+        Args:
+            path: the ``.npz`` file.
+            run: the run's prefix in an experiment's file; None: the file's only run.
 
         Raises:
-            InvalidArgument: the file is missing or is not a saved `SimResult`.
+            InvalidArgument: the file is missing, is not a saved `SimResult` or
+                experiment, or ``run`` is not one of its runs (the message lists them).
         """
         path = Path(path)
         if not path.is_file():
             raise InvalidArgument(f"path {str(path)!r} is not a file")
         try:
             with np.load(path, allow_pickle=False) as data:
-                meta = json.loads(str(data["__meta__"]))
-                arrays: dict[str, Any] = {name: np.array(data[name]) for name in ARRAY_FIELDS}
+                if "__meta__" in data.files and run is None:
+                    meta = json.loads(str(data["__meta__"]))
+                    arrays: dict[str, Any] = {n: np.array(data[n]) for n in ARRAY_FIELDS}
+                else:
+                    meta, arrays = _experiment_run(path, data, run)
+        except InvalidArgument:
+            raise
         except (KeyError, ValueError, OSError) as err:
             raise InvalidArgument(f"path {str(path)!r} is not a saved SimResult: {err}") from err
         meta["solver_status_names"] = tuple(meta["solver_status_names"])
@@ -272,4 +297,48 @@ class SimResult:
         return cls(**arrays, **meta)
 
 
-__all__ = ["ARRAY_FIELDS", "LOG_FIELDS", "LogField", "SimResult", "allocate_rows", "finish_rows"]
+#: Suffix of a run's metadata key in an experiment's ``results.npz``.
+RUN_META = "__meta"
+
+
+def saved_runs(path: str | os.PathLike[str]) -> list[str]:
+    """Prefixes of the runs stored in an experiment's ``results.npz`` (storage order)."""
+    with np.load(Path(path), allow_pickle=False) as data:
+        return [k[: -len(RUN_META)] for k in data.files if k.endswith(RUN_META) and k != "__meta__"]
+
+
+def _experiment_run(
+    path: Path, data: Any, run: str | None
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(metadata, arrays) of run ``run`` of an experiment's npz; absent arrays filled."""
+    runs = [k[: -len(RUN_META)] for k in data.files if k.endswith(RUN_META) and k != "__meta__"]
+    if run is None and len(runs) == 1:
+        run = runs[0]
+    if run not in runs:
+        what = "which run" if run is None else f"run {run!r} is not in it"
+        listed = ", ".join(runs) or "none with metadata (written before geosyn stored it)"
+        raise InvalidArgument(f"path {str(path)!r}: {what}? runs: {listed}")
+    meta = json.loads(str(data[f"{run}{RUN_META}"]))
+    q, v = data[f"{run}__q"], data[f"{run}__v"]
+    dims = {"T": q.shape[0], "nq": q.shape[1], "nv": v.shape[1], "P": 0}
+    arrays: dict[str, Any] = {}
+    for f in LOG_FIELDS:
+        key = f"{run}__{f.name}"
+        if key in data.files:
+            arrays[f.name] = np.array(data[key])
+        else:  # not kept by the experiment: NaN for measurements, the fill for codes
+            fill = np.nan if f.dtype is np.float64 else f.fill
+            arrays[f.name] = np.full(tuple(dims[d] for d in f.shape), fill, dtype=f.dtype)
+    return meta, arrays
+
+
+__all__ = [
+    "ARRAY_FIELDS",
+    "LOG_FIELDS",
+    "RUN_META",
+    "LogField",
+    "SimResult",
+    "allocate_rows",
+    "finish_rows",
+    "saved_runs",
+]

@@ -8,6 +8,8 @@ Sphere         ``center`` (3,) [m], ``radius`` [m]         ``sphere``
 Box            ``center``, ``half_extents`` (3,) [m],      ``box``
                ``rotation`` (3, 3) world-from-box
 Capsule        ``p0``, ``p1`` (3,) [m], ``radius`` [m]     ``capsule``
+Cylinder       ``center``, ``radius``, ``half_length``     ``cylinder``
+               ``rotation`` (axis: third column)
 HalfSpace      ``normal`` (3,), ``offset`` [m]             ``plane``
 =============  ==========================================  ===================
 
@@ -62,6 +64,12 @@ def _capsule_geom(s: world.Capsule) -> str:
     return f'type="capsule" size="{_f(s.radius)}" fromto="{_vec(s.p0)} {_vec(s.p1)}"'
 
 
+def _cylinder_geom(s: world.Cylinder) -> str:
+    quat = quaternion_wxyz(np.asarray(s.rotation))
+    size = f"{_f(s.radius)} {_f(max(s.half_length, 1e-4))}"
+    return f'type="cylinder" size="{size}" pos="{_vec(s.center)}" quat="{_vec(quat)}"'
+
+
 def _halfspace_geom(s: world.HalfSpace) -> str:
     n = np.asarray(s.normal)
     pos, quat = n * s.offset, _quat_z_to(n)
@@ -73,6 +81,7 @@ GEOMS: dict[type, Callable[..., str]] = {
     world.Sphere: _sphere_geom,
     world.Box: _box_geom,
     world.Capsule: _capsule_geom,
+    world.Cylinder: _cylinder_geom,
     world.HalfSpace: _halfspace_geom,
 }
 
@@ -117,6 +126,23 @@ def obstacle_geom(obstacle: world.Shape, index: int, contact: bool = False) -> O
     flags = f'contype="0" conaffinity="{ROBOT_BIT if contact else 0}"'
     style = 'rgba="0.85 0.3 0.25 0.6" group="2"'
     return ObstacleGeom(shape, f"<geom name={name} {flags} {style} {GEOMS[type(shape)](shape)}/>")
+
+
+def obstacle_contact_force(
+    model: mujoco.MjModel, data: mujoco.MjData, obstacle_geoms: frozenset[int], buf: np.ndarray
+) -> float:
+    """Sum of the normal forces [N] of the active contacts that involve an obstacle geom.
+
+    Reads ``data.contact`` as the last collision detection left it (``mj_step1`` or
+    ``mj_forward``); ``buf`` is a (6,) scratch array. 0 when obstacles do not collide.
+    """
+    total = 0.0
+    for i in range(data.ncon):
+        c = data.contact[i]
+        if c.geom1 in obstacle_geoms or c.geom2 in obstacle_geoms:
+            mujoco.mj_contactForce(model, data, i, buf)
+            total += abs(float(buf[0]))
+    return total
 
 
 # -- clearance ------------------------------------------------------------------------

@@ -19,8 +19,9 @@ from __future__ import annotations
 import importlib
 import os
 import platform
+from collections.abc import Sequence
 from types import TracebackType
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -78,6 +79,18 @@ def _context_class(backend: str) -> Any:
             os.environ.pop("PYOPENGL_PLATFORM", None)
         else:
             os.environ["PYOPENGL_PLATFORM"] = saved
+
+
+class Overlay(NamedTuple):
+    """Texts drawn over an image.
+
+    Attributes:
+        text: lines shown top left, white on a dark box.
+        legend: (text, (r, g, b) in 0..1) entries shown bottom left, each in its colour.
+    """
+
+    text: str = ""
+    legend: Sequence[tuple[str, tuple[float, float, float]]] = ()
 
 
 class OffscreenRenderer:
@@ -155,8 +168,11 @@ class OffscreenRenderer:
             self.scene,
         )
 
-    def render(self) -> np.ndarray:
-        """Draw `scene`.
+    def render(self, overlay: Overlay | None = None) -> np.ndarray:
+        """Draw `scene`, then the texts of ``overlay``.
+
+        Args:
+            overlay: texts to draw over the image (none by default).
 
         Returns:
             (height, width, 3) uint8 RGB image, top row first (a fresh array).
@@ -165,8 +181,21 @@ class OffscreenRenderer:
             raise RenderError("render() called after close()")
         self._gl.make_current()
         mujoco.mjr_render(self._rect, self.scene, self._ctx)
+        if overlay is not None:
+            self._draw(overlay)
         mujoco.mjr_readPixels(self._rgb, None, self._rect, self._ctx)
         return np.flipud(self._rgb).copy()  # OpenGL's first row is the bottom one
+
+    def _draw(self, overlay: Overlay) -> None:
+        font = mujoco.mjtFont.mjFONT_NORMAL
+        # Legend first: mjr_text places text relative to the current viewport, which
+        # mjr_overlay shrinks to its box. Entries from the bottom up, ~20 px per line.
+        step = min(0.1, 20.0 / max(self._rect.height, 1))
+        for i, (text, rgb) in enumerate(reversed(list(overlay.legend))):
+            mujoco.mjr_text(font, text, self._ctx, 0.02, 0.03 + i * step, *rgb)
+        if overlay.text:
+            grid = mujoco.mjtGridPos.mjGRID_TOPLEFT
+            mujoco.mjr_overlay(font, grid, self._rect, overlay.text, "", self._ctx)
 
     def close(self) -> None:
         """Free MuJoCo's render context and the OpenGL context (idempotent)."""
@@ -190,4 +219,4 @@ class OffscreenRenderer:
         self.close()
 
 
-__all__ = ["OffscreenRenderer", "gl_backend"]
+__all__ = ["OffscreenRenderer", "Overlay", "gl_backend"]

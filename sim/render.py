@@ -3,7 +3,15 @@
 ``Clip(result, robot, fps, width, height, ...)`` describes the video of one run; its
 `Clip.frames` yields the RGB frames one by one, `Clip.render` stacks them, `Clip.save`
 streams them to a ``.gif`` or ``.mp4`` (`geosyn.sim.video`). `render_video` is the
-one-call form. The OpenGL context is made when drawing starts (`geosyn.sim.offscreen`:
+one-call form. A `Motion` (time stamps, positions, optional reference) can stand for the
+log: a stored run, or a path that was never simulated.
+
+Each frame shows the robot (its own meshes where its model file has them, else its
+collision capsules: `geosyn.sim.render_scene`), its payloads and obstacles; the end
+effector's reference path
+(green line) and its path so far (blue line), labelled in a legend; the time stamp and the
+run's label (the controller); an arrow on the body for each push or wrench acting then,
+with its force [N]. The OpenGL context is made when drawing starts (`geosyn.sim.offscreen`:
 EGL on Linux unless ``MUJOCO_GL`` says otherwise); nothing global is set on import.
 """
 
@@ -13,7 +21,7 @@ import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -24,17 +32,60 @@ from geosyn.robots.kinematics import frame_positions
 from geosyn.robots.robot import Robot
 from geosyn.sim.camera import CameraView, auto_camera, body_points
 from geosyn.sim.log import SimResult
-from geosyn.sim.offscreen import OffscreenRenderer
-from geosyn.sim.scene import build_scene
+from geosyn.sim.offscreen import OffscreenRenderer, Overlay
+from geosyn.sim.render_scene import (
+    FrameScene,
+    add_connector,
+    add_polyline,
+    force_now,
+    point_in_body,
+)
 from geosyn.sim.video import check_video_path, write_frames
 from geosyn.world import Payload
 
 #: Largest frame size [px] (the offscreen buffer of `Robot.mjcf`).
 MAX_WIDTH, MAX_HEIGHT = 1280, 960
 
-#: Marker colours (RGBA): the end effector's reference path and its path so far.
-_REF_RGBA = (0.1, 0.75, 0.3, 0.8)
+#: Colours (RGBA): the end effector's reference path, its path so far, force arrows.
+_REF_RGBA = (0.1, 0.75, 0.3, 1.0)
 _PATH_RGBA = (0.15, 0.35, 0.9, 1.0)
+_ARROW_RGBA = (0.85, 0.1, 0.1, 1.0)
+#: Width of the path lines [px]; length and width of a force arrow, as fractions of the
+#: camera distance (the same size on screen whatever the robot's size; the overlay gives
+#: the force in newtons).
+_LINE_PX = 3.0
+_ARROW_LENGTH, _ARROW_WIDTH = 0.15, 0.01
+#: Most points drawn per path line (longer paths are subsampled).
+_MAX_POINTS = 200
+
+
+class Motion(NamedTuple):
+    """What a video shows of a run: the robot's positions over time, and its reference.
+
+    Attributes:
+        t: (T,) time stamps [s], increasing.
+        q: (T, nq) joint positions [rad]; a non-finite row repeats the previous one.
+        q_ref: (T, nq) reference positions [rad] (NaN rows: no reference), or None.
+        end: time the motion ends [s], >= ``t[-1]``; None: ``t[-1]``. A stored run's ticks
+            stop one control period before its end: frames up to ``end`` show the last
+            sample (nearest state), so the run has as many frames as its log would.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    q_ref: np.ndarray | None = None
+    end: float | None = None
+
+    @classmethod
+    def from_result(cls, result: SimResult) -> Motion:
+        """The motion of a log: its ticks, then the final state at ``n_ticks * control_dt``."""
+        end = result.t[-1] + result.control_dt if result.n_ticks else 0.0
+        nan = np.full((1, result.q_ref.shape[1]), np.nan)
+        return cls(
+            np.append(result.t, end),
+            np.vstack([result.q, result.q_final[None, :]]),
+            np.vstack([result.q_ref, nan]),
+        )
 
 
 def frame_indices(result: SimResult, fps: float) -> np.ndarray:
@@ -58,44 +109,58 @@ def frame_indices(result: SimResult, fps: float) -> np.ndarray:
     return np.clip(idx, 0, result.n_ticks)
 
 
-def _add_marker(
-    scn: mujoco.MjvScene, pos: np.ndarray, radius: float, rgba: Sequence[float]
-) -> None:
-    """Append a visual-only sphere to a `mujoco.MjvScene` (ignored when the scene is full)."""
-    if scn.ngeom >= scn.maxgeom:
-        return
-    mujoco.mjv_initGeom(
-        scn.geoms[scn.ngeom],
-        mujoco.mjtGeom.mjGEOM_SPHERE,
-        np.array([radius, 0.0, 0.0]),
-        np.asarray(pos, dtype=np.float64),
-        np.eye(3).ravel(),
-        np.asarray(rgba, dtype=np.float32),
-    )
-    scn.ngeom += 1
+def motion_frame_indices(t: np.ndarray, fps: float, end: float | None = None) -> np.ndarray:
+    """Indices of the samples shown in each frame of a `Motion` (nearest sample).
+
+    Frames are taken every ``1/fps`` seconds from ``t[0]`` to ``end``.
+
+    Args:
+        t: (T,) increasing time stamps [s].
+        fps: frames per second [Hz], > 0.
+        end: last time [s]; None: ``t[-1]``.
+
+    Returns:
+        (F,) indices into ``t``, ``F = floor((end - t[0]) * fps) + 1``.
+    """
+    fps = check_positive(fps, "fps", "Hz")
+    end = float(t[-1]) if end is None else max(float(end), float(t[-1]))
+    n_frames = int(np.floor((end - t[0]) * fps + 1e-9)) + 1
+    times = t[0] + np.arange(n_frames) / fps
+    idx = np.clip(np.searchsorted(t, times), 0, len(t) - 1)
+    prev = np.clip(idx - 1, 0, len(t) - 1)
+    closer = np.abs(t[prev] - times) <= np.abs(t[idx] - times)
+    return np.where(closer, prev, idx)
 
 
 @dataclass(frozen=True, eq=False)
 class Clip:
-    """The video of one simulation log: what is shown and how (checked when built).
+    """The video of one run: what is shown and how (checked when built).
 
     Args:
-        result: the log of a run of ``robot``.
+        result: the log of a run of ``robot``, or a `Motion` of it.
         robot: the robot simulated.
-        fps: frames per second [Hz], > 0; frames as in `frame_indices`.
+        fps: frames per second [Hz], > 0; frames as in `frame_indices`
+            (`motion_frame_indices` for a `Motion`).
         width: frame width [px], 1..1280.
         height: frame height [px], 1..960.
         payloads: payloads to draw (as in the simulation).
         obstacles: obstacles to draw (as in the simulation).
         camera: the view; by default `geosyn.sim.camera.auto_camera` frames the motion.
-        trail: draw the end effector's reference path (green, where the log has a
-            reference) and its path so far (blue) as small markers.
+        trail: draw the end effector's reference path (green, where there is a
+            reference) and its path so far (blue), with a legend.
+        disturbances: the run's disturbances; a push or wrench (`geosyn.sim.Push`,
+            `geosyn.sim.Wrench`) is drawn as a red arrow on its body while it acts.
+        label: the run's name (the controller), shown top left with the time stamp.
+        overlay: draw the texts (label, time, legend, force values).
+        meshes: draw the robot's own meshes where its model file has them
+            (`geosyn.sim.render_scene.FrameScene`; `mesh_note` says why not), else its
+            collision capsules.
 
     Raises:
         InvalidArgument: bad sizes or fps, or a log of another robot.
     """
 
-    result: SimResult
+    result: SimResult | Motion
     robot: Robot
     fps: float = 30.0
     width: int = 640
@@ -104,18 +169,37 @@ class Clip:
     obstacles: Sequence[Any] = ()
     camera: CameraView | None = None
     trail: bool = True
+    disturbances: Sequence[Any] = ()
+    label: str = ""
+    overlay: bool = True
+    meshes: bool = True
 
     def __post_init__(self) -> None:
         result, robot = self.result, self.robot
-        if not isinstance(result, SimResult):
-            raise InvalidArgument(f"result must be a SimResult, got {type(result).__name__}")
+        if not isinstance(result, (SimResult, Motion)):
+            raise InvalidArgument(
+                f"result must be a SimResult or a Motion, got {type(result).__name__}"
+            )
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
-        if result.robot_name != robot.name or result.q.shape[1:] != (robot.nq,):
+        if isinstance(result, SimResult) and (
+            result.robot_name != robot.name or result.q.shape[1:] != (robot.nq,)
+        ):
             raise InvalidArgument(
                 f"result is a log of robot {result.robot_name!r} with nq={result.q.shape[1:]},"
                 f" but robot {robot.name!r} has nq={robot.nq}"
             )
+        if isinstance(result, Motion):
+            t, q = np.asarray(result.t), np.asarray(result.q)
+            ok = t.ndim == 1 and len(t) >= 1 and q.shape == (len(t), robot.nq)
+            if not ok or (result.q_ref is not None and np.shape(result.q_ref) != q.shape):
+                raise InvalidArgument(
+                    f"motion must have t (T,), q and q_ref (T, {robot.nq}) for robot"
+                    f" {robot.name!r}, got t {t.shape}, q {q.shape},"
+                    f" q_ref {None if result.q_ref is None else np.shape(result.q_ref)}"
+                )
+            if np.any(np.diff(t) <= 0.0):
+                raise InvalidArgument("motion.t must be increasing [s]")
         object.__setattr__(self, "fps", check_positive(self.fps, "fps", "Hz"))
         object.__setattr__(
             self, "width", check_int(self.width, "width [px]", low=1, high=MAX_WIDTH)
@@ -125,24 +209,39 @@ class Clip:
         )
         object.__setattr__(self, "payloads", tuple(self.payloads))
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        object.__setattr__(self, "disturbances", tuple(self.disturbances))
 
-    def _states(self) -> np.ndarray:
-        """(T + 1, nq) logged states then the final one; a non-finite state (a diverged
-        run) repeats the previous one [rad]."""
-        states = np.vstack([self.result.q, self.result.q_final[None, :]])
+    def mesh_note(self) -> str:
+        """Why the robot is drawn as capsules ("" when its own meshes are drawn)."""
+        return FrameScene(self.robot, meshes=self.meshes).mesh_note
+
+    def motion(self) -> Motion:
+        """The motion shown; a non-finite state (a diverged run) repeats the previous one."""
+        m = self.result if isinstance(self.result, Motion) else Motion.from_result(self.result)
+        states = np.array(m.q, dtype=np.float64)
         for i in range(1, len(states)):
             if not np.all(np.isfinite(states[i])):
                 states[i] = states[i - 1]
-        return states
+        return Motion(np.asarray(m.t, dtype=np.float64), states, m.q_ref, m.end)
 
-    def _trails(self, states: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """State indices of the path markers, the path's and the reference's points [m]."""
-        res, robot = self.result, self.robot
-        stride = max(1, int(round(1.0 / (self.fps * res.control_dt))) // 2)
-        marks = np.arange(0, len(states), stride)
-        path = frame_positions(robot, states[marks], robot.ee_frame)
-        ref = frame_positions(robot, res.q_ref[marks[marks < res.n_ticks]], robot.ee_frame)
-        return marks, path, ref[np.all(np.isfinite(ref), axis=1)][::2]
+    def indices(self, motion: Motion) -> np.ndarray:
+        """(F,) indices of the samples of ``motion`` (see `motion`) shown in each frame."""
+        if isinstance(self.result, SimResult):
+            return frame_indices(self.result, self.fps)
+        return motion_frame_indices(motion.t, self.fps, motion.end)
+
+    def _trails(self, motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Sample indices of the path points, the path's points and the reference's [m]."""
+        robot, n = self.robot, len(motion.t)
+        marks = np.unique(np.linspace(0, n - 1, min(n, _MAX_POINTS)).round().astype(np.int64))
+        path = frame_positions(robot, motion.q[marks], robot.ee_frame)
+        ref = np.empty((0, 3))
+        if motion.q_ref is not None:
+            q_ref = np.asarray(motion.q_ref)[marks]
+            q_ref = q_ref[np.all(np.isfinite(q_ref), axis=1)]
+            if len(q_ref):
+                ref = frame_positions(robot, q_ref, robot.ee_frame)
+        return marks, path, ref
 
     def frames(self) -> Iterator[np.ndarray]:
         """Render the frames one by one; the OpenGL context is made at the first ``next()``.
@@ -154,36 +253,71 @@ class Clip:
             RenderError: no OpenGL context could be made.
         """
         robot, payloads = self.robot, self.payloads
-        states = self._states()
-        idx = frame_indices(self.result, self.fps)
-        q_frames = states[idx]
-        scene = build_scene(robot, payloads=payloads, obstacles=self.obstacles, decor=True)
-        model = scene.model
+        motion = self.motion()
+        idx = self.indices(motion)
+        q_frames = motion.q[idx]
+        frame_scene = FrameScene(robot, payloads, self.obstacles, self.meshes)
+        scene, model = frame_scene.scene, frame_scene.scene.model
         # Keep the floor below the robot (planar arms move in the z = 0 plane).
-        floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
-        if floor >= 0:
-            low = float(body_points(robot, q_frames, payloads)[:, 2].min())
-            radius = max((c.radius for c in robot.capsules), default=0.0)
-            model.geom_pos[floor, 2] = min(float(model.geom_pos[floor, 2]), low - radius - 0.02)
+        radius = max((c.radius for c in robot.capsules), default=0.0)
+        low = float(body_points(robot, q_frames, payloads)[:, 2].min()) - radius - 0.02
+        if frame_scene.has_meshes:  # e.g. the legs of a humanoid whose arm is simulated
+            low = min(low, frame_scene.lowest_point(q_frames[0]) - 0.01)
+        for m in {id(model): model, id(frame_scene.model): frame_scene.model}.values():
+            floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+            if floor >= 0:
+                m.geom_pos[floor, 2] = min(float(m.geom_pos[floor, 2]), low)
         view = self.camera or auto_camera(robot, q_frames, payloads, self.obstacles)
         cam = view.mjv_camera()
-        opt = mujoco.MjvOption()
-        opt.geomgroup[:] = 1  # robot capsules (1), payloads (1) and obstacles (2) are visible
-        trail = self._trails(states) if self.trail else None
-        model.vis.quality.shadowsize = 4096  # fewer shadow-acne artifacts on the floor
-        data = mujoco.MjData(model)
-        with OffscreenRenderer(model, self.width, self.height) as renderer:
-            for k, qi in zip(idx, q_frames, strict=True):
-                data.qpos[scene.qpos_adr] = qi
-                mujoco.mj_forward(model, data)
-                renderer.update(data, cam, opt)
+        trail = self._trails(motion) if self.trail else None
+        pushes = [
+            (d, scene.resolve_body(d.body), point_in_body(scene, d))
+            for d in self.disturbances
+            if hasattr(d, "force") and hasattr(d, "body")
+        ]
+        surface = max((c.radius for c in robot.capsules), default=0.0) + 0.01  # [m]
+        width = _ARROW_WIDTH * view.distance
+        data = frame_scene.data
+        with OffscreenRenderer(frame_scene.model, self.width, self.height) as renderer:
+            for i, (k, qi) in enumerate(zip(idx, q_frames, strict=True)):
+                tk = float(motion.t[0]) + i / self.fps  # the frame's time (nearest state shown)
+                frame_scene.pose(qi)
+                frame_scene.update(renderer.scene, cam)
                 if trail is not None:
                     marks, path, ref = trail
-                    for p in ref:
-                        _add_marker(renderer.scene, p, 0.006, _REF_RGBA)
-                    for p in path[marks <= k]:
-                        _add_marker(renderer.scene, p, 0.008, _PATH_RGBA)
-                yield renderer.render()
+                    add_polyline(renderer.scene, ref, _REF_RGBA, _LINE_PX)
+                    add_polyline(renderer.scene, path[marks <= k], _PATH_RGBA, _LINE_PX)
+                forces = []
+                for d, bid, point in pushes:
+                    f = force_now(d, tk)
+                    if f is None:
+                        continue
+                    tip = (
+                        data.xipos[bid]
+                        if point is None
+                        else data.xpos[bid] + (data.xmat[bid].reshape(3, 3) @ point)
+                    )
+                    norm = float(np.linalg.norm(f))
+                    length = _ARROW_LENGTH * view.distance
+                    tip = tip - surface * f / norm  # the arrow ends on the link, not inside
+                    tail = tip - length * f / norm
+                    add_connector(
+                        renderer.scene, mujoco.mjtGeom.mjGEOM_ARROW, width, tail, tip, _ARROW_RGBA
+                    )
+                    forces.append(f"{type(d).__name__.lower()} {norm:.0f} N on {d.body}")
+                texts = self._texts(tk, forces, trail) if self.overlay else None
+                yield renderer.render(texts)
+
+    def _texts(self, t: float, forces: list[str], trail: Any) -> Overlay:
+        """The overlay of one frame: label and time, forces acting, the legend."""
+        left = [self.label] if self.label else []
+        left += [f"t = {t:.2f} s", *forces]
+        legend: list[tuple[str, tuple[float, float, float]]] = []
+        if trail is not None:
+            if len(trail[2]):
+                legend.append(("reference end-effector path", _REF_RGBA[:3]))
+            legend.append(("actual end-effector path", _PATH_RGBA[:3]))
+        return Overlay("\n".join(left), legend)
 
     def render(self) -> np.ndarray:
         """All frames in one array; prefer `save` for long runs (it streams).
@@ -202,8 +336,7 @@ class Clip:
         The format is checked before anything is rendered.
 
         Args:
-            path: output file, ``.gif`` or ``.mp4``; the video has
-                ``floor(duration * fps) + 1`` frames.
+            path: output file, ``.gif`` or ``.mp4``; one frame per index of `indices`.
 
         Returns:
             The path written.
@@ -216,7 +349,7 @@ class Clip:
 
 
 def render_video(
-    result: SimResult,
+    result: SimResult | Motion,
     path: str | os.PathLike[str],
     robot: Robot,
     fps: float = 30.0,
@@ -227,6 +360,8 @@ def render_video(
     obstacles: Sequence[Any] = (),
     camera: CameraView | None = None,
     trail: bool = True,
+    disturbances: Sequence[Any] = (),
+    label: str = "",
 ) -> Path:
     """Render a log to a ``.gif`` or ``.mp4`` video, streaming: ``Clip(...).save(path)``.
 
@@ -242,6 +377,8 @@ def render_video(
         obstacles: obstacles to draw.
         camera: the view; framed automatically by default.
         trail: draw the end effector's reference and actual paths.
+        disturbances: pushes and wrenches are drawn as arrows while they act.
+        label: the run's name, shown with the time stamp.
 
     Returns:
         The path written.
@@ -250,8 +387,18 @@ def render_video(
         InvalidArgument: bad arguments (see `Clip`) or an unknown suffix.
         RenderError: no OpenGL context, mp4 without imageio/ffmpeg, or writing failed.
     """
-    clip = Clip(result, robot, fps, width, height, payloads, obstacles, camera, trail)
+    clip = Clip(
+        result, robot, fps, width, height, payloads, obstacles, camera, trail, disturbances, label
+    )
     return clip.save(path)
 
 
-__all__ = ["MAX_HEIGHT", "MAX_WIDTH", "Clip", "frame_indices", "render_video"]
+__all__ = [
+    "MAX_HEIGHT",
+    "MAX_WIDTH",
+    "Clip",
+    "Motion",
+    "frame_indices",
+    "motion_frame_indices",
+    "render_video",
+]

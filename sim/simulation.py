@@ -35,13 +35,19 @@ import numpy as np
 
 from geosyn.core.errors import GeosynError, InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_int, check_positive, check_vector
+from geosyn.core.validation import check_choice, check_int, check_positive, check_vector
 from geosyn.robots.robot import Robot
 from geosyn.sim.disturbances import Disturbance, overrides
 from geosyn.sim.divergence import SPEED_FACTOR, DivergenceCheck
+from geosyn.sim.file_scene import build_file_scene
 from geosyn.sim.log import SimResult, allocate_rows, finish_rows
+from geosyn.sim.obstacles import obstacle_contact_force
 from geosyn.sim.scene import Scene, build_scene
 from geosyn.world import Payload
+
+MAX_LOG_BYTES = 4 << 30
+"""Largest per-tick log of one `Simulation.run` [bytes] (4 GiB): a longer run is refused
+before anything is allocated."""
 
 
 class ControllerLike(Protocol):
@@ -100,6 +106,11 @@ class Simulation:
         torque_limits: clip torques to the robot's limits (MuJoCo ctrlrange). With False
             the command is applied as is and no saturation is recorded.
         position_limits: MuJoCo enforces the finite joint position limits.
+        plant: ``model`` (default) simulates geosyn's rebuilt model of the robot
+            (`geosyn.sim.build_scene`); ``file`` simulates the robot's original MJCF file
+            (`geosyn.sim.file_scene`: its meshes, contacts and joint properties, its
+            actuators disabled, geosyn's torques applied as joint forces ``qfrc_applied``
+            and clipped to ``robot.tau_max``); no payloads or obstacles then.
 
     Raises:
         InvalidArgument: a bad argument; the message names it.
@@ -122,8 +133,10 @@ class Simulation:
         contact: bool = False,
         torque_limits: bool = True,
         position_limits: bool = True,
+        plant: str = "model",
     ) -> None:
         disturbances = _check_parts(robot, controller, disturbances)
+        self.plant = check_choice(plant, ("model", "file"), "plant")
         control_dt = check_positive(control_dt, "control_dt", "s")
         self.substeps = check_int(substeps, "substeps", low=1)
         self.seed = check_int(seed, "seed", low=0)
@@ -132,25 +145,43 @@ class Simulation:
         self.control_dt = control_dt
         self.integrator = integrator
         self.torque_limits = bool(torque_limits)
-        self.scene: Scene = build_scene(
-            robot,
-            payloads=payloads,
-            obstacles=obstacles,
-            timestep=control_dt / self.substeps,
-            integrator=integrator,
-            gravity=gravity,
-            contact=contact,
-            limits=position_limits,
-        )
+        self._contact = bool(contact)
+        if self.plant == "file":
+            if payloads or obstacles:
+                raise InvalidArgument("plant='file' takes no payloads or obstacles (yet)")
+            self.scene: Scene = build_file_scene(
+                robot,
+                timestep=control_dt / self.substeps,
+                integrator=integrator,
+                gravity=gravity,
+                limits=position_limits,
+            )
+        else:
+            self.scene = build_scene(
+                robot,
+                payloads=payloads,
+                obstacles=obstacles,
+                timestep=control_dt / self.substeps,
+                integrator=integrator,
+                gravity=gravity,
+                contact=contact,
+                limits=position_limits,
+            )
         self.model = self.scene.model
         self.data = mujoco.MjData(self.model)
-        if not self.torque_limits:
-            self.model.actuator_ctrllimited[:] = 0
-        self.tau_min = np.array(self.model.actuator_ctrlrange[:, 0])
-        self.tau_max = np.array(self.model.actuator_ctrlrange[:, 1])
+        if self.plant == "file":  # joint forces, clipped to the robot's limits
+            self.tau_min = -np.asarray(robot.tau_max, dtype=np.float64)
+            self.tau_max = np.asarray(robot.tau_max, dtype=np.float64).copy()
+            if not self.torque_limits:
+                self.tau_min, self.tau_max = self.tau_min * np.inf, self.tau_max * np.inf
+        else:
+            if not self.torque_limits:
+                self.model.actuator_ctrllimited[:] = 0
+            self.tau_min = np.array(self.model.actuator_ctrlrange[:, 0])
+            self.tau_max = np.array(self.model.actuator_ctrlrange[:, 1])
         act_joints = [int(self.model.actuator_trnid[a, 0]) for a in range(self.model.nu)]
         act_dof = np.array([self.model.jnt_dofadr[j] for j in act_joints], dtype=np.int64)
-        if not np.array_equal(act_dof, self.scene.dof_adr):
+        if self.plant == "model" and not np.array_equal(act_dof, self.scene.dof_adr):
             raise InvalidArgument(
                 "the scene's actuators are not in joint order; check robot.joint_names"
             )
@@ -212,7 +243,8 @@ class Simulation:
             The per-tick log; ``status`` says whether the run completed.
 
         Raises:
-            InvalidArgument: bad initial state, duration or seed, the controller returned
+            InvalidArgument: bad initial state, duration (also: a log larger than
+                `MAX_LOG_BYTES`) or seed, the controller returned
                 an array of the wrong shape or raised `InvalidArgument`. Other geosyn errors
                 of the controller (a failed solve, no reference) end the run with the status
                 ``"controller failed: ..."``.
@@ -235,7 +267,16 @@ class Simulation:
         has_ref_attr = hasattr(type(controller), "reference") or hasattr(controller, "reference")
         pay_ids = sc.payload_body_ids
         n_pay = len(pay_ids)
-        rows = allocate_rows(n_ticks, {"nq": nq, "nv": nv, "P": n_pay})
+        dims = {"nq": nq, "nv": nv, "P": n_pay}
+        log_bytes = n_ticks * sum(a.nbytes for a in allocate_rows(1, dims).values())
+        if log_bytes > MAX_LOG_BYTES:  # e.g. duration 2e4 s: refuse, do not allocate
+            raise InvalidArgument(
+                f"duration={duration:g} s is {n_ticks} ticks of {self.control_dt:g} s whose log"
+                f" needs {log_bytes / 2**30:.3g} GiB, more than MAX_LOG_BYTES ="
+                f" {MAX_LOG_BYTES / 2**30:g} GiB; shorten the run or raise"
+                " geosyn.sim.simulation.MAX_LOG_BYTES"
+            )
+        rows = allocate_rows(n_ticks, dims)
         t_log, q_log, v_log = rows["t"], rows["q"], rows["v"]
         qm_log, vm_log = rows["q_meas"], rows["v_meas"]
         tau_log, taua_log, sat_log = rows["tau"], rows["tau_applied"], rows["saturated"]
@@ -249,11 +290,15 @@ class Simulation:
         dt = self.control_dt
         extra_steps = range(self.substeps if rk4 else self.substeps - 1)
         clip = self.torque_limits
+        applied = self.plant == "file"
         lo, hi = self.tau_min, self.tau_max
         speed = self.divergence.speed_limit
         diverged = self.divergence.status
         qadr, dadr = sc.qpos_adr, sc.dof_adr
         clearance = sc.clearance if len(sc.obstacles) else None
+        contact_log = rows["contact_force"]
+        contact_geoms = frozenset(int(g) for g in sc.obstacle_geom_ids) if self._contact else None
+        contact_buf = np.zeros(6)
         measure_hooks, tau_hooks = self._measure_hooks, self._tau_hooks
         tick_hooks, pre_hooks = self._tick_hooks, self._pre_hooks
         zero_xfrc = self._zero_xfrc
@@ -321,13 +366,19 @@ class Simulation:
                 sat_log[k] = tau_a != tau_out
             else:
                 tau_c, tau_a = tau_cmd, tau_out
+            ctrl_sat = getattr(getattr(controller, "diagnostics", None), "saturated", None)
+            if ctrl_sat is not None and np.shape(ctrl_sat) == (nv,):
+                sat_log[k] |= ctrl_sat  # the controller clipped its own command at the limits
             tau_log[k] = tau_c
 
             if zero_xfrc:
                 d.xfrc_applied[:] = 0.0
             for h in tick_hooks:
                 h.on_tick(t, m, d)
-            d.ctrl[:] = tau_a
+            if applied:
+                d.qfrc_applied[dadr] = tau_a
+            else:
+                d.ctrl[:] = tau_a
 
             # -- log row k (kinematics and mass matrix are those of the tick's state)
             t_log[k] = t
@@ -346,6 +397,8 @@ class Simulation:
             ke_log[k] = 0.5 * float(d.qvel @ mv)
             if clearance is not None:
                 clear_log[k] = clearance(d.xpos, d.xmat)
+            if contact_geoms:
+                contact_log[k] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
             if n_pay:
                 pay_log[k] = m.body_mass[pay_ids]
             ctime_log[k] = c1 - c0

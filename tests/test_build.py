@@ -83,6 +83,7 @@ def test_saved_fields_are_the_per_tick_log() -> None:
         "effort",
         "saturated",
         "clearance",
+        "contact_force",
         "payload_mass",
         "fallback_used",
     )

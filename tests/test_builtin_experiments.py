@@ -20,17 +20,21 @@ def _run(name, tmp_path, *overrides, plots=False):
     return outcome.summary, results
 
 
-def test_there_are_seven_builtins_each_with_a_description():
+def test_there_are_eight_builtins_each_with_a_description():
     names = builtin_names()
     assert names == sorted(
         [
             "arm_synergy_combinations",
+            "perception_reach",  # its claims: tests/test_perception_map.py
             "pga_vs_pca",
+            "pick_and_place",  # its claims: tests/test_pick_and_place.py
             "panda_obstacle_shaping",
             "panda_payload_shaping",
             "panda_push_recovery",
             "planar2_geodesic_vs_euclidean",
+            "synergy_sequence",  # its claims: tests/test_sequence.py
             "synergy_transport",
+            "ur5_tracking",  # kind tracking; its claims: tests/test_tracking.py
         ]
     )
     for name in names:

@@ -308,3 +308,48 @@ def test_main_restores_the_sigterm_handler(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert signal.getsignal(signal.SIGTERM) == before
     capsys.readouterr()
+
+
+_PROBE = """
+import sys
+from geosyn.experiments.cli import main
+code = main(sys.argv[1:])
+heavy = sorted(m for m in ("mujoco", "casadi", "pinocchio", "scipy", "matplotlib")
+               if m in sys.modules)
+print("HEAVY=" + ",".join(heavy))
+sys.exit(code)
+"""
+
+
+@pytest.mark.parametrize(
+    "argv, allowed",
+    # `list` names the built-in robots: geosyn.robots loads Pinocchio (and MuJoCo, for its
+    # MJCF files); it must still not build anything (no CasADi, SciPy, Matplotlib).
+    [(["--help"], set()), (["list"], {"pinocchio", "mujoco"})],
+)
+def test_help_and_list_stay_light(argv, allowed):
+    """``geosyn --help`` and ``geosyn list`` answer without importing the heavy libraries
+    (checked in a fresh interpreter's ``sys.modules``; the time is measured in
+    benchmarks, never asserted)."""
+    proc = subprocess.run(
+        [sys.executable, "-c", _PROBE, *argv], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, proc.stderr
+    line = [x for x in proc.stdout.splitlines() if x.startswith("HEAVY=")][-1]
+    heavy = set(filter(None, line.removeprefix("HEAVY=").split(",")))
+    assert heavy <= allowed, f"{argv}: imported {sorted(heavy - allowed)}"
+
+
+def test_list_descriptions_match_the_validated_configs(capsys):
+    """``list`` reads the raw YAML (no validation, for speed): its first sentences equal
+    those of the validated configs."""
+    import re
+
+    from geosyn.experiments.loader import builtin_names, load_config
+
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for name in builtin_names():
+        cfg, _ = load_config(name)
+        first = re.split(r"(?<=\.)\s", " ".join(cfg.description.split()), maxsplit=1)[0]
+        assert f"  {name:<31} {first}\n" in out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import subprocess
 import sys
@@ -135,6 +136,106 @@ def test_damaged_library_is_rebuilt(tmp_path: Path, compile_counter: list[Path])
     assert float(fun([1.0, 2.0, 3.0], 1.0)[2]) == 14.0
 
 
+_TINY_SCRIPT = """
+import sys, warnings
+import casadi as ca
+from geosyn.core import codegen
+
+x = ca.SX.sym("x", 3)
+y = ca.SX.sym("y")
+fun = ca.Function("tiny", [x, y], [ca.sin(x) * y, ca.horzcat(x, 2 * x), ca.dot(x, x)],
+                  ["x", "y"], ["s", "m", "n"], {"cse": True})
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    out = codegen.compile_function(fun, sys.argv[1])
+print(float(out([1.0, 2.0, 3.0], 1.0)[2]), sum("damaged" in str(w.message) for w in caught))
+"""
+
+
+def _tiny_in_subprocess(cache: Path, *, wait: bool = True) -> subprocess.Popen[str]:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _TINY_SCRIPT, str(cache)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    if wait:
+        proc.wait(timeout=120)
+    return proc
+
+
+def _replace_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` as a new file at ``path`` (a new inode: a library this process has
+    loaded stays mapped intact)."""
+    tmp = path.with_name(path.name + ".new")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def test_library_digest_is_stored_and_verified(tmp_path: Path) -> None:
+    compile_function(_tiny(), tmp_path)
+    (library,) = _cached(tmp_path)
+    digest = library.with_name(library.name + ".sha256")
+    assert digest.read_text().strip() == hashlib.sha256(library.read_bytes()).hexdigest()
+    assert codegen.library_digest.damage(library) is None
+    data = bytearray(library.read_bytes())
+    data[len(data) // 2] ^= 0x40  # one flipped bit: the ELF structure is still intact
+    _replace_bytes(library, bytes(data))
+    assert codegen.library_digest.elf_damage(bytes(data)) is None
+    assert (
+        codegen.library_digest.damage(library) == "sha256 differs from the digest stored beside it"
+    )
+
+
+@pytest.mark.parametrize("damage", ["truncated", "bitflip", "empty"])
+def test_corrupted_cache_entry_is_rebuilt_in_a_fresh_process(tmp_path: Path, damage: str) -> None:
+    """A damaged .so is never dlopen'ed (a truncated one gave a bus error): rebuilt, no crash."""
+    first = _tiny_in_subprocess(tmp_path)
+    assert first.returncode == 0, first.stderr.read() if first.stderr else ""
+    (library,) = _cached(tmp_path)
+    good = library.read_bytes()
+    data = bytearray(good)
+    if damage == "truncated":
+        data = data[: len(data) // 2]
+    elif damage == "bitflip":
+        data[len(data) // 3] ^= 0x01
+    else:
+        data = bytearray()
+    _replace_bytes(library, bytes(data))
+    proc = _tiny_in_subprocess(tmp_path)
+    out, err = proc.communicate()
+    assert proc.returncode == 0, err  # a SIGBUS/SIGSEGV would be -7/-11
+    value, warned = out.split()
+    assert float(value) == 14.0 and int(warned) == 1
+    assert library.read_bytes() == good  # rebuilt: gcc is deterministic for one source
+    assert codegen.library_digest.damage(library) is None
+
+
+def test_library_cached_before_digests_is_adopted(
+    tmp_path: Path, compile_counter: list[Path]
+) -> None:
+    compile_function(_tiny(), tmp_path)
+    (library,) = _cached(tmp_path)
+    digest = library.with_name(library.name + ".sha256")
+    digest.unlink()
+    assert codegen.library_digest.damage(library) is None  # intact ELF: adopted, digest written
+    assert digest.is_file() and len(compile_counter) == 1
+    digest.unlink()
+    _replace_bytes(library, library.read_bytes()[:-100])  # truncated, no digest to compare
+    assert "truncated" in str(codegen.library_digest.damage(library))
+
+
+def test_concurrent_builders_agree(tmp_path: Path) -> None:
+    procs = [_tiny_in_subprocess(tmp_path, wait=False) for _ in range(3)]
+    for proc in procs:
+        out, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, err
+        assert out.split() == ["14.0", "0"]
+    (library,) = _cached(tmp_path)
+    assert codegen.library_digest.damage(library) is None
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".tmp-geosyn-")]
+
+
 def test_missing_compiler_raises(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(codegen.shutil, "which", lambda name: None)
     with pytest.raises(CodegenError, match="no C compiler"):
@@ -183,7 +284,7 @@ def test_clear_cache_removes_only_its_files(tmp_path: Path) -> None:
     keep.write_text("not ours")
     other_so = tmp_path / "libother.so"
     other_so.write_bytes(b"")
-    assert clear_cache(tmp_path) == 2  # the .so and the .c
+    assert clear_cache(tmp_path) == 3  # the .so, its .so.sha256 digest and the .c
     assert sorted(p.name for p in tmp_path.iterdir()) == ["libother.so", "notes.txt"]
     assert clear_cache(tmp_path / "missing") == 0
 
@@ -195,7 +296,7 @@ def test_default_cache_dir_follows_environment(
     assert codegen.default_cache_dir() == tmp_path / "codegen"
     compile_function(_tiny())
     assert len(_cached(tmp_path / "codegen")) == 1
-    assert clear_cache() == 2
+    assert clear_cache() == 3  # .so, .so.sha256, .c
     monkeypatch.delenv("GEOSYN_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert codegen.default_cache_dir() == tmp_path / "xdg" / "geosyn" / "codegen"

@@ -44,6 +44,7 @@ NOT_PARAMETERS = {
     ("OutputsConfig", "plots"),
     ("OutputsConfig", "video"),
     ("OutputsConfig", "video_format"),
+    ("OutputsConfig", "csv"),  # per-run CSV tables (geosyn.experiments.data)
 }
 
 #: Parameters of a section's first target that the config does not expose, and why.
@@ -60,12 +61,15 @@ NOT_EXPOSED = {
     "Simulation.obstacles": "scene.obstacles",
     "Simulation.disturbances": "the disturbances section",
     "Simulation.gravity": "robot.options.gravity",
+    "Simulation.plant": "robot.plant",
     "Simulation.seed": "the experiment's seed",
     "render_video.result": "the run",
     "render_video.path": "the run directory",
     "render_video.payloads": "scene.payloads",
     "render_video.obstacles": "scene.obstacles",
     "render_video.camera": "a CameraView object, framed automatically",
+    "render_video.disturbances": "the disturbances section (arrows for pushes, wrenches)",
+    "render_video.label": "the run's name (the controller)",
     "orthonormal_synergies.directions": "a matrix of candidate directions (designed: none)",
     "GeodesicSynergy.trajectory.self": "the combined synergy",
     "exp.q0": "reference.q_start",

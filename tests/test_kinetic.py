@@ -4,6 +4,7 @@ Pinocchio, MuJoCo, the 2-link closed form, finite differences and the geometric 
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -13,7 +14,8 @@ import pytest
 from conftest import BUILTIN_NAMES, get_metric, get_robot
 from geosyn.core import GeosynError, InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
-from geosyn.robots import symbolic
+from geosyn.robots import load_robot, symbolic
+from geosyn.robots.files import example_robot_data_dir
 
 N_SAMPLES = 200
 
@@ -197,7 +199,7 @@ def test_bad_q_raises_clear_errors() -> None:
 @pytest.mark.parametrize("name", BUILTIN_NAMES)
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_non_finite_entry_in_any_coordinate_is_rejected(name: str, bad: float) -> None:
-    """G's fast path checks M[root, root]; a bad value in any coordinate must still raise."""
+    """G's fast path checks trace(M) + sum(q); a bad value in any coordinate must raise."""
     metric = get_metric(name)
     q0 = get_robot(name).neutral()
     for k in range(metric.n):
@@ -214,3 +216,48 @@ def test_non_array_inputs_take_the_validating_path() -> None:
     np.testing.assert_allclose(metric.G([0.1, 0.2]), metric.G(np.array([0.1, 0.2])), atol=0)
     with pytest.raises(InvalidArgument, match=r"shape \(2,\)"):
         metric.G(np.zeros((2, 2)))
+
+
+FIXTURES = Path(__file__).parent / "fixtures"
+
+
+@functools.cache
+def _tree_metric(name: str) -> KineticEnergyMetric:
+    """Metrics of trees with several root joints: a two-finger hand, the TALOS upper body."""
+    if name == "two_fingers":
+        return KineticEnergyMetric(load_robot(FIXTURES / "two_fingers.xml", tau_max=1.0))
+    arms = [f"arm_{s}_{i}_joint" for s in ("left", "right") for i in range(1, 5)]
+    return KineticEnergyMetric(
+        load_robot(
+            example_robot_data_dir() / "talos_data/robots/talos_reduced.urdf",
+            keep_joints=[*arms, "head_1_joint"],  # torso locked: arms and head are roots
+        )
+    )
+
+
+@pytest.mark.parametrize("name", ["two_fingers", "talos_upper"])
+def test_G_fast_path_costs_one_crba_on_trees_with_several_roots(name: str, monkeypatch) -> None:
+    """Several root joints: G calls pin.crba once (no validating second call), and a NaN or
+    inf in any coordinate is still rejected."""
+    metric = _tree_metric(name)
+    model = metric.robot.model
+    assert sum(model.parents[j] == 0 for j in range(1, model.njoints)) >= 2
+    calls = []
+    crba = pin.crba
+
+    def counting(*args):
+        calls.append(1)
+        return crba(*args)
+
+    monkeypatch.setattr(pin, "crba", counting)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q = metric.robot.random_q(rng)
+        np.testing.assert_allclose(metric.G(q), crba(model, model.createData(), q), atol=0)
+    assert len(calls) == 5, f"{len(calls)} pin.crba calls for 5 G(q) calls"
+    for bad in (np.nan, np.inf, -np.inf):
+        for k in range(metric.n):
+            q = metric.robot.neutral()
+            q[k] = bad
+            with pytest.raises(InvalidArgument, match="q must be finite"):
+                metric.G(q)

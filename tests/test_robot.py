@@ -61,3 +61,29 @@ def test_total_mass_equals_sum_of_links() -> None:
     robot = get_robot("panda")
     mm = robot.mj_model()
     assert robot.total_mass == pytest.approx(float(np.sum(mm.body_mass)), rel=1e-14)
+
+
+def test_joint_friction_fields_are_validated_and_read_only() -> None:
+    import dataclasses
+
+    planar = get_robot("planar2")
+    np.testing.assert_array_equal(planar.damping, [0.0, 0.0])
+    assert not planar.has_joint_friction and planar.base == "fixed"
+    assert planar.tau_max_source == ("built-in: planar arm tau_max=50",) * 2
+    damped = dataclasses.replace(planar, damping=np.array([0.5, 0.0]))
+    assert damped.has_joint_friction and damped.damping[0] == 0.5
+    with pytest.raises(ValueError):
+        damped.damping[0] = 1.0  # read-only
+    with pytest.raises(InvalidArgument, match="frictionloss must be >= 0"):
+        dataclasses.replace(planar, frictionloss=[-1.0, 0.0])
+    with pytest.raises(InvalidArgument, match="damping must have shape"):
+        dataclasses.replace(planar, damping=[1.0])
+
+
+def test_duplicate_frame_names_prefer_the_body_frame() -> None:
+    """so100's 'gripper' is a joint and a link: frame_id picks the link's BODY frame."""
+    from geosyn.robots import load_robot
+
+    robot = load_robot("so100")
+    fid = robot.frame_id("gripper")
+    assert robot.model.frames[fid].type == pin.FrameType.BODY

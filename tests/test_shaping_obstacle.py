@@ -387,3 +387,39 @@ def test_exp_sees_moved_obstacle_without_rebuild() -> None:
     assert np.abs(moved.q - first.q).max() > 1e-3  # the obstacle matters
     np.testing.assert_allclose(moved.q, fresh.q, atol=1e-12)
     assert shaped.build_count == builds
+
+
+def test_smooth_distance_option_is_conservative_within_its_bound() -> None:
+    from geosyn.world.smooth import error_bound
+
+    robot = get_robot("panda")
+    obstacles = _scene()
+    exact = ObstacleTerm(obstacles, capacity=5).bind(robot)
+    smooth = ObstacleTerm(obstacles, capacity=5, distance="smooth").bind(robot)
+    rng = np.random.default_rng(21)
+    for _ in range(10):
+        q = robot.random_q(rng)
+        diff = smooth.clearances(q) - exact.clearances(q)
+        assert diff.max() <= 1e-12 and diff.min() >= -error_bound()
+    with pytest.raises(InvalidTermArgument, match="distance 'fuzzy' is unknown"):
+        ObstacleTerm(obstacles, distance="fuzzy")
+
+
+def test_symbolic_clearances_rows_and_softmin() -> None:
+    import casadi as ca
+
+    robot = get_robot("panda")
+    obstacles = _scene()
+    term = ObstacleTerm(obstacles, capacity=5).bind(robot)
+    q = ca.SX.sym("q", robot.nv)
+    p = term.symbolic_parameters()
+    rows = ca.Function("rows", [q, p], [term.symbolic_clearances(q)])
+    soft = ca.Function("soft", [q, p], [term.symbolic_clearances(q, softmin=500.0)])
+    qv = robot.random_q(np.random.default_rng(22))
+    c = term.clearances(qv)  # (spheres, 4 active obstacles)
+    all_rows = np.asarray(rows(qv, term.parameter_values())).reshape(len(term.spheres), 5)
+    np.testing.assert_allclose(all_rows[:, :4], c, atol=1e-12)
+    np.testing.assert_array_equal(all_rows[:, 4], 10.0)  # the empty slot
+    s = np.asarray(soft(qv, term.parameter_values())).ravel()
+    assert np.all(s[:4] <= c.min(axis=0) + 1e-12)
+    assert np.all(s[:4] >= c.min(axis=0) - np.log(len(term.spheres)) / 500.0)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -197,3 +199,234 @@ def test_sweep_killed_by_sigterm_then_resumed(tmp_path, monkeypatch):
     for run, stamp in stamps.items():
         assert _timestamps(out)[run] == stamp
     assert os.path.isfile(out / "sweep_summary.md")
+
+
+def test_big_sweeps_are_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
+    from geosyn.experiments.cli import main
+
+    def never(job):
+        raise AssertionError("a run started")
+
+    monkeypatch.setattr(sweep_mod, "run_job", never)
+    grid = {"controllers.0.kp": [str(k) for k in range(100)], "seed": [str(s) for s in range(100)]}
+    with pytest.raises(ConfigError, match=r"10000 runs .* limit of 1000; raise it with --max-runs"):
+        sweep(SRC, grid, out=tmp_path / "big", overrides=BASE, progress=False)
+    args = ["sweep", SRC, "--seeds", "1000000", "--out", str(tmp_path / "s"), "--no-progress"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "1000000 runs" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "s").exists() and not (tmp_path / "big").exists()
+    with pytest.raises(InvalidArgument, match="max_runs"):
+        sweep(SRC, {}, out=tmp_path / "x", overrides=BASE, progress=False, max_runs=0)
+
+
+def test_sweep_announces_its_size(tmp_path, capsys, monkeypatch):
+    sweep(SRC, {"controllers.0.kp": ["100", "400"]}, out=tmp_path / "a", overrides=BASE)
+    err = capsys.readouterr().err
+    assert "running 2 of 2 run(s) (2 grid point(s) x 1 seed(s); 0 already complete)" in err
+    monkeypatch.setattr(sweep_mod, "run_job", lambda job: None)
+    monkeypatch.setattr(sweep_mod, "load_config", lambda *a: (_Cfg(), tmp_path / "x.yaml"))
+    sweep(SRC, {"seed": [str(i) for i in range(60)]}, out=tmp_path / "b", progress=False)
+    err = capsys.readouterr().err
+    assert "60 run(s) (60 grid point(s) x 1 seed(s)); validating their configs" in err
+
+
+class _Cfg:
+    name = "fake"
+    seed = 0
+
+
+@pytest.mark.parametrize(
+    "address", ["nohost", "host:", "host:0", "host:70000", "a b:1", "http://x:1", ":6379", ""]
+)
+def test_malformed_ray_address_is_one_error(tmp_path, address):
+    with pytest.raises(ConfigError, match="--ray.*expected 'local', 'auto', HOST:PORT"):
+        sweep(SRC, {}, out=tmp_path / "r", overrides=BASE, progress=False, ray_address=address)
+    assert not (tmp_path / "r").exists()
+
+
+def test_unreachable_ray_head_fails_fast(tmp_path):
+    import socket
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(ConfigError, match=r"cannot connect within 10 s.*ray start --head"):
+        sweep(
+            SRC,
+            {},
+            out=tmp_path / "r",
+            overrides=BASE,
+            progress=False,
+            ray_address=f"127.0.0.1:{port}",
+        )
+
+
+def test_ray_token_authentication_is_explained(monkeypatch):
+    class AuthenticationError(Exception):
+        pass
+
+    class FakeRay:
+        @staticmethod
+        def init(**kwargs):
+            raise AuthenticationError("Authentication failed: missing token")
+
+    from geosyn.experiments import executors
+
+    monkeypatch.setattr(executors, "_check_reachable", lambda address, timeout: None)
+    with pytest.raises(ConfigError, match="export RAY_AUTH_MODE=token"):
+        executors._ray_init(FakeRay, "127.0.0.1:6379", 1)
+
+
+def test_a_second_sweep_into_a_running_one_is_refused(tmp_path):
+    from geosyn.experiments import rundir
+
+    out = tmp_path / "sweep"
+    fd = rundir.acquire(out)
+    try:
+        with pytest.raises(RunDirectoryExists, match="being written by another process"):
+            sweep(SRC, {}, out=out, overrides=BASE, progress=False)
+    finally:
+        rundir.release(out, fd)
+    assert not out.exists()
+
+
+def test_aggregate_excludes_and_counts_failed_runs(tmp_path):
+    point = {"controllers.0.kp": "100"}
+    summaries = [
+        {"geodesic.ok": 1.0, "geodesic.rms_error": 0.1, "failed_runs": 0.0},
+        {"geodesic.ok": 1.0, "geodesic.rms_error": 0.3, "failed_runs": 0.0},
+        {"geodesic.ok": 0.0, "geodesic.rms_error": float("nan"), "failed_runs": 1.0},
+    ]
+    for s, summ in enumerate(summaries):
+        run = tmp_path / point_name(point) / f"seed{s}"
+        run.mkdir(parents=True)
+        (run / "summary.json").write_text(json.dumps(summ, allow_nan=True))
+    (row,) = sweep_mod.aggregate(tmp_path, [point], 3)
+    assert row["n_runs"] == 3 and row["n_failed"] == 1
+    rms = row["metrics"]["geodesic.rms_error"]
+    assert rms["n"] == 2 and rms["mean"] == pytest.approx(0.2) and rms["std"] == pytest.approx(0.1)
+    assert row["metrics"]["geodesic.ok"]["mean"] == pytest.approx(2 / 3)
+
+
+def _children(pid):
+    out = []
+    for status in Path("/proc").glob("[0-9]*/status"):
+        try:
+            text = status.read_text()
+        except OSError:
+            continue
+        if f"\nPPid:\t{pid}\n" in text:
+            out.append(int(status.parent.name))
+    return out
+
+
+def _alive(pid):
+    try:
+        state = Path(f"/proc/{pid}/status").read_text().split("State:\t")[1][0]
+    except (OSError, IndexError):
+        return False
+    return state != "Z"
+
+
+def _start_long_sweep(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "sweep"
+    args = ["sweep", SRC, "--grid", "controllers.0.kp=100,200", "--seeds", "2"]
+    args += ["--workers", "2", "--out", str(out), "--no-progress"]
+    for o in [*BASE, "simulation.duration=2.0", "params.duration=2.0"]:
+        args += ["--set", o]
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).with_name("geosyn")), *args],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
+    return proc, out, args
+
+
+def _wait_for_partials(out, proc, n=2, timeout=120.0):
+    import time
+
+    deadline = time.monotonic() + timeout
+    while len(list(out.glob("*/.seed*.partial-*"))) < n and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+        time.sleep(0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("signum", ["SIGKILL", "SIGTERM"])
+def test_killed_sweep_leaves_no_workers_and_resumes(tmp_path, signum):
+    """SIGKILL: workers die with the parent; SIGTERM: the sweep ends within seconds, its
+    partial runs removed; the re-run completes only the missing runs."""
+    import signal
+    import time
+
+    proc, out, args = _start_long_sweep(tmp_path)
+    _wait_for_partials(out, proc)
+    workers = _children(proc.pid)
+    assert len(workers) >= 2
+    t0 = time.monotonic()
+    proc.send_signal(getattr(signal, signum))
+    proc.communicate(timeout=60)
+    stopped = time.monotonic() - t0
+    deadline = time.monotonic() + 5.0
+    while any(_alive(w) for w in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_alive(w) for w in workers), "worker processes outlived the sweep by 5 s"
+    assert proc.returncode == -signal.SIGKILL if signum == "SIGKILL" else proc.returncode == 143
+    if signum == "SIGTERM":
+        assert stopped < 10.0  # WORKER_GRACE is 2 s; generous for a loaded CI machine
+        assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
+    finished = _timestamps(out)  # runs completed before the signal stay as they are
+
+    from geosyn.experiments.cli import main
+
+    assert main(args) == 0
+    after = _timestamps(out)
+    assert len(after) == 4
+    for run, stamp in finished.items():
+        assert after[run] == stamp
+    assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
+    assert not list(tmp_path.glob(".*.lock"))
+
+
+@pytest.mark.slow
+def test_sigterm_stops_a_ray_sweep_cleanly(tmp_path):
+    """Ray installs its own SIGTERM handlers (a stack dump, exit 1, or sys.exit(15)); the
+    sweep keeps its own: exit 143 within seconds, tasks cancelled, then a plain re-run
+    completes every run."""
+    import signal
+    import subprocess
+    import time
+
+    out = tmp_path / "sweep"
+    args = ["sweep", SRC, "--grid", "controllers.0.kp=100,200", "--out", str(out), "--no-progress"]
+    for o in [*BASE, "simulation.duration=3.0", "params.duration=3.0"]:
+        args += ["--set", o]
+    proc = subprocess.Popen(
+        [str(Path(sys.executable).with_name("geosyn")), *args, "--ray", "local", "--workers", "2"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
+    deadline = time.monotonic() + 120
+    while not list(out.glob("*/.seed0.partial-*")) and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+        time.sleep(0.05)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err[-3000:]
+    assert time.monotonic() - t0 < 10.0
+    assert "SIGTERM received" not in err and "Traceback" not in err
+    from geosyn.experiments.cli import main
+
+    assert main(args) == 0
+    assert len(_timestamps(out)) == 2
+    assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))

@@ -48,6 +48,14 @@ def _capsule(s: shapes.Capsule, p: Array) -> Vector:
     return np.linalg.norm(p - (a + t[:, None] * ab), axis=1) - s.radius
 
 
+def _cylinder(s: shapes.Cylinder, p: Array) -> Vector:
+    local = (p - np.asarray(s.center)) @ np.asarray(s.rotation)
+    u = np.column_stack(
+        [np.hypot(local[:, 0], local[:, 1]) - s.radius, np.abs(local[:, 2]) - s.half_length]
+    )
+    return np.linalg.norm(np.maximum(u, 0.0), axis=1) + np.minimum(u.max(axis=1), 0.0)
+
+
 def _halfspace(s: shapes.HalfSpace, p: Array) -> Vector:
     return p @ np.asarray(s.normal) - s.offset
 
@@ -56,6 +64,7 @@ _NUMERIC: dict[type, Callable[..., Vector]] = {
     shapes.Sphere: _sphere,
     shapes.Box: _box,
     shapes.Capsule: _capsule,
+    shapes.Cylinder: _cylinder,
     shapes.HalfSpace: _halfspace,
 }
 
@@ -64,7 +73,7 @@ def signed_distance(shape: shapes.Shape, points: Array) -> Vector:
     """Signed distances of points to a shape (exact; negative inside). O(S).
 
     Args:
-        shape: a `Sphere`, `Box`, `Capsule` or `HalfSpace`.
+        shape: a `Sphere`, `Box`, `Capsule`, `Cylinder` or `HalfSpace`.
         points: (S, 3) points in the world [m] (a single (3,) point is taken as (1, 3)).
 
     Returns:

@@ -15,6 +15,10 @@ from geosyn.core.types import Matrix, Vector
 from geosyn.world import validation as check
 from geosyn.world.errors import InvalidGeometry
 
+MAX_MASS = 1e5
+"""Largest payload mass [kg] (100 t: far above any robot's payload; larger values make
+the dynamics overflow). `geosyn.world.payload.MAX_MASS` may be raised."""
+
 
 @dataclass(frozen=True)
 class Payload:
@@ -25,7 +29,7 @@ class Payload:
 
     Attributes:
         frame: name of the robot frame (or joint) that carries it.
-        mass: mass [kg], >= 0.
+        mass: mass [kg], in [0, `MAX_MASS`].
         com: (3,) centre of mass in ``frame`` [m].
         inertia: (3, 3) rotational inertia about the centre of mass, in ``frame`` axes
             [kg m^2] (symmetric positive definite, principal moments satisfying the
@@ -56,6 +60,12 @@ class Payload:
                 self.frame,
             )
         mass = check.nonnegative(self.mass, "Payload.mass", unit="kg")
+        if mass > MAX_MASS:  # 1e30 kg gave NaN dynamics downstream instead of an error
+            raise InvalidGeometry(
+                f"Payload.mass must be in [0, {MAX_MASS:g}] [kg] (MAX_MASS), got {mass:g}",
+                "Payload.mass",
+                self.mass,
+            )
         object.__setattr__(self, "mass", mass)
         object.__setattr__(self, "com", check.point(self.com, "Payload.com"))
         radius = check.nonnegative(self.radius, "Payload.radius", unit="m")

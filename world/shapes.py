@@ -1,4 +1,4 @@
-"""Solid shapes in the world: `Sphere`, `Box` (oriented), `Capsule` and `HalfSpace`.
+"""Solid shapes in the world: `Sphere`, `Box` (oriented), `Capsule`, `Cylinder`, `HalfSpace`.
 
 Shapes are frozen dataclasses validated on construction (`geosyn.world.validation`), in
 world coordinates [m]. The same objects are obstacles of the metric shaping term
@@ -15,6 +15,11 @@ Every shape is also one *rounded box* (`rounded_box`): the Minkowski sum of an o
 - `HalfSpace`: a cube of half-extent `HALFSPACE_EXTENT` with one face on the plane, so
   its distance is exactly ``n . x - offset`` for points within 100 m of the plane's point
   closest to the origin (rounding error ~1e-14 m).
+
+A `Cylinder` is not a rounded box: its `rounded_box` is the capsule on its axis with its
+radius and length (a superset whose end caps reach ``radius`` beyond the flat ends), which
+the obstacle shaping term uses; `geosyn.world.signed_distance` and
+`geosyn.world.smooth.smooth_signed_distance` measure the cylinder itself.
 
 One parameter layout for all shapes lets compiled functions take any shape as a
 parameter value, without rebuilding.
@@ -143,6 +148,54 @@ class Capsule:
 
 
 @dataclass(frozen=True)
+class Cylinder:
+    """A solid circular cylinder.
+
+    Attributes:
+        center: (3,) centre in the world [m].
+        radius: radius [m], > 0.
+        half_length: half its length along its axis [m], >= 0.
+        rotation: (3, 3) world-from-cylinder rotation; its third column is the axis.
+    """
+
+    center: tuple[float, float, float]
+    radius: float
+    half_length: float
+    rotation: tuple[tuple[float, ...], ...] = _IDENTITY
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "center", check.point(self.center, "Cylinder.center"))
+        object.__setattr__(
+            self,
+            "radius",
+            check.nonnegative(self.radius, "Cylinder.radius", unit="m", strict=True),
+        )
+        object.__setattr__(
+            self,
+            "half_length",
+            check.nonnegative(self.half_length, "Cylinder.half_length", unit="m"),
+        )
+        R = check.rotation(self.rotation, "Cylinder.rotation")
+        object.__setattr__(self, "rotation", tuple(tuple(map(float, r)) for r in R))
+
+    @property
+    def axis(self) -> np.ndarray:
+        """(3,) unit axis in the world."""
+        return np.asarray(self.rotation)[:, 2]
+
+    def rounded_box(self) -> Vector:
+        """(16,) rounded-box parameters of the enclosing capsule (see the module doc)."""
+        R = np.asarray(self.rotation)
+        Rc = np.column_stack([R[:, 2], R[:, 0], R[:, 1]])  # capsule segment along its x
+        return np.concatenate([self.center, Rc.ravel(), [self.half_length, 0.0, 0.0],
+                               [self.radius]])  # fmt: skip
+
+    def moved_to(self, center: Vector) -> Cylinder:
+        """The same cylinder centred at ``center`` (3,) [m]."""
+        return Cylinder(center, self.radius, self.half_length, self.rotation)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
 class HalfSpace:
     """The half-space ``{x : normal . x <= offset}`` (free space is ``normal . x > offset``).
 
@@ -172,10 +225,10 @@ class HalfSpace:
         return HalfSpace(self.normal, float(np.dot(self.normal, center)))
 
 
-Shape = Sphere | Box | Capsule | HalfSpace
+Shape = Sphere | Box | Capsule | Cylinder | HalfSpace
 """Any solid shape of the world."""
 
-SHAPES: tuple[type, ...] = (Sphere, Box, Capsule, HalfSpace)
+SHAPES: tuple[type, ...] = (Sphere, Box, Capsule, Cylinder, HalfSpace)
 """The shape classes, in documentation order."""
 
 
@@ -187,7 +240,8 @@ def check_shape(obj: object, name: str) -> Shape:
         name: argument name for the message, e.g. ``"obstacles[2]"``.
 
     Raises:
-        InvalidGeometry: ``obj`` is not a `Sphere`, `Box`, `Capsule` or `HalfSpace`.
+        InvalidGeometry: ``obj`` is not a `Sphere`, `Box`, `Capsule`, `Cylinder` or
+            `HalfSpace`.
     """
     if not isinstance(obj, SHAPES):
         raise InvalidGeometry(

@@ -21,6 +21,36 @@ module                        holds
 `.open_loop`                  the minimum-effort Riemannian OCP, `OpenLoopSolution`
 ============================  =========================================================
 
+Formulation selected by each option (the same names in Python and in YAML ``type: mpc``
+sections; the YAML defaults are read from `GeodesicMPC`'s constructor):
+
+======================  ===============================================================
+option                  selects
+======================  ===============================================================
+``control``             ``"acceleration"`` (default): ``u`` = joint accelerations, the
+                        exact double integrator, ``|RNEA(q, v, u)| <= tau_max`` as path
+                        constraints. ``"torque"``: ``u`` = joint torques, RK4 on the ABA
+                        (``rk4_steps`` per stage), ``|u| <= tau_max`` as bounds.
+``effort``              None (default): ``"acceleration"`` with acceleration control,
+                        ``"torque"`` with torque control. ``"torque"``:
+                        ``|tau - tau_ref|^2``; ``"acceleration"``: ``|u - a_ref|^2``;
+                        ``"metric"``: the squared Riemannian norm of the covariant
+                        acceleration.
+``hessian``             ``"gauss-newton"`` (default): the stage dynamics compiled to C with
+                        zero curvature, found on disk by a recipe (`.gauss_newton`), one
+                        MX graph; ``"exact"``: an SX graph with exact Hessians on
+                        CasADi's virtual machine (no compiler needed).
+``solver``              ``"fatrop"`` (default): interior point on the stage structure
+                        (Riccati); ``"ipopt"``: general sparse interior point.
+``max_solve_time``      the wall-time budget of one solve (IPOPT stops at it; a longer
+                        fatrop solve is discarded); over it, the controller falls back.
+======================  ===============================================================
+
+Build time. The compiled stage functions are looked up by a recipe (the serialised robot
+model, the settings and a digest of the code that builds them), so a robot seen before
+builds no symbolic graph: a new `GeodesicMPC` is ready in well under a second. The first
+build for a robot compiles C for tens of seconds and reports its progress on stderr.
+
 Speed. The per-stage dynamics dominate an interior-point iteration when their exact
 second derivatives are used; with ``hessian="gauss-newton"`` (default) they are compiled
 to C with a structurally zero second derivative and the NLP is an MX graph with one

@@ -19,13 +19,14 @@ recorded in ``diagnostics.notes``.
 from __future__ import annotations
 
 import math
+import sys
 import time
 
 import numpy as np
 
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import NoReference
-from geosyn.controllers.mpc.gauss_newton import compiled_dynamics
+from geosyn.controllers.mpc.gauss_newton import cached_stage_dynamics
 from geosyn.controllers.mpc.ocp import OCPBuilder
 from geosyn.controllers.mpc.open_loop import OpenLoopOCP, OpenLoopSolution
 from geosyn.controllers.mpc.plan import (
@@ -36,7 +37,12 @@ from geosyn.controllers.mpc.plan import (
     sample_reference,
 )
 from geosyn.controllers.mpc.problem import ShootingNLP, SolveResult, pack_parameters
-from geosyn.controllers.mpc.settings import HESSIANS, ocp_settings, solver_settings
+from geosyn.controllers.mpc.settings import (
+    HESSIANS,
+    ocp_settings,
+    outside_state_margin,
+    solver_settings,
+)
 from geosyn.controllers.reference import Reference
 from geosyn.core.codegen import CodegenError
 from geosyn.core.errors import InvalidArgument
@@ -46,6 +52,11 @@ from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
 __all__ = ["GeodesicMPC"]
+
+
+def _report_progress(line: str) -> None:
+    """A first build compiles for tens of seconds: say so on stderr (never silent)."""
+    print(f"geosyn MPC: {line}", file=sys.stderr, flush=True)
 
 
 class GeodesicMPC(Controller):
@@ -112,6 +123,13 @@ class GeodesicMPC(Controller):
         plan_tolerance: max joint deviation [rad] for reusing the previous plan as fallback.
         solver_options: extra options for the solver plugin (fatrop or ipopt options), e.g.
             ``{"max_iter": 1}``; unknown keys are rejected by the plugin at build time.
+        max_solve_time: wall-time budget of one solve [s] (> 0). IPOPT stops at it;
+            fatrop cannot be stopped, so a solve that took longer is discarded. Either
+            way the solve counts as failed (``solver_status`` says why) and the
+            controller falls back. A measured state farther than
+            `geosyn.controllers.mpc.settings.STATE_MARGIN` outside the position or
+            velocity limits is not solved at all (status ``"skipped: ..."``): the OCP
+            is infeasible there, and fatrop's restoration phase need not return.
         reference: optional reference.
 
     Attributes:
@@ -153,6 +171,7 @@ class GeodesicMPC(Controller):
         mu_warm: float = 1e-8,
         plan_tolerance: float = 0.05,
         solver_options: dict | None = None,
+        max_solve_time: float = 1.0,
         reference: Reference | None = None,
     ) -> None:
         super().__init__(robot, None)
@@ -165,7 +184,7 @@ class GeodesicMPC(Controller):
         weights = (q_weight, v_weight, tau_weight, terminal_weight)
         self.settings = ocp_settings(n, horizon, dt, control, effort, rk4_steps, *weights)
         self.solver_settings = solver_settings(
-            solver, tol, max_iter, mu_init, mu_warm, solver_options
+            solver, tol, max_iter, mu_init, mu_warm, solver_options, max_solve_time
         )
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.kp = check_gain(kp, n, "kp")
@@ -190,16 +209,19 @@ class GeodesicMPC(Controller):
             self.set_reference(reference)
 
     def _build_tracking(self) -> ShootingNLP:
-        dynamics = self.ocp.dynamics(gravity=True)
+        s = self.settings
         if self.hessian == "gauss-newton":
             try:
-                dynamics = compiled_dynamics(dynamics, self.control, self.robot.name)
+                dynamics = cached_stage_dynamics(
+                    self.robot, s.dt, s.control, s.rk4_steps, True, progress=_report_progress
+                )
+                return self.ocp.tracking(dynamics, gauss_newton=True)
             except CodegenError as err:
                 self.hessian = "exact"
                 self._note(
                     "hessian", f"'exact' instead of 'gauss-newton': no compiled dynamics ({err})"
                 )
-        return self.ocp.tracking(dynamics, gauss_newton=self.hessian == "gauss-newton")
+        return self.ocp.tracking(self.ocp.dynamics(gravity=True), gauss_newton=False)
 
     # -- controller hooks ------------------------------------------------------------
     def _on_reset(self, q: Vector, v: Vector, t: float) -> None:
@@ -265,6 +287,11 @@ class GeodesicMPC(Controller):
         nlp, N = self._nlp, self.N
         x_init = np.concatenate([q, v])
         p, ref = self.problem_parameters(t, x_init)
+        r = self.robot
+        outside = outside_state_margin(q, v, r.q_min, r.q_max, r.v_max)
+        if outside:
+            self.solve_count += 1
+            return self._failed_plan(t, f"skipped: measured state {outside}", 0.0)
         prev, lam = self._plan, self._lam
         j = -1 if prev is None or lam is None else int(round((t - prev.t) / self.dt))
         if prev is not None and lam is not None and 0 <= j < N:
@@ -284,11 +311,20 @@ class GeodesicMPC(Controller):
             status = f"exception: {err}".splitlines()[0][:200]
             res = SolveResult(nan_x, nan_u, nan_u.copy(), math.nan, status, 0, False, None)
         solve_time = time.perf_counter() - start
+        budget = self.solver_settings.max_solve_time
+        if res.success and solve_time > budget:
+            status = f"over budget: {solve_time:.3g} s > max_solve_time {budget:.3g} s"
+            res = res._replace(success=False, status=f"{status} ({res.status})")
         if res.success:
             self._lam = res.multipliers
         return MPCPlan(
             t, res.x, res.u, res.tau, res.status, res.iterations, res.success, solve_time
         )
+
+    def _failed_plan(self, t: float, status: str, solve_time: float) -> MPCPlan:
+        nan_u = np.full((self.N, self.nv), np.nan)
+        nan_x = np.full((self.N + 1, 2 * self.nv), np.nan)
+        return MPCPlan(t, nan_x, nan_u, nan_u.copy(), status, 0, False, solve_time)
 
     # -- control ---------------------------------------------------------------------
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:

@@ -16,7 +16,7 @@ import numpy as np
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
 
-__all__ = ["StageDynamics", "stage_dynamics"]
+__all__ = ["StageDynamics", "stage_dynamics", "stage_step", "stage_torque"]
 
 
 class StageDynamics(NamedTuple):
@@ -49,14 +49,24 @@ def stage_dynamics(
     Returns:
         The `StageDynamics`.
     """
-    model = robot.model
+    return StageDynamics(
+        stage_step(robot, dt, control, rk4_steps, gravity), stage_torque(robot, control, gravity)
+    )
+
+
+def _symbols(n: int) -> tuple[ca.SX, ca.SX]:
+    return ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
+
+
+def stage_step(robot: Robot, dt: float, control: str, rk4_steps: int, gravity: bool) -> ca.Function:
+    """``F = mpc_F<g|0>: (x, u) -> x_next``: RK4 on the ABA (torque control; an SX graph
+    of O(nv^2) nodes per RK4 step) or the exact double integrator (acceleration control;
+    linear, cheap). Arguments as for `stage_dynamics`."""
     n, h = robot.nv, dt
-    g = np.asarray(robot.gravity, dtype=np.float64) if gravity else np.zeros(3)
-    x = ca.SX.sym("x", 2 * n)
-    u = ca.SX.sym("u", n)
+    x, u = _symbols(n)
     q, v = x[:n], x[n:]
     if control == "torque":
-        acc = symbolic.aba(model, q, v, u, g)
+        acc = symbolic.aba(robot.model, q, v, u, _gravity(robot, gravity))
         f = ca.Function("f", [x, u], [ca.vertcat(v, acc)])
         hs = h / rk4_steps
         xk = x
@@ -66,11 +76,25 @@ def stage_dynamics(
             k3 = f(xk + 0.5 * hs * k2, u)
             k4 = f(xk + hs * k3, u)
             xk = xk + (hs / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
-        tau = u
     else:
         xk = ca.vertcat(q + h * v + 0.5 * h * h * u, v + h * u)
-        tau = symbolic.rnea(model, q, v, u, g)
-    tag = "g" if gravity else "0"
-    F = ca.Function(f"mpc_F{tag}", [x, u], [xk], ["x", "u"], ["xn"], {"cse": True})
-    TAU = ca.Function(f"mpc_tau{tag}", [x, u], [tau], ["x", "u"], ["tau"], {"cse": True})
-    return StageDynamics(F, TAU)
+    name = f"mpc_F{'g' if gravity else '0'}"
+    return ca.Function(name, [x, u], [xk], ["x", "u"], ["xn"], {"cse": True})
+
+
+def stage_torque(robot: Robot, control: str, gravity: bool) -> ca.Function:
+    """``TAU = mpc_tau<g|0>: (x, u) -> tau``: ``u`` itself (torque control; cheap) or the
+    RNEA ``tau = RNEA(q, v, u)`` (acceleration control). Arguments as for
+    `stage_dynamics`."""
+    n = robot.nv
+    x, u = _symbols(n)
+    if control == "torque":
+        tau = u
+    else:
+        tau = symbolic.rnea(robot.model, x[:n], x[n:], u, _gravity(robot, gravity))
+    name = f"mpc_tau{'g' if gravity else '0'}"
+    return ca.Function(name, [x, u], [tau], ["x", "u"], ["tau"], {"cse": True})
+
+
+def _gravity(robot: Robot, gravity: bool) -> np.ndarray:
+    return np.asarray(robot.gravity, dtype=np.float64) if gravity else np.zeros(3)

@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from geosyn.controllers.base import check_gain
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
@@ -21,9 +23,11 @@ __all__ = [
     "EFFORTS",
     "HESSIANS",
     "SOLVERS",
+    "STATE_MARGIN",
     "OCPSettings",
     "SolverSettings",
     "ocp_settings",
+    "outside_state_margin",
     "solver_settings",
 ]
 
@@ -35,6 +39,12 @@ CONTROLS = ("torque", "acceleration")
 """Names accepted by ``GeodesicMPC(control=...)``."""
 HESSIANS = ("gauss-newton", "exact")
 """Names accepted by ``GeodesicMPC(hessian=...)``."""
+
+STATE_MARGIN = (0.1, 1.0)
+"""How far a measured state may lie outside the OCP's state bounds and still be solved:
+(positions [rad] beyond ``q_min``/``q_max``, velocities as a fraction of ``v_max``
+beyond it). Farther out, the bounds on ``x_1`` cannot be met (the torque limits cannot
+brake that fast), the NLP is infeasible, and `GeodesicMPC` falls back without solving."""
 
 DEFAULT_EFFORT_WEIGHT = {"torque": 1e-3, "metric": 1e-3, "acceleration": 1e-2}
 """Effort weight when none is given: [1/(N m)^2] for the torque and metric efforts,
@@ -79,6 +89,10 @@ class SolverSettings:
         mu_init: initial barrier parameter of cold solves.
         mu_warm: initial barrier parameter of warm-started solves.
         options: extra plugin options, applied last (they win).
+        max_solve_time: wall-time budget of one solve [s]: IPOPT stops at it
+            (``max_wall_time``); fatrop has no such option, so `GeodesicMPC` checks it
+            after the call and refuses measured states outside `STATE_MARGIN` of the
+            OCP's bounds beforehand (fatrop's restoration phase need not return there).
     """
 
     name: str
@@ -87,6 +101,7 @@ class SolverSettings:
     mu_init: float
     mu_warm: float
     options: dict[str, Any] = field(default_factory=dict)
+    max_solve_time: float = 1.0
 
 
 def ocp_settings(
@@ -151,6 +166,7 @@ def solver_settings(
     mu_init: object,
     mu_warm: object,
     solver_options: object,
+    max_solve_time: object = 1.0,
 ) -> SolverSettings:
     """Validate the solver arguments of `GeodesicMPC` (same names and meaning).
 
@@ -166,4 +182,29 @@ def solver_settings(
         mu_init=check_positive(mu_init, "mu_init"),
         mu_warm=check_positive(mu_warm, "mu_warm"),
         options=dict(solver_options or {}),
+        max_solve_time=check_positive(max_solve_time, "max_solve_time", "s"),
     )
+
+
+def outside_state_margin(
+    q: np.ndarray, v: np.ndarray, q_min: Vector, q_max: Vector, v_max: Vector
+) -> str:
+    """Why a measured state lies beyond `STATE_MARGIN` of the state bounds ('' if not).
+
+    Args:
+        q: (nv,) joint positions [rad].
+        v: (nv,) joint velocities [rad/s] (non-finite entries count as beyond).
+        q_min: (nv,) lower position limits [rad] (may be -inf).
+        q_max: (nv,) upper position limits [rad] (may be +inf).
+        v_max: (nv,) velocity limits [rad/s].
+    """
+    dq, fv = STATE_MARGIN
+    over_q = np.maximum(np.asarray(q_min) - q, q - np.asarray(q_max))
+    if np.any(over_q > dq):
+        i = int(np.argmax(over_q))
+        return f"q[{i}] = {q[i]:.4g} rad is {over_q[i]:.3g} rad outside its limits"
+    over_v = np.where(np.isfinite(v), np.abs(v) - (1.0 + fv) * np.asarray(v_max), np.inf)
+    if np.any(over_v > 0.0):
+        i = int(np.argmax(over_v))
+        return f"|v[{i}]| = {abs(v[i]):.4g} rad/s is above {1.0 + fv:g} v_max"
+    return ""

@@ -46,6 +46,9 @@ def ipopt_options(settings: SolverSettings, mu: float, warm: bool) -> dict[str, 
         mu: initial barrier parameter.
         warm: start from the given primal-dual point (``warm_start_init_point``), with a
             monotone barrier strategy.
+
+    IPOPT stops after ``settings.max_solve_time`` seconds (``max_wall_time``; status
+    ``Maximum_WallTime_Exceeded``, an unsuccessful solve).
     """
     plugin: dict[str, Any] = {
         "print_level": 0,
@@ -53,6 +56,7 @@ def ipopt_options(settings: SolverSettings, mu: float, warm: bool) -> dict[str, 
         "tol": settings.tol,
         "max_iter": settings.max_iter,
         "mu_init": mu,
+        "max_wall_time": settings.max_solve_time,
     }
     if warm:
         plugin.update(

@@ -2,11 +2,15 @@
 
 from geosyn.experiments.procedures import (  # noqa: E402,F401  (registers)
     geodesic_vs_euclidean,
+    perception_reach,
     pga_vs_pca,
+    pick_and_place,
     push_recovery,
     shaping,
     synergy_combinations,
+    synergy_sequence,
     synergy_transport,
+    tracking,
 )
 from geosyn.experiments.procedures.base import (
     PROCEDURES,

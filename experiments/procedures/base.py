@@ -63,6 +63,9 @@ class Procedure(ABC):
     Params: ClassVar[type[BaseModel]] = NoParams
     #: Unit of each summary metric (the name after the last dot), shown in tables.
     units: ClassVar[dict[str, str]] = {}
+    #: The config sections the procedure reads (`SECTIONS` names); None: not declared.
+    #: A run logs every other section the config sets (it has no effect).
+    sections: ClassVar[tuple[str, ...] | None] = None
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Robot) -> list[tuple[str, str]]:
@@ -84,6 +87,75 @@ class Procedure(ABC):
     ) -> list[Path]:
         """Write PNG plots into ``out_dir``; returns their paths (none by default)."""
         return []
+
+    def run_rows(self, cfg: ExperimentConfig, results: dict[str, np.ndarray]) -> dict[str, str]:
+        """Summary row of each stored closed-loop run: ``{run prefix: row name}``.
+
+        By default every stored run (see `geosyn.experiments.build.sim_arrays`) is its own
+        row, named by its prefix; procedures whose rows have other names override this.
+        """
+        return {p: p for p in stored_runs(results)}
+
+    def full_summary(
+        self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]
+    ) -> dict[str, float]:
+        """`summarize`, then the standard metrics of every stored run
+        (`geosyn.experiments.metrics.standard_metrics`) that the procedure's own summary
+        does not already give (its own metrics, the claims, win)."""
+        from geosyn.experiments.build import sim_view
+        from geosyn.experiments.metrics import (
+            DEFAULT_THRESHOLD,
+            disturbance_windows,
+            standard_metrics,
+        )
+
+        out = dict(self.summarize(cfg, params, results))
+        windows = disturbance_windows(cfg.disturbances)
+        threshold = float(getattr(params, "threshold", DEFAULT_THRESHOLD))
+        for prefix, row in self.run_rows(cfg, results).items():
+            run = sim_view(results, prefix)
+            metrics = standard_metrics(run, cfg.simulation.control_dt, windows, threshold)
+            for name, value in metrics.items():
+                out.setdefault(f"{row}.{name}", value)
+        return out
+
+
+def stored_runs(results: dict[str, np.ndarray]) -> list[str]:
+    """Prefixes of the closed-loop runs stored in ``results`` (in storage order)."""
+    tail = "__tracking_error"
+    return [k[: -len(tail)] for k in results if k.endswith(tail)]
+
+
+#: Sections of an experiment file a procedure may read (``name``, ``kind``, ``seed`` and
+#: ``description`` always apply).
+SECTIONS = (
+    "robot",
+    "metric",
+    "scene",
+    "synergies",
+    "reference",
+    "controllers",
+    "disturbances",
+    "simulation",
+    "outputs",
+    "params",
+)
+
+
+def ignored_sections(cfg: ExperimentConfig, proc: type[Procedure]) -> list[str]:
+    """Sections the config sets (not at their defaults) that ``proc`` does not read."""
+    if proc.sections is None:
+        return []
+    defaults = ExperimentConfig.model_fields
+    out = []
+    for name in SECTIONS:
+        if name in proc.sections:
+            continue
+        value = getattr(cfg, name)
+        default = defaults[name].get_default(call_default_factory=True)
+        if value != default:
+            out.append(name)
+    return out
 
 
 #: Registered procedures by kind.

@@ -141,6 +141,14 @@ class PathComparison(Procedure):
                 out |= {f"{row}.{key}": value for key, value in metrics.items()}
         return out
 
+    def run_rows(self, cfg: ExperimentConfig, results: dict[str, np.ndarray]) -> dict[str, str]:
+        single = len(cfg.controllers) == 1
+        return {
+            f"{name}_{label}": name if single else f"{name}_{label}"
+            for name in self.paths
+            for label in cfg.controller_labels()
+        }
+
     def comparison_plots(
         self, cfg: ExperimentConfig, results: dict[str, np.ndarray], out_dir: Path
     ) -> tuple[dict[str, dict[str, np.ndarray]], list[Path]]:
@@ -154,7 +162,7 @@ class PathComparison(Procedure):
         dt = cfg.simulation.control_dt
         efforts = [B.effort(r["tau_applied"], dt) for r in runs.values()]
         return runs, [
-            torque_plot(out_dir / "torques.png", runs),
+            torque_plot(out_dir / "torques.png", runs, B.build_robot(cfg).tau_max),
             tracking_error_plot(out_dir / "tracking_error.png", runs),
             bar_plot(out_dir / "effort.png", list(self.paths), efforts, EFFORT_LABEL, "effort"),
         ]

@@ -48,6 +48,16 @@ class GeodesicVsEuclidean(PathComparison):
     """Geodesic against straight joint line, both tracked by each controller."""
 
     kind = "geodesic_vs_euclidean"
+    sections = (
+        "robot",
+        "metric",
+        "scene",
+        "controllers",
+        "disturbances",
+        "simulation",
+        "outputs",
+        "params",
+    )
     description = "planar2: geodesic vs straight joint line (paper Fig. 1), torque tracking effort"
     Params = GeodesicVsEuclideanParams
     units = {"path_energy": "J s", "effort": "N^2 m^2 s", "max_torque": "N m", "rms_error": "rad"}

@@ -44,9 +44,15 @@ class PGAvsPCA(Procedure):
     """Reconstruction error of PGA and PCA synergies of the same demonstrations."""
 
     kind = "pga_vs_pca"
+    sections = ("robot", "metric", "outputs", "params")
     description = "PGA vs PCA synergy extraction: reconstruction error against k"
     Params = PGAvsPCAParams
-    units = {"pga_error": "rad", "pca_error": "rad", "pga_riemannian_error": "rad"}
+    units = {
+        "pga_error": "rad",
+        "pca_error": "rad",
+        "pga_riemannian_error": "rad",
+        "pca_over_pga_at_latent_k": "1",
+    }
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:

@@ -3,7 +3,7 @@ torque noise, with each configured controller (computed torque, QP, MPC, ...).
 
 Per controller: RMS tracking error, RMS error from ``window`` after the push on, maximum
 error, recovery time (time after the push starts until the tracking-error norm stays
-below ``threshold``), effort ``integral ||tau||^2 dt``, saturated (tick, joint) pairs.
+below ``threshold``, measured in the push's window: `geosyn.experiments.metrics`), effort ``integral ||tau||^2 dt``, saturated (tick, joint) pairs.
 """
 
 from __future__ import annotations
@@ -15,11 +15,16 @@ import numpy as np
 from pydantic import Field
 
 from geosyn.experiments import build as B
+from geosyn.experiments.metrics import (
+    Window,
+    disturbance_windows,
+    recovery_times,
+    standard_metrics,
+)
 from geosyn.experiments.plots import torque_plot, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import Duration, track_with_each_controller
 from geosyn.experiments.schema import ExperimentConfig, Strict
-from geosyn.sim import SimResult
 
 
 class PushRecoveryParams(Strict):
@@ -37,47 +42,44 @@ def push_window(cfg: ExperimentConfig) -> tuple[float, float]:
     return 0.0, 0.0
 
 
-def recovery_time(t: np.ndarray, err_norm: np.ndarray, t_from: float, threshold: float) -> float:
-    """Time after ``t_from`` until ``err_norm`` stays below ``threshold`` to the end [s].
-
-    Returns 0 if it never exceeds it after ``t_from``, ``inf`` if it is above at the end.
-    """
-    sel = t >= t_from
-    above = np.nonzero(sel & (err_norm > threshold))[0]
-    if above.size == 0:
-        return 0.0
-    last = int(above[-1])
-    if last == len(t) - 1:
-        return float("inf")
-    return float(t[last + 1] - t_from)
-
-
 def controller_summary(
+    cfg: ExperimentConfig,
     label: str,
     r: dict[str, np.ndarray],
-    dt: float,
-    push_start: float,
     threshold: float,
     window: float,
 ) -> dict[str, float]:
-    """The per-controller metrics of a stored run (see the module doc)."""
+    """The per-controller metrics of a stored run (see the module doc).
+
+    ``recovery_time`` is that of the first push's window
+    (`geosyn.experiments.metrics`: measured per disturbance window, never counting the
+    end of the reference); the standard metrics add one per disturbance window.
+    """
+    dt = cfg.simulation.control_dt
+    windows = disturbance_windows(cfg.disturbances)
+    std = standard_metrics(r, dt, windows, threshold)
+    push = next((w for w in windows if w.kind == "push"), None)
     t, e = r["t"], r["tracking_error"]
-    norm = np.linalg.norm(e, axis=1)
+    push_start = push.start if push is not None else 0.0
     after = t >= push_start + window
+    if push is not None:
+        recovery = std[f"recovery_time_d{push.disturbance}"]
+    else:
+        recovery = recovery_times(
+            t, np.linalg.norm(e, axis=1), [Window(-1, "start", 0.0, 0.0)], threshold
+        )[0]
     return {
-        f"{label}.ok": float(str(r["status"]) == "ok"),
-        f"{label}.rms_error": float(np.sqrt(np.mean(e**2))),
+        f"{label}.ok": std["ok"],
+        f"{label}.rms_error": std["rms_error"],
         f"{label}.rms_after_window": float(np.sqrt(np.mean(e[after] ** 2)))
         if after.any()
         else float("nan"),
-        f"{label}.max_error": float(norm.max()),
-        f"{label}.recovery_time": recovery_time(t, norm, push_start, threshold),
-        f"{label}.effort": B.effort(r["tau_applied"], dt),
-        f"{label}.saturations": float(np.count_nonzero(r["saturated"])),
-        f"{label}.fallbacks": float(np.count_nonzero(r["fallback_used"]))
-        if "fallback_used" in r
-        else 0.0,
-        f"{label}.wall_time": float(r["wall_time"]),
+        f"{label}.max_error": std["max_error"],
+        f"{label}.recovery_time": recovery,
+        f"{label}.effort": std["effort"],
+        f"{label}.saturations": std["saturations"],
+        f"{label}.fallbacks": std["fallbacks"],
+        f"{label}.wall_time": std["wall_time"],
     }
 
 
@@ -86,6 +88,18 @@ class PushRecovery(Procedure):
     """Each controller tracks the reference through the configured disturbances."""
 
     kind = "push_recovery"
+    sections = (
+        "robot",
+        "metric",
+        "scene",
+        "synergies",
+        "reference",
+        "controllers",
+        "disturbances",
+        "simulation",
+        "outputs",
+        "params",
+    )
     description = "track a synergy combination under a push, a payload change and torque noise; compare controllers"
     Params = PushRecoveryParams
     units = {
@@ -101,7 +115,14 @@ class PushRecovery(Procedure):
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:
-        return check_required(cfg, "reference", "controllers")
+        out = check_required(cfg, "reference", "controllers")
+        if cfg.reference is not None and cfg.reference.type in ("goals", "planned"):
+            kind = cfg.reference.type
+            reason = (
+                f"kind {cfg.kind!r} takes a combination or log reference ({kind}: kind tracking)"
+            )
+            out.append(("reference.type", reason))
+        return out
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot = ctx.config, ctx.robot
@@ -112,27 +133,7 @@ class PushRecovery(Procedure):
         advance = ctx.progress(f"{cfg.name}: controllers", len(cfg.controllers))
         out: dict[str, np.ndarray] = {"reference__t": geo.t, "reference__q": geo.q}
 
-        def video(label: str, res: SimResult) -> None:
-            if not ctx.video:
-                return
-            from geosyn.sim import render_video
-
-            o = cfg.outputs
-            render_video(
-                res,
-                ctx.out_dir / f"video_{label}.{o.video_format}",
-                robot,
-                o.fps,
-                o.width,
-                o.height,
-                payloads=B.build_payloads(cfg, robot),
-                obstacles=B.build_obstacles(cfg),
-                trail=o.trail,
-            )
-
-        return out | track_with_each_controller(
-            cfg, robot, metric, ref, q0, v0, "", advance, each=video
-        )
+        return out | track_with_each_controller(cfg, robot, metric, ref, q0, v0, "", advance)
 
     def summarize(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]
@@ -141,11 +142,7 @@ class PushRecovery(Procedure):
         out: dict[str, float] = {}
         for label in cfg.controller_labels():
             r = B.sim_view(results, label)
-            out.update(
-                controller_summary(
-                    label, r, cfg.simulation.control_dt, start, params.threshold, params.window
-                )
-            )
+            out.update(controller_summary(cfg, label, r, params.threshold, params.window))
         out["push_start"] = start
         out["threshold"] = params.threshold
         return out
@@ -162,5 +159,5 @@ class PushRecovery(Procedure):
                 windows.append((d.time, d.time + 0.01, "payload"))
         return [
             tracking_error_plot(out_dir / "tracking_error.png", runs, params.threshold, windows),
-            torque_plot(out_dir / "torques.png", runs),
+            torque_plot(out_dir / "torques.png", runs, B.build_robot(cfg).tau_max, windows),
         ]

@@ -44,6 +44,16 @@ class _Shaping(PathComparison):
     """The geodesic of the robot's kinetic-energy metric against that of the shaped one."""
 
     paths = ("unshaped", "shaped")
+    sections = (
+        "robot",
+        "metric",
+        "scene",
+        "reference",
+        "controllers",
+        "disturbances",
+        "simulation",
+        "outputs",
+    )
     units = {
         "energy_shaped_metric": "J s",
         "energy_unshaped_metric": "J s",
@@ -96,7 +106,9 @@ class _Shaping(PathComparison):
                 else np.full(len(geo.t), np.inf)
             )
             out[f"path_{name}__clearance"] = clear
-            ref = B.tracked_reference(geo, metrics[name], reference.time_scale)
+            ref = B.tracked_reference(
+                geo, metrics[name], reference.time_scale, reference.rest_to_rest
+            )
             q0, v0, _ = ref.sample(0.0)
             # the controllers' model is the robot alone: the unshaped metric
             out |= track_with_each_controller(

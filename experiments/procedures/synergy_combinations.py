@@ -52,6 +52,7 @@ class SynergyCombinations(Procedure):
     """Combinations of two designed synergies against linear combinations of PCA ones."""
 
     kind = "synergy_combinations"
+    sections = ("robot", "metric", "synergies", "outputs", "params")
     description = "paper Fig. 2: geodesic synergy combinations vs PCA linear combinations"
     Params = SynergyCombinationsParams
     units = {

@@ -51,9 +51,10 @@ class SynergyTransport(Procedure):
     """Synergies based at different configurations, combined with and without transport."""
 
     kind = "synergy_transport"
+    sections = ("robot", "metric", "outputs", "params")
     description = "combine synergies from different bases with vs without parallel transport"
     Params = SynergyTransportParams
-    units = {"residual": "N m", "energy": "J s", "endpoint_offset": "rad"}
+    units = {"residual": "N m", "energy": "J s", "endpoint_offset": "rad", "norm_change": "1"}
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:
@@ -128,21 +129,26 @@ class SynergyTransport(Procedure):
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
     ) -> list[Path]:
         fig, axes = figure((10, 3.8), 1, 2)
-        for name, c in zip(MOTIONS, COLORS, strict=False):
-            q = results[f"{name}__q"]
-            axes[0].plot(
-                results[f"{name}__t"], np.linalg.norm(q - q[0], axis=1), color=c, label=name
-            )
+        # Distances from the transported motion: the motions nearly coincide from q_start,
+        # so plotted from q_start their curves would overlap.
+        ref = results["transported__q"]
+        for name, c in zip(MOTIONS[1:], COLORS[1:], strict=False):
+            d = np.linalg.norm(results[f"{name}__q"] - ref, axis=1)[1:]  # all start at q_start
+            t = results[f"{name}__t"][1:]
+            axes[0].semilogy(t, np.maximum(d, 1e-12), color=c, label=name)
         axes[0].set_xlabel("t [s]")
-        axes[0].set_ylabel(r"$\|q(t) - q_{start}\|$ [rad]")
+        axes[0].set_ylabel(r"$\|q(t) - q_{transported}(t)\|$ [rad] (log)")
         axes[0].legend(fontsize=8)
-        axes[0].set_title("motions from q_start")
-        axes[1].bar(
-            list(MOTIONS),
-            [max(float(results[f"{n}__residual"]), 1e-16) for n in MOTIONS],
-            color=COLORS[:3],
-        )
+        axes[0].set_title("distance from the transported synergy")
+        axes[0].grid(True, which="both", alpha=0.3)
+        residuals = [max(float(results[f"{n}__residual"]), 1e-16) for n in MOTIONS]
+        axes[1].bar(list(MOTIONS), residuals, color=COLORS[:3])
+        for i, r in enumerate(residuals):
+            axes[1].annotate(
+                f"{r:.2g}", (i, r), xytext=(0, 2), textcoords="offset points", ha="center",
+                fontsize=8,
+            )  # fmt: skip
         axes[1].set_yscale("log")
-        axes[1].set_ylabel(RESIDUAL_LABEL)
+        axes[1].set_ylabel(RESIDUAL_LABEL + " (log)")
         axes[1].set_title("geodesic-equation residual")
         return [save(fig, out_dir / "transport.png")]

@@ -32,12 +32,15 @@ class _ControllerBase(Section):
 
 
 class ComputedTorqueConfig(_ControllerBase):
-    """`ComputedTorque`: gains ``kp`` [1/s^2] and ``kd`` [1/s]."""
+    """`ComputedTorque`: gains ``kp`` [1/s^2] and ``kd`` [1/s]; joint-friction
+    compensation (default: on when the robot has damping or friction)."""
 
     builds = (ComputedTorque,)
     type: Literal["computed_torque"]
     kp: Gain = _COMPUTED_TORQUE["kp"]
     kd: Gain = _COMPUTED_TORQUE["kd"]
+    compensate_friction: bool | None = _COMPUTED_TORQUE["compensate_friction"]
+    friction_velocity: PositiveFloat = _COMPUTED_TORQUE["friction_velocity"]
 
 
 class RiemannianPDConfig(_ControllerBase):
@@ -62,6 +65,9 @@ class QPConfig(_ControllerBase):
     position_horizon: PositiveFloat | None = _QP["position_horizon"]
     braking_acceleration: PositiveFloat | None = _QP["braking_acceleration"]
     max_iter: Iterations = _QP["max_iter"]
+    max_inner_iter: Iterations = _QP["max_inner_iter"]
+    compensate_friction: bool | None = _QP["compensate_friction"]
+    friction_velocity: PositiveFloat = _QP["friction_velocity"]
 
 
 class MPCConfig(_ControllerBase):
@@ -89,6 +95,7 @@ class MPCConfig(_ControllerBase):
     mu_warm: PositiveFloat = _MPC["mu_warm"]
     plan_tolerance: NonNegFloat = _MPC["plan_tolerance"]
     solver_options: dict[str, bool | int | float | str] | None = _MPC["solver_options"]
+    max_solve_time: PositiveFloat = _MPC["max_solve_time"]
 
 
 ControllerConfig = Annotated[

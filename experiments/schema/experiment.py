@@ -46,10 +46,12 @@ class SimulationConfig(Section):
 
 
 class OutputsConfig(Section):
-    """What a run writes: plots, and videos (`geosyn.sim.render_video` settings)."""
+    """What a run writes: plots, per-run CSV tables (``data/<run>.csv``,
+    `geosyn.experiments.data`), and videos (`geosyn.sim.render_video` settings)."""
 
     builds = (render_video,)
     plots: bool = True
+    csv: bool = True
     video: bool = False
     video_format: Literal["gif", "mp4"] = "gif"
     fps: Annotated[float, Field(gt=0.0, le=120.0)] = _VIDEO["fps"]
@@ -120,6 +122,10 @@ def consistency_errors(cfg: ExperimentConfig, nv: int) -> list[tuple[str, str]]:
             if len(ref.weights) != m:
                 reason = f"expected one weight per synergy ({m}), got {len(ref.weights)}"
                 errors.append(("reference.weights", reason))
+    if ref is not None and ref.type == "goals" and isinstance(ref.duration, list):
+        if len(ref.duration) != len(ref.goals):
+            reason = f"expected one duration per goal ({len(ref.goals)}), got {len(ref.duration)}"
+            errors.append(("reference.duration", reason))
     for i, term in enumerate(cfg.metric.terms):
         if term.type == "load" and term.payload is not None and term.payload >= n_pay:
             errors.append(_out_of_range(f"metric.terms.{i}.payload", term.payload, n_pay))

@@ -52,7 +52,8 @@ class LoadTermConfig(Section):
 class ObstacleTermConfig(Section):
     """`ObstacleTerm` over the scene's obstacles (one slot per obstacle; the robot's own
     collision spheres). ``length``/``epsilon`` shape the ``rmp`` profile, ``gate_speed``
-    the ``approach`` gate."""
+    the ``approach`` gate; ``distance`` picks the signed distance (``exact``: C1,
+    ``smooth``: C-infinity)."""
 
     builds = (ObstacleTerm,)
     type: Literal["obstacle"]
@@ -64,6 +65,7 @@ class ObstacleTermConfig(Section):
     epsilon: PositiveFloat = _OBSTACLE["epsilon"]
     gate: Literal["none", "approach"] = _OBSTACLE["gate"]
     gate_speed: PositiveFloat = _OBSTACLE["gate_speed"]
+    distance: Literal["exact", "smooth"] = _OBSTACLE["distance"]
 
 
 class JointLimitTermConfig(Section):

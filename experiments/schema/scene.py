@@ -18,13 +18,21 @@ class RobotOptions(Strict):
     armature: NonNegFloat | None = None
     gravity: Vec3 | None = None
     ee_frame: str | None = None
+    fixed_base: bool | None = None  # weld a floating base (recorded in Robot.base)
+    tau_max: PositiveFloat | None = None  # overrides the file's torque limits [N m]
 
 
 class RobotConfig(Strict):
-    """The robot: a built-in name (see ``geosyn robots``) or a URDF/MJCF path."""
+    """The robot: a built-in name (see ``geosyn robots``) or a URDF/MJCF path.
+
+    ``plant``: ``model`` simulates geosyn's rebuilt model of the robot; ``file`` simulates
+    the robot's original MJCF file (its meshes, contacts, joint properties; its actuators
+    disabled, geosyn's torques applied as joint forces), see `geosyn.sim.file_scene`.
+    """
 
     name: str
     options: RobotOptions = RobotOptions()
+    plant: Literal["model", "file"] = "model"
 
     @field_validator("name")
     @classmethod
@@ -33,8 +41,12 @@ class RobotConfig(Strict):
 
         if name in BUILTINS or name.lower().endswith((".urdf", ".xml", ".mjcf")):
             return name
+        import difflib
+
+        close = difflib.get_close_matches(name, list(BUILTINS), n=3, cutoff=0.6)
+        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ";"
         raise ValueError(
-            f"{name!r} is not a built-in robot; available: {', '.join(sorted(BUILTINS))}"
+            f"{name!r} is not a built-in robot{hint} available: {', '.join(sorted(BUILTINS))}"
             " (or a path to a .urdf/.xml/.mjcf file)"
         )
 

@@ -1,9 +1,12 @@
 """Config sections of the synergies (explicit, designed, extracted by PGA) and of the
-reference a controller tracks (a synergy combination, or the geodesic to a goal).
+reference a controller tracks (a synergy combination, the geodesic to a goal, or a
+sequence of geodesics through goals).
 
 Reference defaults come from the calls they configure: `GeodesicSynergy.trajectory` and
 `combine` (combination) or `geosyn.metrics.exp` and `log` (log) for ``duration``,
-``steps`` and ``q_start``, `GeodesicReference` for ``time_scale``.
+``steps`` and ``q_start``, `GeodesicReference` for ``time_scale`` and ``rest_to_rest``
+(True: the quintic rest-to-rest time law, so the reference starts and ends at rest; False:
+the geodesic's constant speed, which steps to rest at the end).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from geosyn.controllers import GeodesicReference
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
 from geosyn.experiments.schema.values import FiniteFloat, JointVector, PositiveFloat
 from geosyn.metrics import exp, log
+from geosyn.metrics.planning import Planner
 from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies
 
 Count = Annotated[int, Field(ge=1)]
@@ -76,6 +80,7 @@ class CombinationReference(Section):
     duration: PositiveFloat = _COMBINATION["duration"]
     time_scale: PositiveFloat = _COMBINATION["time_scale"]
     steps: Steps = _COMBINATION["steps"]
+    rest_to_rest: bool = _COMBINATION["rest_to_rest"]
 
 
 class LogReference(Section):
@@ -88,17 +93,63 @@ class LogReference(Section):
     duration: PositiveFloat = _LOG["duration"]
     time_scale: PositiveFloat = _LOG["time_scale"]
     steps: Steps = _LOG["steps"]
+    rest_to_rest: bool = _LOG["rest_to_rest"]
 
 
-ReferenceConfig = Annotated[CombinationReference | LogReference, Field(discriminator="type")]
+class GoalsReference(Section):
+    """A sequence of geodesics: ``q_start`` to ``goals[0]``, then to ``goals[1]``, ...; each
+    segment takes ``duration`` [s] (one value, or one per goal) times ``time_scale``
+    (``kind: tracking`` only)."""
+
+    builds = (exp, log, GeodesicReference)
+    type: Literal["goals"]
+    q_start: JointVector
+    goals: Annotated[list[JointVector], Field(min_length=1)]
+    duration: PositiveFloat | Annotated[list[PositiveFloat], Field(min_length=1)] = _LOG["duration"]
+    time_scale: PositiveFloat = _LOG["time_scale"]
+    steps: Steps = _LOG["steps"]
+    rest_to_rest: bool = _LOG["rest_to_rest"]
+
+    def durations(self) -> list[float]:
+        """Geodesic duration of each segment [s] (before time scaling)."""
+        if isinstance(self.duration, list):
+            return list(self.duration)
+        return [self.duration] * len(self.goals)
+
+
+_PLANNED = python_defaults(Planner, Planner.plan, GeodesicReference)
+
+
+class PlannedReference(Strict):
+    """A collision-free minimum-energy path from ``q_start`` to ``goal`` around the scene's
+    obstacles (`geosyn.metrics.planning.Planner`: collocation, RRT-Connect fallback),
+    traversed in ``duration * time_scale`` (``kind: tracking`` only)."""
+
+    type: Literal["planned"]
+    q_start: JointVector
+    goal: JointVector
+    duration: PositiveFloat = _LOG["duration"]
+    time_scale: PositiveFloat = _PLANNED["time_scale"]
+    rest_to_rest: bool = _PLANNED["rest_to_rest"]
+    margin: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = _PLANNED["margin"]
+    nodes: Annotated[int, Field(ge=2, le=1000)] = _PLANNED["nodes"]
+    budget: PositiveFloat = _PLANNED["budget"]
+
+
+ReferenceConfig = Annotated[
+    CombinationReference | LogReference | GoalsReference | PlannedReference,
+    Field(discriminator="type"),
+]
 
 __all__ = [
     "CombinationReference",
     "DesignedSynergies",
     "ExplicitSynergies",
     "ExplicitSynergy",
+    "GoalsReference",
     "LogReference",
     "PGASynergies",
+    "PlannedReference",
     "ReferenceConfig",
     "SynergyConfig",
 ]

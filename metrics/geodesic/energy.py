@@ -12,10 +12,20 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_int, check_positive, check_vector
 from geosyn.metrics.base import Metric, check_metric
-from geosyn.metrics.geodesic.exp_map import Geodesic
+from geosyn.metrics.geodesic.exp_map import MAX_STEPS, Geodesic
 from geosyn.metrics.geodesic.log_map import LogOptions, log
 
-__all__ = ["check_path", "distance", "path_energy", "path_velocity", "straight_line"]
+__all__ = ["check_path", "distance", "path_energy", "path_velocity", "real_array", "straight_line"]
+
+
+def real_array(x: object, name: str) -> np.ndarray:
+    """``x`` as a float64 array; complex values, text and objects raise `InvalidArgument`."""
+    if isinstance(x, (str, bytes, complex)) or np.iscomplexobj(x):  # type: ignore[arg-type]
+        raise InvalidArgument(f"{name} must be a real (float) array, got {str(x)[:80]!r}")
+    try:
+        return np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise InvalidArgument(f"{name} must be a real (float) array, got {str(x)[:80]!r}") from err
 
 
 def check_path(
@@ -32,8 +42,8 @@ def check_path(
     Returns:
         ``(t, q)`` as finite float64 arrays.
     """
-    tt = np.asarray(t, dtype=np.float64)
-    qq = np.asarray(q, dtype=np.float64)
+    tt = real_array(t, name_t)
+    qq = real_array(q, name_q)
     if tt.ndim != 1 or tt.shape[0] < 2:
         raise InvalidArgument(f"{name_t} must have shape (T,) with T >= 2, got shape {tt.shape}")
     if qq.ndim != 2 or qq.shape != (tt.shape[0], n):
@@ -103,7 +113,7 @@ def straight_line(q0: Vector, q1: Vector, duration: float = 1.0, steps: int = 10
     q0 = check_vector(q0, np.shape(q0)[0] if np.ndim(q0) == 1 else 1, "q0")
     q1 = check_vector(q1, q0.shape[0], "q1")
     duration = check_positive(duration, "duration")
-    steps = check_int(steps, "steps", low=1)
+    steps = check_int(steps, "steps", low=1, high=MAX_STEPS)
     t = np.linspace(0.0, duration, steps + 1)
     s = (t / duration)[:, None]
     vel = (q1 - q0) / duration

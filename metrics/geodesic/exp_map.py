@@ -29,12 +29,23 @@ from geosyn.core.codegen import compile_function
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_choice, check_int, check_positive, check_vector
 from geosyn.metrics.base import Metric, check_metric
-from geosyn.metrics.errors import GeodesicNotFound, NoSymbolicForm
+from geosyn.metrics.errors import GeodesicNotFound, NonFiniteResult, NoSymbolicForm
 
-__all__ = ["METHODS", "Geodesic", "exp", "numpy_rk4", "rk4_map", "rk4_step", "step_input"]
+__all__ = [
+    "MAX_STEPS",
+    "METHODS",
+    "Geodesic",
+    "exp",
+    "numpy_rk4",
+    "rk4_map",
+    "rk4_step",
+    "step_input",
+]
 
 METHODS = ("rk4", "dop853", "adaptive")
 """Integration methods of `exp`."""
+MAX_STEPS = 1_000_000
+"""Largest number of integration steps of `exp` (the result holds steps + 1 samples)."""
 _DOP853_TOL = 1e-12
 
 
@@ -192,8 +203,8 @@ def exp(
         q0: (n,) initial joint positions [rad].
         v0: (n,) initial joint velocities [rad/s].
         duration: integration time [s], > 0.
-        steps: number of intervals, >= 1; the result has ``steps + 1`` samples,
-            uniformly spaced, t = 0 included.
+        steps: number of intervals, in [1, `MAX_STEPS`]; the result has ``steps + 1``
+            samples, uniformly spaced, t = 0 included.
         method: ``"rk4"`` (fixed step, compiled loop; global error O(dt^4)) or
             ``"dop853"`` / ``"adaptive"`` (SciPy DOP853 with rtol = atol = 1e-12 on
             ``metric.geodesic_acceleration``, sampled at the same times).
@@ -205,8 +216,9 @@ def exp(
     later calls allocate only the result.
 
     Raises:
-        InvalidArgument: bad shapes, non-finite values, steps < 1, duration <= 0, or an
-            unknown method.
+        InvalidArgument: bad shapes, non-finite values, steps outside [1, MAX_STEPS],
+            duration <= 0, or an unknown method.
+        NonFiniteResult: the integration overflowed (e.g. a huge ``v0``).
         GeodesicNotFound: DOP853 failed.
     """
     metric = check_metric(metric)
@@ -214,7 +226,7 @@ def exp(
     q0 = check_vector(q0, n, "q0")
     v0 = check_vector(v0, n, "v0")
     duration = check_positive(duration, "duration")
-    steps = check_int(steps, "steps", low=1)
+    steps = check_int(steps, "steps", low=1, high=MAX_STEPS)
     method = check_choice(method, METHODS, "method")
     t = np.linspace(0.0, duration, steps + 1)
     if method == "rk4":
@@ -241,4 +253,12 @@ def exp(
                 f"exp: DOP853 failed: {sol.message}", residual=float("nan"), v0=v0
             )
         X = sol.y.T
+    if not np.isfinite(X).all():  # blew up (|v0| far beyond what the metric's scale allows)
+        k = int(np.argmin(np.isfinite(X).all(axis=1)))
+        raise NonFiniteResult(
+            f"exp: the geodesic left the float64 range at t={t[k]:.6g} s (step {k} of"
+            f" {steps}) with |v0| = {np.linalg.norm(v0):.3g} rad/s; reduce |v0| or"
+            " duration, or increase steps",
+            "exp",
+        )
     return Geodesic(t, X[:, :n].copy(), X[:, n:].copy())

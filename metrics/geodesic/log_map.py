@@ -28,6 +28,11 @@ from geosyn.metrics.geodesic.shooting import Budget, Shooter, newton, residual_n
 __all__ = ["LogOptions", "LogResult", "log", "log_solve"]
 
 
+MAX_SHOOTING_STEPS = 10_000
+"""Largest number of RK4 steps of the shooting map of `log_solve` (its CasADi graph and
+compiled code grow with it; 10^9 steps ran out of memory after 13 s)."""
+
+
 class LogResult(NamedTuple):
     """Result of the log map (boundary-value solve).
 
@@ -104,7 +109,7 @@ def log_solve(
         q0: (n,) start joint positions [rad].
         q1: (n,) goal joint positions [rad].
         v_init: (n,) initial guess of v0 [rad/s], e.g. the solution of a nearby pair.
-        steps: RK4 steps of the shooting integration (as in `exp`), >= 1.
+        steps: RK4 steps of the shooting integration (as in `exp`), in [1, `MAX_SHOOTING_STEPS`].
         tol: residual tolerance ||q(1) - q1|| [rad], > 0.
         max_iter: budget of Newton iterations (Jacobian evaluations) of each strategy
             (the initial guesses together, each continuation over all its stages, the
@@ -128,7 +133,7 @@ def log_solve(
     n = metric.n
     q0 = check_vector(q0, n, "q0")
     q1 = check_vector(q1, n, "q1")
-    steps = check_int(steps, "steps", low=1)
+    steps = check_int(steps, "steps", low=1, high=MAX_SHOOTING_STEPS)
     tol = check_positive(tol, "tol")
     discretization_tol = check_positive(discretization_tol, "discretization_tol")
     max_iter = check_int(max_iter, "max_iter", low=1)

@@ -24,7 +24,8 @@ from geosyn.metrics.derived import (
     sx_christoffel_contraction,
 )
 from geosyn.metrics.errors import NoSymbolicForm
-from geosyn.metrics.geodesic.energy import check_path, path_velocity
+from geosyn.metrics.geodesic.energy import check_path, path_velocity, real_array
+from geosyn.metrics.geodesic.exp_map import MAX_STEPS
 
 __all__ = ["parallel_transport"]
 
@@ -114,7 +115,12 @@ def parallel_transport(
     n = metric.n
     t, q = check_path(t, q, n)
     substeps = check_int(substeps, "substeps", low=1)
-    V = np.asarray(v, dtype=np.float64)
+    if (t.shape[0] - 1) * substeps > MAX_STEPS:  # the evaluation points are allocated at once
+        raise InvalidArgument(
+            f"substeps={substeps} over {t.shape[0] - 1} intervals is more than MAX_STEPS ="
+            f" {MAX_STEPS} RK4 steps; use fewer substeps or samples"
+        )
+    V = real_array(v, "v")
     if V.ndim not in (1, 2) or V.shape[0] != n or V.size == 0:
         raise InvalidArgument(f"v must have shape ({n},) or ({n}, m), got shape {V.shape}")
     if not np.all(np.isfinite(V)):
@@ -122,7 +128,7 @@ def parallel_transport(
     if qdot is None:
         qd = path_velocity(t, q)
     else:
-        qd = np.asarray(qdot, dtype=np.float64)
+        qd = real_array(qdot, "qdot")
         if qd.shape != q.shape or not np.all(np.isfinite(qd)):
             raise InvalidArgument(
                 f"qdot must be finite with shape {q.shape} (like q), got shape {qd.shape}"

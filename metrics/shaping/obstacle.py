@@ -1,11 +1,13 @@
 """`ObstacleTerm`: barrier metrics pulled back along the clearance of robot spheres.
 
-Obstacles are the shapes of `geosyn.world` (`Sphere`, `Box`, `Capsule`, `HalfSpace`),
-each stored in one parameter *slot* as its rounded box (`geosyn.world.shapes`) plus an
-active flag, and measured with the rounded box's exact signed distance
-(`geosyn.world.distance.rounded_box_distance`). Because all shapes share one parameter layout, the
-compiled functions have a fixed number of slots (``capacity``); moving, adding or
-removing obstacles up to the capacity only writes the parameter array.
+Obstacles are the shapes of `geosyn.world` (`Sphere`, `Box`, `Capsule`, `Cylinder` as
+its enclosing capsule, `HalfSpace`), each stored in one parameter *slot* as its rounded
+box (`geosyn.world.shapes`) plus an active flag, and measured with the rounded box's exact
+signed distance (`geosyn.world.distance.rounded_box_distance`, the default) or its smooth
+conservative approximation (``distance="smooth"``, `geosyn.world.smooth`). Because all
+shapes share one parameter layout, the compiled functions have a fixed number of slots
+(``capacity``); moving, adding or removing obstacles up to the capacity only writes the
+parameter array.
 """
 
 from __future__ import annotations
@@ -23,10 +25,13 @@ from geosyn.metrics.shaping.errors import CapacityExceeded, InvalidTermArgument,
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.distance import rounded_box_distance
 from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
+from geosyn.world.smooth import smooth_rounded_box_distance
 
 __all__ = [
+    "DISTANCES",
     "GATES",
     "HOMOTOPY_RADIUS",
+    "INACTIVE_CLEARANCE",
     "ObstacleTerm",
     "PARAMS_PER_OBSTACLE",
     "PROFILES",
@@ -34,6 +39,9 @@ __all__ = [
 
 HOMOTOPY_RADIUS = 1e-3
 """Radius [m] of the ball each obstacle shrinks to at the start of a log-map homotopy."""
+
+INACTIVE_CLEARANCE = 10.0
+"""Clearance [m] that `ObstacleTerm.symbolic_clearances` reports for an empty slot."""
 
 PARAMS_PER_OBSTACLE = ROUNDED_BOX_SIZE + 1
 """Parameters per obstacle slot (17): centre (3), rotation (9, row-major), half-extents (3),
@@ -80,6 +88,15 @@ GATES: dict[str, Callable[[ca.SX, ObstacleTerm], ca.SX | float]] = {
     "approach": _gate_approach,
 }
 """Registry of velocity gates by name (see `ObstacleTerm`)."""
+
+
+DISTANCES: dict[str, Callable[[], ca.Function]] = {
+    "exact": rounded_box_distance,
+    "smooth": smooth_rounded_box_distance,
+}
+"""Registry of the signed distances by name: ``"exact"`` (C1,
+`geosyn.world.distance.rounded_box_distance`) or ``"smooth"`` (C-infinity, at most
+`geosyn.world.smooth.error_bound` below the exact one, `smooth_rounded_box_distance`)."""
 
 
 class ObstacleTerm(MetricTerm):
@@ -138,6 +155,8 @@ class ObstacleTerm(MetricTerm):
         epsilon: "rmp" bound parameter (max weight gain / epsilon), > 0.
         gate: name of the gate in `GATES`.
         gate_speed: approach speed at which the "approach" gate is fully on [m/s], > 0.
+        distance: name of the signed distance in `DISTANCES` (``"exact"``, the default,
+            or ``"smooth"``).
 
     Raises:
         InvalidTermArgument: a setting is out of range or names an unknown profile/gate.
@@ -159,8 +178,14 @@ class ObstacleTerm(MetricTerm):
         epsilon: float = 0.05,
         gate: str = "none",
         gate_speed: float = 0.05,
+        distance: str = "exact",
     ) -> None:
         super().__init__()
+        if distance not in DISTANCES:
+            raise InvalidTermArgument(
+                f"distance {distance!r} is unknown; allowed: {', '.join(DISTANCES)}"
+            )
+        self.distance = distance
         if profile not in PROFILES:
             raise InvalidTermArgument(
                 f"profile {profile!r} is unknown; allowed: {', '.join(PROFILES)}"
@@ -335,7 +360,7 @@ class ObstacleTerm(MetricTerm):
 
     def _pairs(self, q: ca.SX) -> list[tuple[ca.SX, list[tuple[ca.SX, ca.SX, ca.SX]]]]:
         """Per sphere: (centre, [(clearance, normal, active) per slot])."""
-        dist = rounded_box_distance()
+        dist = DISTANCES[self.distance]()
         P = PARAMS_PER_OBSTACLE
         out = []
         for s, x in zip(self.spheres, self._sphere_centers(q), strict=True):
@@ -368,6 +393,42 @@ class ObstacleTerm(MetricTerm):
                 A = A + w * ca.mtimes(nrm, nrm.T)
             G = G + ca.mtimes(J.T, ca.mtimes(A, J))
         return G
+
+    def symbolic_clearances(self, q: ca.SX, softmin: float | None = None) -> ca.SX:
+        """SX clearances of the robot spheres to every obstacle slot, for constraints.
+
+        Without ``softmin``: row ``s * capacity + o`` is ``sd_o(x_s(q)) - r_s`` [m] for an
+        active slot ``o`` and `INACTIVE_CLEARANCE` for an empty one, so a constraint
+        ``clearance >= margin`` holds trivially on empty slots and one function serves any
+        obstacle count. With ``softmin = k`` [1/m]: one row per slot, the smooth minimum
+        over the spheres ``-log(sum_s exp(-k d_so)) / k``, which lies between
+        ``min_s d_so - log(n_spheres) / k`` and ``min_s d_so`` (conservative).
+
+        Args:
+            q: (n, 1) SX joint positions [rad].
+            softmin: sharpness of the smooth minimum over spheres [1/m], > 0, or None.
+
+        Returns:
+            (n_spheres * capacity, 1) or (capacity, 1) SX expression, containing
+            `symbolic_parameters`.
+        """
+        pairs = [p for _, p in self._pairs(q)]
+        if softmin is None:
+            rows = [
+                active * d + (1.0 - active) * INACTIVE_CLEARANCE
+                for sphere in pairs
+                for d, _, active in sphere
+            ]
+            return ca.vertcat(*rows)
+        k = check_positive(softmin, "softmin", "1/m")
+        rows = []
+        for o in range(self.capacity):
+            d = ca.vertcat(*[sphere[o][0] for sphere in pairs])
+            low = ca.mmin(d)  # the shift cancels analytically (exact derivatives)
+            smooth = low - ca.log(ca.sum1(ca.exp(-k * (d - low)))) / k
+            active = pairs[0][o][2]
+            rows.append(active * smooth + (1.0 - active) * INACTIVE_CLEARANCE)
+        return ca.vertcat(*rows)
 
     # -- diagnostics -----------------------------------------------------------------
     def clearances(self, q: np.ndarray) -> np.ndarray:

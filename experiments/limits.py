@@ -1,0 +1,196 @@
+"""The input boundary of experiment configs: how a file is read, how big and deep it may
+be, and what resources a config may ask for.
+
+A config file is read as UTF-8 (a UTF-8/16/32 byte-order mark is honoured) and refused if
+binary, larger than `MAX_CONFIG_BYTES`, nested deeper than `MAX_DEPTH` or holding more
+than `MAX_VALUES` values (aliases expanded). A validated config is refused if a duration
+needs more than ``limit("ticks")`` control ticks or a latency outlasts the run
+(`resource_errors`): resource bombs fail up front with the limit and how to raise it
+(``GEOSYN_MAX_<NAME>``), instead of allocating gigabytes.
+"""
+
+from __future__ import annotations
+
+import codecs
+import math
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from geosyn.experiments.errors import ConfigError
+from geosyn.experiments.schema import ExperimentConfig
+
+#: Largest config file [bytes] (a config is a few kB; parsing is bounded by this).
+MAX_CONFIG_BYTES = 256 << 10
+#: libyaml's safe loader when PyYAML has it (8x faster on big files), else PyYAML's own.
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+#: Deepest nesting of mappings and lists in a config.
+MAX_DEPTH = 32
+#: Most values (mappings, lists and scalars, YAML aliases expanded) in a config.
+MAX_VALUES = 100_000
+
+
+def read_text(path: Path) -> str:
+    """The text of a config file: UTF-8 (a UTF-8 or UTF-16/32 byte-order mark is honoured).
+
+    Raises:
+        ConfigError: unreadable, larger than `MAX_CONFIG_BYTES`, binary or not UTF-8.
+    """
+    try:
+        size = path.stat().st_size
+        if size > MAX_CONFIG_BYTES:
+            raise ConfigError(
+                path.name, None, f"is {size} bytes; a config has at most {MAX_CONFIG_BYTES}"
+            )
+        raw = path.read_bytes()
+    except OSError as err:
+        raise ConfigError(path.name, None, f"cannot read: {err.strerror or err}") from err
+    boms = (
+        (codecs.BOM_UTF32_LE, "utf-32"),
+        (codecs.BOM_UTF32_BE, "utf-32"),
+        (codecs.BOM_UTF8, "utf-8-sig"),
+        (codecs.BOM_UTF16_LE, "utf-16"),
+        (codecs.BOM_UTF16_BE, "utf-16"),
+    )
+    encoding = next((enc for bom, enc in boms if raw.startswith(bom)), "utf-8")
+    try:
+        text = raw.decode(encoding)
+    except UnicodeDecodeError as err:
+        raise ConfigError(
+            path.name,
+            None,
+            f"is not {encoding.upper()} text (byte 0x{raw[err.start]:02x} at offset"
+            f" {err.start}); a config is a YAML text file, saved as UTF-8",
+        ) from None
+    if "\x00" in text:
+        raise ConfigError(path.name, None, "holds NUL characters: a binary file, not a YAML config")
+    return text
+
+
+def check_structure(data: Any, file: str) -> None:
+    """Refuse configs nested deeper than `MAX_DEPTH` or larger than `MAX_VALUES`.
+
+    Iterative, and it stops counting at the limit, so YAML aliases that expand to
+    billions of values ("billion laughs") are refused in bounded time.
+
+    Raises:
+        ConfigError: the first limit exceeded.
+    """
+    stack: list[tuple[Any, int]] = [(data, 0)]
+    count = 0
+    while stack:
+        node, depth = stack.pop()
+        count += 1
+        if count > MAX_VALUES:
+            raise ConfigError(
+                file, None, f"holds more than {MAX_VALUES} values (YAML aliases expanded)"
+            )
+        if isinstance(node, (dict, list)):
+            if depth >= MAX_DEPTH:
+                raise ConfigError(file, None, f"is nested deeper than {MAX_DEPTH} levels")
+            children = node.values() if isinstance(node, dict) else node
+            stack.extend((child, depth + 1) for child in children)
+
+
+#: Default resource limits of one run; each can be raised with the environment variable
+#: ``GEOSYN_MAX_<NAME>`` (e.g. ``GEOSYN_MAX_TICKS=5000000``), checked before anything runs.
+LIMITS: dict[str, int] = {
+    # control ticks of one simulated run (any ``duration`` / ``simulation.control_dt``);
+    # the per-tick log of a 7-DoF arm takes ~0.5 kB per tick
+    "ticks": 1_000_000,
+}
+
+
+def limit(name: str) -> int:
+    """The limit ``name`` of `LIMITS`, or ``$GEOSYN_MAX_<NAME>`` if set to an integer.
+
+    Raises:
+        ConfigError: the environment variable is set but not a positive integer.
+    """
+    var = f"GEOSYN_MAX_{name.upper()}"
+    text = os.environ.get(var)
+    if text is None:
+        return LIMITS[name]
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ConfigError(var, None, f"must be a positive integer, got {text!r}")
+    return value
+
+
+def _durations(node: Any, path: str) -> Iterable[tuple[str, float]]:
+    """Every number under a key named ``duration`` (or in a list there), with its path."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            sub = f"{path}.{key}" if path else str(key)
+            if key == "duration":
+                values = value if isinstance(value, list) else [value]
+                for i, v in enumerate(values):
+                    if isinstance(v, (int, float)) and not isinstance(v, bool):
+                        yield (sub if not isinstance(value, list) else f"{sub}.{i}"), float(v)
+            else:
+                yield from _durations(value, sub)
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _durations(value, f"{path}.{i}")
+
+
+def resource_errors(cfg: ExperimentConfig) -> list[tuple[str, str]]:
+    """Settings that would allocate or run far beyond what a run needs (resource bombs).
+
+    Every ``duration`` of the config (simulation, reference, procedure parameters) is at
+    most ``limit("ticks")`` control ticks; a latency is shorter than the run.
+    """
+    dt = cfg.simulation.control_dt
+    max_ticks = limit("ticks")
+    data = cfg.model_dump(mode="json")
+    for field, seconds in _durations(data, ""):
+        ticks = seconds / dt
+        if ticks > max_ticks:
+            return [
+                (
+                    field,
+                    f"{seconds:g} s at simulation.control_dt={dt:g} s is {ticks:.3g} control"
+                    f" ticks, more than the limit of {max_ticks}; shorten it, or raise the"
+                    f" limit with GEOSYN_MAX_TICKS={math.ceil(ticks)} if that is intended",
+                )
+            ]
+    run_ticks = cfg.simulation.duration / dt
+    for i, d in enumerate(data.get("disturbances") or []):
+        if d.get("type") != "latency":
+            continue
+        if d.get("ticks") is not None and d["ticks"] > run_ticks:
+            return [
+                (
+                    f"disturbances.{i}.ticks",
+                    f"{d['ticks']} ticks is longer than the run ({run_ticks:.0f} ticks of"
+                    f" {dt:g} s); the controller would never see a state",
+                )
+            ]
+        if d.get("seconds") is not None and d["seconds"] > cfg.simulation.duration:
+            return [
+                (
+                    f"disturbances.{i}.seconds",
+                    f"{d['seconds']:g} s is longer than the run ({cfg.simulation.duration:g} s);"
+                    " the controller would never see a state",
+                )
+            ]
+    return []
+
+
+__all__ = [
+    "LIMITS",
+    "MAX_CONFIG_BYTES",
+    "MAX_DEPTH",
+    "MAX_VALUES",
+    "SAFE_LOADER",
+    "check_structure",
+    "limit",
+    "read_text",
+    "resource_errors",
+]

@@ -1,0 +1,261 @@
+"""The standard metrics of a closed-loop run, computed the same way for every experiment kind.
+
+`standard_metrics` reduces one run (a `geosyn.sim.SimResult`, or the per-run arrays an
+experiment stores in ``results.npz``) to named scalars:
+
+- ``ok``: 1 if the run completed, 0 if it diverged or its controller failed;
+- ``rms_error`` [rad]: ``sqrt(mean(e**2))`` of the tracking error over ticks and joints;
+- ``max_error`` [rad]: the largest tracking-error norm ``||q_ref - q||_2``;
+- ``recovery_time`` [s]: the longest of the per-window recovery times below, and
+  ``recovery_time_d{i}`` [s] that of disturbance ``i`` (its index in ``disturbances``);
+- ``effort`` [N^2 m^2 s]: ``integral ||tau_applied||^2 dt``;
+- ``mechanical_energy`` [J]: ``integral |tau_applied . v| dt``, the work the motors do
+  counting braking as work too;
+- ``saturations``: number of (tick, joint) pairs whose torque was clipped, and
+  ``saturated_fraction`` their share of all pairs;
+- ``fallbacks``: number of ticks on which the controller used its fallback;
+- ``min_clearance`` [m]: the smallest signed distance of the robot's collision spheres to
+  the obstacles (``inf`` without obstacles);
+- ``max_contact_force`` [N]: the largest total normal force of the robot-obstacle
+  contacts (when the run logs ``contact_force``; 0 with visual-only obstacles);
+- ``wall_time`` [s] of the run.
+
+Recovery, per disturbance window
+--------------------------------
+A disturbance with a time window (a push ``[start, start + duration]``, a wrench
+``[start, stop]``, a payload change at ``time``) opens an *evaluation interval* at its
+start. The interval ends at the earliest of: the start of the next windowed disturbance,
+the end of the reference when the reference ends *moving* (a geodesic traversed at
+constant speed steps to rest there, which disturbs the tracking by itself), and the end
+of the run. With ``e(t) = ||q_ref(t) - q(t)||_2`` and threshold ``h``:
+
+- recovery is 0 when ``e <= h`` on every tick of the interval;
+- otherwise, with ``k`` the last tick of the interval where ``e > h``, recovery is
+  ``t[k + 1] - start``: the time from the disturbance's start until the error is back
+  below ``h`` for the rest of the interval;
+- recovery is ``inf`` when ``e > h`` on the interval's last tick (not recovered before the
+  interval closed).
+
+The end of the reference is found from the logged reference itself: the last tick on
+which ``q_ref`` still changes. It counts as the end of a *moving* reference when the
+reference speed there, ``||dq_ref/dt||``, exceeds ``REST_SPEED``. A rest-to-rest reference
+(``rest_to_rest: true``) ends at rest and does not close an interval.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+#: Default error threshold of the recovery time [rad] (a procedure's ``threshold`` wins).
+DEFAULT_THRESHOLD = 1e-2
+#: Per-tick change of the reference below which it counts as held [rad] (the spline's
+#: last sample and the held goal differ by rounding).
+STILL = 1e-12
+#: Reference speed above which the reference's end counts as a velocity step [rad/s].
+REST_SPEED = 1e-3
+
+#: Unit of each standard metric (the name after the last dot of a summary key).
+UNITS: dict[str, str] = {
+    "rms_error": "rad",
+    "max_error": "rad",
+    "recovery_time": "s",
+    "effort": "N^2 m^2 s",
+    "mechanical_energy": "J",
+    "saturations": "count",
+    "saturated_fraction": "1",
+    "fallbacks": "count",
+    "min_clearance": "m",
+    "max_contact_force": "N",
+    "wall_time": "s",
+}
+
+
+class Window(NamedTuple):
+    """A disturbance's time window.
+
+    Attributes:
+        disturbance: the disturbance's index in the config's ``disturbances``.
+        kind: its ``type`` (``push``, ``wrench``, ``payload_change``).
+        start: when it starts acting [s].
+        stop: when it stops acting [s] (``start`` for an instantaneous change).
+    """
+
+    disturbance: int
+    kind: str
+    start: float
+    stop: float
+
+
+def disturbance_windows(disturbances: Sequence[Any]) -> list[Window]:
+    """The windows of the windowed disturbances among config sections ``disturbances``.
+
+    Noise and latency act throughout the run and open no window. A wrench with
+    ``stop: null`` has ``stop = inf``.
+    """
+    out = []
+    for i, d in enumerate(disturbances):
+        if d.type == "push":
+            out.append(Window(i, "push", float(d.start), float(d.start + d.duration)))
+        elif d.type == "wrench":
+            stop = float("inf") if d.stop is None else float(d.stop)
+            out.append(Window(i, "wrench", float(d.start), stop))
+        elif d.type == "payload_change":
+            out.append(Window(i, "payload_change", float(d.time), float(d.time)))
+    return sorted(out, key=lambda w: w.start)
+
+
+def reference_end(t: np.ndarray, q_ref: np.ndarray) -> tuple[float, float]:
+    """(time [s], speed [rad/s]) at which the logged reference stops changing.
+
+    Args:
+        t: (T,) tick times [s].
+        q_ref: (T, n) reference positions [rad] (NaN rows: no reference).
+
+    Returns:
+        The time of the first tick after the last change of ``q_ref`` (by more than
+        `STILL`) and the reference
+        speed ``||q_ref[k] - q_ref[k-1]|| / dt`` just before it; ``(inf, 0)`` when the
+        reference still moves on the last tick or there is none.
+    """
+    if len(t) < 2 or not np.all(np.isfinite(q_ref)):
+        return float("inf"), 0.0
+    step = np.linalg.norm(np.diff(q_ref, axis=0), axis=1)
+    moving = np.nonzero(step > STILL)[0]
+    if moving.size == 0:
+        return float(t[0]), 0.0
+    k = int(moving[-1]) + 1  # the first tick of the held goal
+    if k >= len(t) - 1:
+        return float("inf"), 0.0
+    return float(t[k]), float(step[k - 1] / (t[k] - t[k - 1]))
+
+
+def recovery_times(
+    t: np.ndarray,
+    err_norm: np.ndarray,
+    windows: Sequence[Window],
+    threshold: float,
+    reference_stop: float = float("inf"),
+) -> list[float]:
+    """Recovery time [s] of each window (the module doc gives the definition).
+
+    Args:
+        t: (T,) tick times [s].
+        err_norm: (T,) tracking-error norm [rad].
+        windows: the disturbance windows, sorted by start.
+        threshold: the error threshold [rad].
+        reference_stop: end of a reference that ends moving [s] (``inf``: none).
+
+    Returns:
+        One recovery time per window [s]: 0, a finite time, or ``inf``.
+    """
+    out = []
+    starts = [w.start for w in windows]
+    for i, w in enumerate(windows):
+        close = min([s for s in starts[i + 1 :] if s > w.start] + [float("inf")])
+        if reference_stop > w.start:
+            close = min(close, reference_stop)
+        idx = np.nonzero((t >= w.start) & (t < close))[0]
+        if idx.size == 0:
+            out.append(float("nan"))  # the window starts after the run ended
+            continue
+        above = idx[err_norm[idx] > threshold]
+        if above.size == 0:
+            out.append(0.0)
+        elif above[-1] == idx[-1]:
+            out.append(float("inf"))
+        else:
+            out.append(float(t[above[-1] + 1] - w.start))
+    return out
+
+
+def _array(run: Any, name: str) -> np.ndarray | None:
+    value = run.get(name) if isinstance(run, Mapping) else getattr(run, name, None)
+    return None if value is None else np.asarray(value)
+
+
+def standard_metrics(
+    run: Any,
+    control_dt: float,
+    windows: Sequence[Window] = (),
+    threshold: float = DEFAULT_THRESHOLD,
+) -> dict[str, float]:
+    """The standard metrics of one run (see the module doc).
+
+    Args:
+        run: a `geosyn.sim.SimResult`, or a mapping of its arrays by field name (what
+            `geosyn.experiments.build.sim_view` gives for a stored run).
+        control_dt: control period [s].
+        windows: the disturbance windows (`disturbance_windows`).
+        threshold: error threshold of the recovery times [rad].
+
+    Returns:
+        metric name -> value (``recovery_time*`` only with windows; metrics whose arrays
+        the run lacks are left out).
+    """
+    t = np.asarray(_array(run, "t"), dtype=np.float64)
+    e = _array(run, "tracking_error")
+    tau = _array(run, "tau_applied")
+    v = _array(run, "v")
+    status = _array(run, "status")
+    out: dict[str, float] = {}
+    if status is not None:
+        out["ok"] = float(str(status) == "ok")
+    if e is not None and len(t) and np.all(np.isfinite(e)):
+        norm = np.linalg.norm(e, axis=1)
+        out["rms_error"] = float(np.sqrt(np.mean(e**2)))
+        out["max_error"] = float(norm.max())
+        if windows:
+            q_ref = _array(run, "q_ref")
+            stop, speed = reference_end(t, q_ref) if q_ref is not None else (float("inf"), 0.0)
+            reference_stop = stop if speed > REST_SPEED else float("inf")
+            times = recovery_times(t, norm, windows, threshold, reference_stop)
+            finite = [x for x in times if not np.isnan(x)]
+            out["recovery_time"] = max(finite) if finite else float("nan")
+            for w, rt in zip(windows, times, strict=True):
+                out[f"recovery_time_d{w.disturbance}"] = rt
+    if tau is not None:
+        out["effort"] = float(np.sum(tau**2) * control_dt)
+        if v is not None:
+            out["mechanical_energy"] = float(
+                np.sum(np.abs(np.einsum("ij,ij->i", tau, v))) * control_dt
+            )
+    sat = _array(run, "saturated")
+    if sat is not None:
+        out["saturations"] = float(np.count_nonzero(sat))
+        out["saturated_fraction"] = float(np.count_nonzero(sat) / sat.size) if sat.size else 0.0
+    fb = _array(run, "fallback_used")
+    if fb is not None:
+        out["fallbacks"] = float(np.count_nonzero(fb))
+    contact = _array(run, "contact_force")
+    if contact is not None and contact.size and np.all(np.isfinite(contact)):
+        out["max_contact_force"] = float(np.max(contact))
+    clearance = _array(run, "clearance")
+    if clearance is not None and clearance.size:
+        out["min_clearance"] = float(np.min(clearance))
+    wall = _array(run, "wall_time")
+    if wall is not None:
+        out["wall_time"] = float(wall)
+    return out
+
+
+def unit_of(metric: str) -> str:
+    """Unit of a standard metric name (``recovery_time_d3`` -> ``s``); ``""`` if unknown."""
+    if metric.startswith("recovery_time"):
+        return "s"
+    return UNITS.get(metric, "")
+
+
+__all__ = [
+    "DEFAULT_THRESHOLD",
+    "REST_SPEED",
+    "UNITS",
+    "Window",
+    "disturbance_windows",
+    "recovery_times",
+    "reference_end",
+    "standard_metrics",
+    "unit_of",
+]

@@ -1,0 +1,165 @@
+"""Units and meanings of the config fields that stand for no library parameter.
+
+A `Section`'s fields that are parameters of its library calls are documented by those
+calls' docstrings (`geosyn.experiments.schema.describe`); this table holds the others:
+``model name -> field -> (unit, meaning)``. A procedure's ``params`` model is documented
+here too, under its class name.
+"""
+
+from __future__ import annotations
+
+#: Meaning of every ``type`` field (the discriminator of a list item or section).
+TYPE_FIELD = "which kind of item this is (selects its other fields)"
+
+_LABEL = ("", "name of this controller's runs and summary rows (default: its type, numbered)")
+_Q_START = ("rad", "(nv,) start configuration")
+_STEPS = ("", "integration steps of each geodesic")
+_DURATION = ("s", "time of each motion")
+
+FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
+    "ExperimentConfig": {
+        "name": ("", "name of the experiment (run directories are named after it)"),
+        "description": ("", "free text shown in summary.md and `geosyn list`"),
+        "kind": ("", "the procedure that runs it (`geosyn list`; general: tracking)"),
+        "seed": ("", "seed of every random draw (noise, demonstrations)"),
+        "robot": ("", "the robot"),
+        "metric": ("", "the metric: kinetic energy plus shaping terms"),
+        "scene": ("", "payloads and obstacles of the MuJoCo scene"),
+        "synergies": ("", "synergies of the robot (needed by a combination reference)"),
+        "reference": ("", "what the controllers track"),
+        "controllers": ("", "the controllers; each one runs the experiment"),
+        "disturbances": ("", "pushes, wrenches, payload changes, noise, latency"),
+        "simulation": ("", "MuJoCo simulation settings"),
+        "outputs": ("", "what a run writes besides results.npz and summaries"),
+        "params": ("", "settings of the kind's procedure (`geosyn schema params`)"),
+    },
+    "RobotConfig": {
+        "name": ("", "a built-in robot (`geosyn robots`) or a .urdf/.xml/.mjcf path"),
+        "options": ("", "options of load_robot"),
+    },
+    "RobotOptions": {
+        "armature": ("kg m^2", "rotor inertia added to every joint (null: the model's)"),
+        "gravity": ("m/s^2", "(3,) gravity vector (null: the model's)"),
+        "ee_frame": ("", "end-effector frame (null: the robot's)"),
+        "fixed_base": ("", "weld a floating base to the world (null: the robot's own)"),
+        "tau_max": ("N m", "one torque limit for every joint (null: the file's limits)"),
+    },
+    "MetricConfig": {"terms": ("", "shaping terms added to the kinetic-energy metric")},
+    "SceneConfig": {
+        "payloads": ("", "rigid payloads welded to links"),
+        "obstacles": ("", "obstacles (seen by obstacle terms and the clearance)"),
+    },
+    "SphereConfig": {"center": ("m", "(3,) centre"), "radius": ("m", "radius")},
+    "BoxConfig": {
+        "center": ("m", "(3,) centre"),
+        "half_extents": ("m", "(3,) half side lengths"),
+        "rpy": ("rad", "roll, pitch, yaw about the world axes, R = Rz Ry Rx"),
+    },
+    "CapsuleConfig": {
+        "p0": ("m", "(3,) first end of the axis"),
+        "p1": ("m", "(3,) second end of the axis"),
+        "radius": ("m", "radius"),
+    },
+    "HalfSpaceConfig": {
+        "normal": ("", "(3,) outward normal (normalised)"),
+        "offset": ("m", "the obstacle is {x : normal . x <= offset}"),
+    },
+    "PayloadConfig": {
+        "frame": ("", "link frame it is welded to (null: the end effector)"),
+        "mass": ("kg", "mass"),
+        "offset": ("m", "(3,) centre of mass in the frame"),
+        "inertia": ("kg m^2", "(3, 3) inertia about the centre of mass (null: a ball)"),
+        "radius": ("m", "radius of the ball (inertia and drawing)"),
+        "name": ("", "name, for payload_change disturbances"),
+    },
+    "LoadTermConfig": {"payload": ("", "index into scene.payloads (instead of frame/mass)")},
+    "ExplicitSynergies": {"items": ("", "the synergies")},
+    "ExplicitSynergy": {
+        "q0": ("rad", "(nv,) base configuration"),
+        "v0": ("rad/s", "(nv,) initial velocity of the geodesic"),
+    },
+    "PGASynergies": {
+        "q0": ("rad", "(nv,) base of the generated demonstrations"),
+        "k": ("", "number of synergies extracted"),
+        "n_demos": ("", "number of generated demonstrations"),
+        "spread": ("rad/s", "standard deviation of the demonstrations' velocities"),
+        "latent": ("", "number of directions the demonstrations vary in"),
+    },
+    "LogReference": {"q_start": _Q_START, "goal": ("rad", "(nv,) goal configuration")},
+    "GoalsReference": {
+        "q_start": _Q_START,
+        "goals": ("rad", "the goals, each (nv,), reached one after the other"),
+        "duration": ("s", "geodesic time of each segment: one value, or one per goal"),
+    },
+    "PlannedReference": {
+        "q_start": _Q_START,
+        "goal": ("rad", "(nv,) goal configuration"),
+        "duration": ("s", "time of the path before time scaling"),
+        "time_scale": ("", "time scale s > 0 (s > 1 is slower)"),
+        "rest_to_rest": ("", "traverse the path with the quintic rest-to-rest time law"),
+        "margin": ("m", "clearance the planned path keeps from the obstacles"),
+        "nodes": ("", "segments of the planner's collocation"),
+        "budget": ("s", "wall-time limit of the planning query"),
+    },
+    "ComputedTorqueConfig": {"label": _LABEL},
+    "RiemannianPDConfig": {"label": _LABEL},
+    "QPConfig": {"label": _LABEL},
+    "MPCConfig": {"label": _LABEL},
+    "OutputsConfig": {
+        "plots": ("", "write PNG plots"),
+        "csv": ("", "write data/<run>.csv per closed-loop run (named columns)"),
+        "video": ("", "render a video of every motion (also: --video)"),
+        "video_format": ("", "video file format"),
+    },
+    # procedures' params
+    "TrackingParams": {"threshold": ("rad", "error norm below which a run has recovered")},
+    "PushRecoveryParams": {
+        "threshold": ("rad", "error norm below which a run has recovered"),
+        "window": ("s", "RMS error is also reported from this long after the push on"),
+    },
+    "GeodesicVsEuclideanParams": {
+        "q0": ("rad", "(2,) start configuration"),
+        "q1": ("rad", "(2,) end configuration"),
+        "duration": _DURATION,
+        "steps": _STEPS,
+    },
+    "PGAvsPCAParams": {
+        "q0": ("rad", "(nv,) base of the generated demonstrations"),
+        "n_demos": ("", "number of demonstrations"),
+        "spread": ("rad/s", "standard deviation of the demonstrations' velocities"),
+        "latent": ("", "number of directions the demonstrations vary in"),
+        "k_max": ("", "largest number of synergies compared"),
+        "steps": _STEPS,
+    },
+    "SynergyCombinationsParams": {
+        "weights": ("", "weight pairs of the two synergies"),
+        "duration": _DURATION,
+        "steps": _STEPS,
+    },
+    "SynergyTransportParams": {
+        "bases": ("rad", "base configurations of the synergies, each (nv,)"),
+        "q_start": _Q_START,
+        "weights": ("", "one weight per synergy"),
+        "duration": _DURATION,
+        "steps": _STEPS,
+    },
+    "PickAndPlaceParams": {
+        "pick": ("m", "(3,) hand position of the grasp"),
+        "via": ("m", "(3,) hand position the carry passes through"),
+        "place": ("m", "(3,) hand position of the release"),
+        "mass": ("kg", "mass of the carried object"),
+        "durations": ("s", "durations of reach, carry to via, carry to place"),
+        "dwell": ("s", "time held still at the grasp and at the release"),
+        "steps": _STEPS,
+        "sample_dt": ("s", "sample period of the reference"),
+    },
+    "SynergySequenceParams": {
+        "targets": ("m", "Cartesian hand goals, each (3,), reached one after the other"),
+        "durations": ("s", "duration of each segment: one value, or one per target"),
+        "steps": _STEPS,
+        "sample_dt": ("s", "sample period of the reference"),
+        "settle": ("s", "time simulated after the motion ends"),
+    },
+}
+
+__all__ = ["FIELD_DOCS", "TYPE_FIELD"]

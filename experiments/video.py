@@ -1,0 +1,142 @@
+"""Videos of a run directory's motions, for every experiment kind.
+
+`run_motions` finds what a run moved: every closed-loop run stored by
+`geosyn.experiments.build.sim_arrays` (``{prefix}__t``, ``{prefix}__q``, ``{prefix}__q_ref``),
+or, for a kind that simulates nothing, every stored path (``{name}__t`` with
+``{name}__q`` of the robot's size: geodesics, transported synergies, ...). `write_videos`
+renders one video per motion (`geosyn.sim.Clip`: the controller's name, time stamps, the
+end effector's reference and actual paths, arrows for pushes and wrenches, payloads and
+obstacles) and never raises: the run is kept, and what failed is returned, for the
+runner to record in ``run.json`` and the run log.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from geosyn.experiments.schema import ExperimentConfig
+from geosyn.robots import Robot
+
+
+class RunMotion(NamedTuple):
+    """One motion stored in a run's results.
+
+    Attributes:
+        name: the prefix of its arrays (the controller's label, or ``{path}_{label}``).
+        t: (T,) time stamps [s].
+        q: (T, nq) joint positions [rad].
+        q_ref: (T, nq) reference positions [rad] (NaN: none), or None.
+        simulated: a closed-loop run (disturbances act on it), not a computed path.
+    """
+
+    name: str
+    t: np.ndarray
+    q: np.ndarray
+    q_ref: np.ndarray | None
+    simulated: bool
+
+
+def run_motions(results: dict[str, np.ndarray], nq: int) -> list[RunMotion]:
+    """The motions of a run's results, in storage order.
+
+    Closed-loop runs when there are any (their references are shown in them), else every
+    stored path ``{name}__t`` / ``{name}__q`` with (T,) and (T, nq) arrays.
+
+    Args:
+        results: the arrays of ``results.npz``.
+        nq: the robot's number of joint positions.
+
+    Returns:
+        The motions (empty when the kind stores none, e.g. ``pga_vs_pca``).
+    """
+    sims: list[RunMotion] = []
+    paths: list[RunMotion] = []
+    for key, q in results.items():
+        if not key.endswith("__q"):
+            continue
+        name = key[: -len("__q")]
+        t = results.get(f"{name}__t")
+        q = np.asarray(q)
+        if t is None or np.ndim(t) != 1 or q.shape != (len(t), nq) or len(t) < 2:
+            continue
+        t = np.asarray(t, dtype=np.float64)
+        if np.any(np.diff(t) <= 0.0):
+            continue
+        q_ref = results.get(f"{name}__q_ref")
+        simulated = f"{name}__tau_applied" in results
+        motion = RunMotion(name, t, q, None if q_ref is None else np.asarray(q_ref), simulated)
+        (sims if simulated else paths).append(motion)
+    return sims or paths
+
+
+def _clip(cfg: ExperimentConfig, robot: Robot, motion: RunMotion) -> Any:
+    from geosyn.experiments import build as B
+    from geosyn.sim import Clip, Motion
+
+    o = cfg.outputs
+    # A stored run's ticks end one control period before the run: film up to its end.
+    end = motion.t[-1] + cfg.simulation.control_dt if motion.simulated else None
+    return Clip(
+        Motion(motion.t, motion.q, motion.q_ref, end),
+        robot,
+        o.fps,
+        min(o.width, 1280),
+        min(o.height, 960),
+        payloads=B.build_payloads(cfg, robot),
+        obstacles=B.build_obstacles(cfg),
+        trail=o.trail,
+        disturbances=B.build_disturbances(cfg) if motion.simulated else (),
+        label=motion.name,
+    )
+
+
+def write_videos(
+    cfg: ExperimentConfig, robot: Robot, results: dict[str, np.ndarray], out_dir: Path
+) -> dict[str, Any]:
+    """Render ``video_{name}.{gif|mp4}`` for every motion of a run; never raises.
+
+    Args:
+        cfg: the run's config (``outputs`` sets format, fps, size and trail).
+        robot: the robot of the run.
+        results: the run's arrays.
+        out_dir: where the videos go.
+
+    Returns:
+        ``{"files": [names written], "frames": F, "seconds_per_frame": s, "error": None or
+        "what failed: why", "robot_drawn_as": "its own meshes" or "collision capsules
+        (why)"}``; a kind that stores no motion gets an error saying so.
+    """
+    record: dict[str, Any] = {"files": [], "frames": 0, "seconds_per_frame": None, "error": None}
+    motions = run_motions(results, robot.nq)
+    if not motions:
+        record["error"] = (
+            f"kind {cfg.kind!r} stores no motion of the robot (no '<name>__t' and"
+            f" '<name>__q' arrays with {robot.nq} joints), so there is nothing to film"
+        )
+        return record
+    t0 = time.perf_counter()
+    clip = None
+    for motion in motions:
+        path = out_dir / f"video_{motion.name}.{cfg.outputs.video_format}"
+        try:
+            clip = _clip(cfg, robot, motion)
+            clip.save(path)
+        except Exception as err:  # a failed video never throws the finished run away
+            path.unlink(missing_ok=True)
+            record["error"] = f"video of {motion.name!r}: {type(err).__name__}: {err}"
+            break
+        record["files"].append(path.name)
+        record["frames"] += len(clip.indices(clip.motion()))
+    if record["frames"]:
+        record["seconds_per_frame"] = (time.perf_counter() - t0) / record["frames"]
+    if clip is not None:
+        note = clip.mesh_note()
+        record["robot_drawn_as"] = f"collision capsules ({note})" if note else "its own meshes"
+    return record
+
+
+__all__ = ["RunMotion", "run_motions", "write_videos"]

@@ -1,0 +1,402 @@
+"""Direct collocation of the geodesic energy: a boundary-value solver that does not shoot.
+
+A path from ``q0`` to ``q1`` on ``t in [0, 1]`` is discretised into ``N + 1`` nodes
+``q_0 = q0, q_1, ..., q_N = q1`` (piecewise linear, ``h = 1/N``) and its energy by the
+midpoint rule,
+
+.. math:: E_h(q_1, \\dots, q_{N-1}) = \\sum_{k=0}^{N-1} \\frac{1}{h}\\,
+          \\Delta q_k^T\\, G\\big(\\tfrac{q_k + q_{k+1}}{2}\\big)\\, \\Delta q_k
+          \\approx \\int_0^1 \\dot q^T G(q)\\, \\dot q\\, dt ,
+
+is minimised by IPOPT over the interior nodes, within the joint limits and, optionally,
+subject to ``clearance >= margin`` at every interior node (the robot's collision spheres
+against the obstacles of an `ObstacleTerm`). Stationary points of ``E_h`` without active
+constraints are discrete geodesics (a variational integrator of the geodesic equation,
+second order in ``h``); with active constraints the result is a minimum-energy constrained
+path, which is not a geodesic and is reported as such (`CollocationResult.kind`).
+
+Build once, solve often. The NLP is assembled from two small per-node CasADi functions,
+the energy of one segment with its gradient and Hessian, and the clearances of one node
+with their Jacobian and multiplier-weighted Hessian, mapped over the nodes; IPOPT gets
+these hand-assembled derivatives (block-tridiagonal Hessian, block-diagonal constraint
+Jacobian). Start, goal, metric parameters and obstacle poses are NLP *parameters*, so one
+`Collocation` serves every query and scene of the same robot, node count and obstacle
+capacity; with ``compile=True`` the two per-node functions are compiled to C once
+(`geosyn.core.codegen`, cached on disk, independent of the node count).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING, Any
+
+import casadi as ca
+import numpy as np
+
+from geosyn.core.codegen import compile_library
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.types import Vector
+from geosyn.core.validation import (
+    check_choice,
+    check_float,
+    check_int,
+    check_positive,
+    check_vector,
+)
+from geosyn.metrics.base import Metric, check_metric
+from geosyn.metrics.errors import GeodesicNotFound
+from geosyn.metrics.geodesic.collocation_parts import (
+    KINDS,
+    CollocationResult,
+    Deadline,
+    node_functions,
+    resample_path,
+)
+
+if TYPE_CHECKING:
+    from geosyn.metrics.shaping.obstacle import ObstacleTerm
+
+__all__ = ["COMPILE", "HESSIANS", "KINDS", "Collocation", "CollocationResult", "resample_path"]
+
+HESSIANS = ("exact", "energy", "limited-memory")
+"""Choices of `Collocation`'s ``hessian`` argument."""
+
+COMPILE = ("all", "first-order", "none")
+"""Choices of `Collocation`'s ``compile`` argument."""
+
+BATCH = 64
+"""Configurations per call of the batched clearance check (`Collocation.node_clearances`)."""
+
+ACTIVE_TOL = 1e-6
+"""A clearance within this of the margin [m], or a joint within it of a limit [rad], is
+counted as an active constraint."""
+
+
+class Collocation:
+    """Minimum-energy paths by direct collocation (IPOPT); see the module docstring.
+
+    Args:
+        metric: the metric (velocity-independent, with a symbolic form, e.g.
+            `KineticEnergyMetric` or a `ShapedMetric` without gated terms).
+        nodes: number of segments ``N`` of the path, >= 2.
+        clearance: an `ObstacleTerm` bound to the metric's robot whose spheres and
+            obstacles (its current parameter values, read at each solve) give the
+            constraints ``clearance >= margin`` at the interior nodes; None: no
+            constraints besides the joint limits.
+        margin: smallest clearance at the nodes [m], >= 0 (paths are piecewise linear
+            between nodes: keep a margin, and check between nodes).
+        joint_limits: keep the nodes within the robot's position limits (needs
+            ``metric.robot``).
+        compile: which per-node functions to compile to C (cached on disk), `COMPILE`:
+            ``"all"`` (or True), ``"none"`` (or False: CasADi's VM), or
+            ``"first-order"`` (all but the clearances' Hessian, which stays in the VM:
+            with many robot spheres it is by far the costliest to compile).
+        tol: IPOPT's tolerance.
+        hessian: what IPOPT gets as the Hessian of the Lagrangian (`HESSIANS`):
+            ``"exact"`` (energy and clearances; the clearances' second derivatives are
+            the costliest function to compile with many spheres), ``"energy"`` (the
+            energy's only: cheap, but IPOPT then often stalls where clearance constraints
+            are active) or ``"limited-memory"`` (IPOPT's L-BFGS, no second derivatives).
+        softmin: one constraint per node and obstacle, the smooth minimum over the
+            robot spheres with this sharpness [1/m] (conservative, at most
+            ``log(n_spheres) / softmin`` below the exact minimum: 4 mm for 59 spheres at
+            the default 1000 /m); None: one constraint per node, sphere and obstacle
+            (exact, but many constraints with many spheres).
+        midpoints: also constrain the clearance at the segment midpoints (catches thin
+            obstacles that nodes would straddle).
+
+    The constructor builds the NLP (allocates; with ``compile`` a C compile on the first
+    use of a robot and capacity, cached on disk afterwards); `solve` only writes
+    parameters and runs IPOPT.
+
+    Raises:
+        InvalidArgument: bad settings, a velocity-dependent metric, or a ``clearance``
+            term bound to a robot of a different dimension.
+    """
+
+    def __init__(
+        self,
+        metric: Metric,
+        *,
+        nodes: int = 24,
+        clearance: ObstacleTerm | None = None,
+        margin: float = 0.01,
+        joint_limits: bool = True,
+        compile: bool | str = False,
+        tol: float = 1e-8,
+        hessian: str = "exact",
+        softmin: float | None = 1000.0,
+        midpoints: bool = True,
+    ) -> None:
+        t0 = time.perf_counter()
+        self.metric = check_metric(metric)
+        if getattr(metric, "velocity_dependent", False):
+            raise InvalidArgument(
+                "metric: collocation needs a velocity-independent metric; use a ShapedMetric "
+                "without velocity-gated terms (gate='none')"
+            )
+        self.nodes = N = check_int(nodes, "nodes", low=2)
+        self.margin = check_float(margin, "margin", low=0.0)
+        self.tol = check_positive(tol, "tol")
+        self.clearance = clearance
+        n = self.n = metric.n
+        if clearance is not None and clearance.n != n:
+            raise InvalidArgument(
+                f"clearance: term is bound to a robot with {clearance.n} joints, metric has {n}"
+            )
+        robot: Any = getattr(metric, "robot", None)
+        if joint_limits and robot is None:
+            raise InvalidArgument("joint_limits: the metric has no robot; pass joint_limits=False")
+        if joint_limits:
+            self.q_min = np.array(robot.q_min, dtype=np.float64)
+            self.q_max = np.array(robot.q_max, dtype=np.float64)
+        else:
+            self.q_min, self.q_max = np.full(n, -np.inf), np.full(n, np.inf)
+        self.hessian = check_choice(hessian, HESSIANS, "hessian")
+        self.constraint_hessian = self.hessian == "exact"
+        self.softmin = None if softmin is None else check_positive(softmin, "softmin", "1/m")
+        funcs = node_functions(metric, clearance, self.constraint_hessian, self.softmin)
+        mode: object = compile
+        if isinstance(compile, bool):
+            mode = "all" if compile else "none"
+        self.compile = check_choice(mode, COMPILE, "compile")
+        if self.compile != "none":
+            # jac_<f> in the same library: first derivatives of f and g for CasADi's own
+            # Lagrangian gradient (the hand-made derivatives above serve IPOPT).
+            todo = funcs if self.compile == "all" else funcs[:4]
+            jacs = [funcs[0].jacobian(), funcs[2].jacobian()]
+            lib = compile_library("geosyn_collocation", [*todo, *jacs],
+                                  load=[f.name() for f in todo])  # fmt: skip
+            funcs = tuple(lib[f.name()] for f in todo) + funcs[len(todo) :]
+        seg, seg_d, clr, clr_j = funcs[:4]
+        self.constraints_per_node = m = clr.size1_out(0) if clearance is not None else 0
+        npm = metric.symbolic_parameters().numel()
+        npc = 0 if clearance is None else clearance.symbolic_parameters().numel()
+        x = ca.MX.sym("x", n * (N - 1))
+        p = ca.MX.sym("p", 2 * n + npm + npc)
+        X = ca.reshape(x, n, N - 1)
+        q0, q1 = p[:n], p[n : 2 * n]
+        pm, pc = p[2 * n : 2 * n + npm], p[2 * n + npm :]
+        Q = ca.horzcat(q0, X, q1)
+        qa, qb = Q[:, :-1], Q[:, 1:]
+        f = N * ca.sum2(seg.map(N)(qa, qb, pm))
+        E, GR, H = seg_d.map(N)(qa, qb, pm)
+        grad = N * ca.vec(GR[n:, : N - 1] + GR[:n, 1:])
+        grad_f = ca.Function("nlp_grad_f", [x, p], [N * ca.sum2(E), grad], ["x", "p"],
+                             ["f", "grad_f_x"])  # fmt: skip
+        lam_f = ca.MX.sym("lam_f")
+        self.midpoints = bool(midpoints) and m > 0
+        rows = N - 1 + (N if self.midpoints else 0)  # constraint blocks of m rows
+        lam_g = ca.MX.sym("lam_g", m * rows)
+        blocks = [[ca.MX(n, n) for _ in range(N - 1)] for _ in range(N - 1)]
+        for j in range(N - 1):
+            blocks[j][j] = N * lam_f * (H[n:, 2 * n * j + n : 2 * n * (j + 1)]
+                                        + H[:n, 2 * n * (j + 1) : 2 * n * (j + 1) + n])  # fmt: skip
+            if j + 1 < N - 1:
+                blocks[j][j + 1] = N * lam_f * H[:n, 2 * n * (j + 1) + n : 2 * n * (j + 2)]
+        if m:
+            # constraints at the interior nodes, then (midpoints) at the segment midpoints:
+            # c(m_k), m_k = (Q_k + Q_k+1) / 2, depends on X_k-1 and X_k with weight 1/2.
+            L = ca.reshape(lam_g, m, rows)
+            Cn, Jn = clr_j.map(N - 1)(X, pc)
+            g_parts, c_parts = [ca.vec(clr.map(N - 1)(X, pc))], [ca.vec(Cn)]
+            jrows = [[ca.MX(m, n) for _ in range(N - 1)] for _ in range(rows)]
+            for j in range(N - 1):
+                jrows[j][j] = Jn[:, j * n : (j + 1) * n]
+            if self.constraint_hessian:
+                HN = funcs[4].map(N - 1)(X, pc, L[:, : N - 1])
+                for j in range(N - 1):
+                    blocks[j][j] = blocks[j][j] + HN[:, j * n : (j + 1) * n]
+            if self.midpoints:
+                M = 0.5 * (qa + qb)
+                Cm, Jm = clr_j.map(N)(M, pc)
+                g_parts.append(ca.vec(clr.map(N)(M, pc)))
+                c_parts.append(ca.vec(Cm))
+                for k in range(N):
+                    half = 0.5 * Jm[:, k * n : (k + 1) * n]
+                    for j in (k - 1, k):
+                        if 0 <= j < N - 1:
+                            jrows[N - 1 + k][j] = half
+                if self.constraint_hessian:
+                    HM = 0.25 * funcs[4].map(N)(M, pc, L[:, N - 1 :])
+                    for k in range(N):
+                        hk = HM[:, k * n : (k + 1) * n]
+                        for j in (k - 1, k):
+                            if 0 <= j < N - 1:
+                                blocks[j][j] = blocks[j][j] + hk
+                        if 1 <= k < N - 1:
+                            blocks[k - 1][k] = blocks[k - 1][k] + hk
+            g = ca.vertcat(*g_parts)
+            jac_g = ca.Function("nlp_jac_g", [x, p], [ca.vertcat(*c_parts), ca.blockcat(jrows)],
+                                ["x", "p"], ["g", "jac_g_x"])  # fmt: skip
+        else:
+            g = ca.MX(0, 1)
+        hess = ca.triu(ca.blockcat(blocks))
+        hess_l = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess],
+                             ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
+        self._deadline = Deadline(x.numel(), g.numel())
+        opts: dict[str, Any] = {
+            "iteration_callback": self._deadline,
+            "grad_f": grad_f,
+            "print_time": False,
+            "calc_lam_p": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.tol": self.tol,
+            "ipopt.max_iter": 500,
+        }
+        if m:
+            opts["jac_g"] = jac_g
+        if self.hessian == "limited-memory":
+            opts["ipopt.hessian_approximation"] = "limited-memory"
+        else:
+            opts["hess_lag"] = hess_l
+        nlp: dict[str, Any] = {"x": x, "p": p, "f": f, "g": g}
+        self._solver = ca.nlpsol("collocation", "ipopt", nlp, opts)
+        self._clearance_fn = clr if m else None
+        self._clearance_batch: dict[int, ca.Function] = {}
+        self.build_time = time.perf_counter() - t0
+
+    def __repr__(self) -> str:
+        return (
+            f"Collocation({self.metric!r}, nodes={self.nodes}, "
+            f"constraints_per_node={self.constraints_per_node}, margin={self.margin})"
+        )
+
+    def parameters(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """(2n + p,) NLP parameters: start, goal, metric and obstacle parameters."""
+        parts = [q0, q1, np.asarray(self.metric.parameter_values(), dtype=float)]
+        if self.clearance is not None:
+            parts.append(np.asarray(self.clearance.parameter_values(), dtype=float))
+        return np.concatenate(parts)
+
+    def node_clearances(self, path: np.ndarray) -> np.ndarray:
+        """(T,) smallest clearance [m] of each configuration of ``path`` (T, n).
+
+        Inf without a clearance term or obstacles. Evaluated in batches of `BATCH`
+        configurations (or `BATCH` / 8 for short paths; mapped functions built on first use).
+        """
+        path = np.asarray(path, dtype=float).reshape(-1, self.n)
+        if self._clearance_fn is None or not self.clearance.obstacles:  # type: ignore[union-attr]
+            return np.full(len(path), math.inf)
+        T = len(path)
+        size = BATCH if T > BATCH // 8 else BATCH // 8
+        if size not in self._clearance_batch:
+            self._clearance_batch[size] = self._clearance_fn.map(size)
+        fn = self._clearance_batch[size]
+        pc = np.asarray(self.clearance.parameter_values(), dtype=float)  # type: ignore[union-attr]
+        padded = np.vstack([path, np.repeat(path[-1:], (-T) % size, axis=0)])
+        out = [
+            np.asarray(fn(padded[i : i + size].T, pc)).min(axis=0)
+            for i in range(0, len(padded), size)
+        ]
+        return np.concatenate(out)[:T]
+
+    def solve(
+        self,
+        q0: Vector,
+        q1: Vector,
+        *,
+        init: np.ndarray | None = None,
+        budget: float = 10.0,
+        refine: bool = True,
+        steps: int = 100,
+    ) -> CollocationResult:
+        """Minimum-energy path from ``q0`` to ``q1``; see `CollocationResult` for its kind.
+
+        Args:
+            q0: (n,) start [rad].
+            q1: (n,) goal [rad].
+            init: (T, n) initial path from ``q0`` to ``q1`` (T >= 2, resampled by arc
+                length to the nodes), e.g. a sampled path around obstacles; None: the
+                straight line.
+            budget: IPOPT's wall-time limit [s], > 0 (the shooting refinement is extra,
+                bounded by its iteration budget).
+            refine: when no constraint is active, refine the discrete geodesic by
+                shooting (`log_solve` from its initial velocity) to the exact geodesic.
+            steps: RK4 steps of the shooting refinement, >= 1.
+
+        Returns:
+            The path and what it is. A failed IPOPT solve is returned with kind
+            ``"failed"`` (its best iterate in ``nodes``), never raised: callers decide.
+
+        Raises:
+            InvalidArgument: bad shapes or values.
+        """
+        n, N = self.n, self.nodes
+        t0 = time.perf_counter()
+        q0 = check_vector(q0, n, "q0")
+        q1 = check_vector(q1, n, "q1")
+        budget = check_positive(budget, "budget", "s")
+        steps = check_int(steps, "steps", low=1)
+        guess = resample_path(np.array([q0, q1]) if init is None else init, N, n)
+        guess[0], guess[-1] = q0, q1
+        lo = np.clip(np.minimum(self.q_min, self.q_max), -1e20, 1e20)
+        hi = np.clip(self.q_max, -1e20, 1e20)
+        x0 = np.clip(guess[1:-1], lo, hi).ravel()
+        self._deadline.reset(budget)
+        sol = self._solver(
+            x0=x0,
+            p=self.parameters(q0, q1),
+            lbx=np.tile(lo, N - 1),
+            ubx=np.tile(hi, N - 1),
+            lbg=self.margin,
+            ubg=np.inf,
+        )
+        stats = self._solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        iterations = int(stats.get("iter_count", 0))
+        kkt = float(stats["iterations"]["inf_du"][-1]) if stats.get("iterations") else math.nan
+        nodes = np.vstack([q0, np.asarray(sol["x"]).reshape(N - 1, n), q1])
+        energy = float(sol["f"])
+        g = np.asarray(sol["g"]).ravel()
+        has_obstacles = self.clearance is not None and bool(self.clearance.obstacles)
+        min_clear = float(g.min()) if has_obstacles else math.inf
+        at_limit = int(np.sum((nodes[1:-1] - lo < ACTIVE_TOL) | (hi - nodes[1:-1] < ACTIVE_TOL)))
+        active = int(np.sum(g - self.margin < ACTIVE_TOL)) + at_limit
+        v0 = N * (-1.5 * nodes[0] + 2.0 * nodes[1] - 0.5 * nodes[2])
+        t = np.linspace(0.0, 1.0, N + 1)
+        ok = bool(stats.get("success", False))
+        wall = time.perf_counter() - t0
+        base = dict(energy=energy, nodes=nodes, min_clearance=min_clear, active=active,
+                    kkt_residual=kkt, iterations=iterations, status=status)  # fmt: skip
+        if not ok:
+            msg = f"IPOPT: {status} after {iterations} iterations ({wall:.2f} s of {budget:g} s)"
+            return CollocationResult(t, nodes, "failed", v0=v0, geodesic_residual=math.nan,
+                                     wall_time=wall, message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
+        if active:
+            msg = (f"minimum-energy path with {active} active constraint(s) "
+                   f"(clearance margin {self.margin:g} m or joint limits): not a geodesic")  # fmt: skip
+            return CollocationResult(t, nodes, "constrained", v0=v0, geodesic_residual=math.nan,
+                                     wall_time=wall, message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
+        why = "refinement not asked (refine=False)"
+        if refine:
+            from geosyn.metrics.geodesic.exp_map import exp
+            from geosyn.metrics.geodesic.log_map import log_solve
+
+            try:
+                res = log_solve(self.metric, q0, q1, v_init=v0, steps=steps, max_iter=20,
+                                continuation=False)  # fmt: skip
+                geo = exp(self.metric, q0, res.v0, 1.0, steps)
+                clear = self.node_clearances(geo.q)
+                if (
+                    clear.min() >= 0.0
+                    and np.all(geo.q >= lo - ACTIVE_TOL)
+                    and np.all(geo.q <= hi + ACTIVE_TOL)
+                ):
+                    wall = time.perf_counter() - t0
+                    msg = (f"geodesic: collocation ({iterations} IPOPT iterations), then "
+                           f"shooting ({res.method}, residual {res.residual:.1e} rad)")  # fmt: skip
+                    base["min_clearance"] = float(clear.min()) if clear.size else math.inf
+                    return CollocationResult(geo.t, geo.q, "geodesic", v0=res.v0,
+                                             geodesic_residual=res.residual, wall_time=wall,
+                                             message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
+                why = (f"the shooting geodesic leaves the free space (clearance "
+                       f"{clear.min():.3g} m) or the joint limits")  # fmt: skip
+            except GeodesicNotFound as err:
+                why = f"shooting did not converge from it ({err.residual:.1e} rad)"
+        wall = time.perf_counter() - t0
+        msg = f"discrete geodesic of {N} segments (no constraint active); {why}"
+        return CollocationResult(t, nodes, "discrete geodesic", v0=v0, geodesic_residual=math.nan,
+                                 wall_time=wall, message=msg, **base)  # type: ignore[arg-type]  # fmt: skip

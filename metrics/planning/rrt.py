@@ -1,0 +1,140 @@
+"""RRT-Connect in joint space: a seeded, time-bounded global seed for collocation.
+
+Kuffner & LaValle's RRT-Connect: two trees, from the start and from the goal, grown in
+turn towards uniform samples within the joint limits; each new node of one tree is
+connected greedily to the other. Edges are checked at a fixed joint-space resolution with
+a batched validity function. The found path is then shortened by random shortcuts. It
+only needs to reach the goal around the obstacles: `Planner` hands it to collocation,
+which makes it minimum-energy.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["rrt_connect", "shortcut"]
+
+Validity = Callable[[np.ndarray], np.ndarray]
+"""``valid(Q (K, n)) -> (K,) bool``: which configurations are collision-free."""
+
+
+def _edge_valid(valid: Validity, a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
+    k = max(1, int(np.ceil(np.linalg.norm(b - a) / resolution)))
+    s = np.arange(1, k + 1)[:, None] / k
+    return bool(np.all(valid(a + s * (b - a))))
+
+
+class _Tree:
+    def __init__(self, root: np.ndarray, capacity: int) -> None:
+        self.q = np.empty((capacity, root.size))
+        self.parent = np.full(capacity, -1, dtype=int)
+        self.q[0] = root
+        self.size = 1
+
+    def nearest(self, q: np.ndarray) -> int:
+        return int(np.argmin(np.sum((self.q[: self.size] - q) ** 2, axis=1)))
+
+    def add(self, q: np.ndarray, parent: int) -> int:
+        self.q[self.size] = q
+        self.parent[self.size] = parent
+        self.size += 1
+        return self.size - 1
+
+    def branch(self, i: int) -> np.ndarray:
+        out = []
+        while i >= 0:
+            out.append(self.q[i])
+            i = int(self.parent[i])
+        return np.array(out)  # node i back to the root
+
+
+def rrt_connect(
+    valid: Validity,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    *,
+    step: float = 0.3,
+    resolution: float = 0.05,
+    budget: float = 2.0,
+    seed: int = 0,
+    max_nodes: int = 20000,
+) -> tuple[np.ndarray | None, int]:
+    """A collision-free piecewise-linear path from ``q0`` to ``q1``, or None.
+
+    Args:
+        valid: batched validity check (see `Validity`).
+        q0: (n,) start [rad] (assumed valid).
+        q1: (n,) goal [rad] (assumed valid).
+        q_min: (n,) lower joint limits [rad] (the sampling box).
+        q_max: (n,) upper joint limits [rad].
+        step: largest extension of a tree per iteration (2-norm) [rad].
+        resolution: edge checking step (2-norm) [rad].
+        budget: wall-time limit [s].
+        seed: seed of the sampler.
+        max_nodes: largest number of nodes per tree.
+
+    Returns:
+        ``(path, nodes)``: (T, n) path from ``q0`` to ``q1`` (None if none was found within
+        the budget) and the number of tree nodes grown.
+    """
+    t_end = time.perf_counter() + budget
+    rng = np.random.default_rng(seed)
+    if _edge_valid(valid, q0, q1, resolution):
+        return np.array([q0, q1]), 2
+    trees = [_Tree(q0, max_nodes), _Tree(q1, max_nodes)]
+
+    def extend(tree: _Tree, target: np.ndarray) -> tuple[int, bool]:
+        i = tree.nearest(target)
+        d = target - tree.q[i]
+        dist = float(np.linalg.norm(d))
+        reached = dist <= step
+        new = target if reached else tree.q[i] + d * (step / dist)
+        if not _edge_valid(valid, tree.q[i], new, resolution):
+            return -1, False
+        return tree.add(new, i), reached
+
+    while time.perf_counter() < t_end and max(t.size for t in trees) < max_nodes - 1:
+        a, b = trees
+        j, _ = extend(a, rng.uniform(q_min, q_max))
+        if j >= 0:
+            target = a.q[j]
+            while time.perf_counter() < t_end and b.size < max_nodes - 1:
+                k, reached = extend(b, target)
+                if k < 0:
+                    break
+                if reached:
+                    path = np.vstack([a.branch(j)[::-1], b.branch(k)[1:]])
+                    if trees[0] is b:  # tree a grew from the goal
+                        path = path[::-1]
+                    return path, trees[0].size + trees[1].size
+        trees.reverse()
+    return None, trees[0].size + trees[1].size
+
+
+def shortcut(
+    valid: Validity,
+    path: np.ndarray,
+    *,
+    resolution: float = 0.05,
+    tries: int = 100,
+    budget: float = 0.2,
+    seed: int = 0,
+) -> np.ndarray:
+    """Shorten a valid path (T, n) by random shortcuts between its vertices (seeded)."""
+    rng = np.random.default_rng(seed)
+    path = np.asarray(path, dtype=float)
+    t_end = time.perf_counter() + budget
+    for _ in range(tries):
+        if len(path) <= 2 or time.perf_counter() > t_end:
+            break
+        i, j = sorted(rng.choice(len(path), size=2, replace=False))
+        if j - i < 2:
+            continue
+        if _edge_valid(valid, path[i], path[j], resolution):
+            path = np.vstack([path[: i + 1], path[j:]])
+    return path

@@ -1,0 +1,81 @@
+"""Collocation of the geodesic energy (`geosyn.metrics.geodesic.collocation`).
+
+References: the shooting log map (`log_solve`, an independent method) and the exact
+sphere-obstacle clearances of `ObstacleTerm.clearances`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from geosyn.metrics import Collocation, KineticEnergyMetric, exp, log_solve
+from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
+from geosyn.robots import load_robot
+from geosyn.world import Sphere
+
+Q0, Q1 = np.array([0.2, 0.3]), np.array([1.5, 1.8])
+STEPS = 200
+
+
+def _metrics() -> dict[str, object]:
+    base = KineticEnergyMetric(load_robot("planar2"))
+    # A sphere 4 cm from the unshaped geodesic, inside the cutoff: the shaped one bends.
+    term = ObstacleTerm([Sphere((-0.3, 1.2, 0.0), 0.1)], capacity=1, gain=1e-3)
+    return {"unshaped": base, "sphere-shaped": ShapedMetric(base, [term])}
+
+
+@pytest.mark.parametrize("name", ["unshaped", "sphere-shaped"])
+def test_collocation_agrees_with_shooting(name: str) -> None:
+    """Collocation (refined by shooting from its own v0) = shooting from the straight line."""
+    metric = _metrics()[name]
+    col = Collocation(metric, nodes=24, joint_limits=False)  # type: ignore[arg-type]
+    res = col.solve(Q0, Q1, steps=STEPS)
+    assert res.kind == "geodesic", res.message
+    ref = log_solve(metric, Q0, Q1, steps=STEPS)  # type: ignore[arg-type]
+    assert np.abs(res.v0 - ref.v0).max() < 1e-6
+    path = exp(metric, Q0, ref.v0, 1.0, STEPS).q  # type: ignore[arg-type]
+    assert np.abs(res.q - path).max() < 1e-6
+    assert res.geodesic_residual < 1e-8
+
+
+def test_discrete_geodesic_converges_at_second_order() -> None:
+    """Unrefined nodes approach the geodesic as 1/N^2: doubling N cuts the error ~4x."""
+    metric = _metrics()["unshaped"]
+    v0 = log_solve(metric, Q0, Q1, steps=STEPS).v0  # type: ignore[arg-type]
+    geo = exp(metric, Q0, v0, 1.0, 960)  # type: ignore[arg-type]
+    errors = []
+    for N in (12, 24, 48):
+        res = Collocation(metric, nodes=N, joint_limits=False).solve(Q0, Q1, refine=False)  # type: ignore[arg-type]
+        assert res.kind == "discrete geodesic", res.message
+        errors.append(np.abs(res.nodes - geo.q[:: 960 // N]).max())
+    assert errors[0] < 0.05
+    assert 3.0 < errors[0] / errors[1] < 5.0 and 3.0 < errors[1] / errors[2] < 5.0
+
+
+@pytest.mark.parametrize("softmin", [None, 1000.0])
+def test_blocked_line_gives_constrained_path_with_margin(softmin: float | None) -> None:
+    """A sphere on the straight line: the path keeps the margin and says it is constrained
+    (per-sphere constraints, or their conservative smooth minimum per obstacle)."""
+    robot = load_robot("planar2")
+    metric = KineticEnergyMetric(robot)
+    q0, q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
+    mid = 0.5 * (q0 + q1)
+    tip = np.array([np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum())])
+    term = ObstacleTerm([Sphere((tip[0], tip[1], 0.0), 0.15)], capacity=2).bind(robot)
+    col = Collocation(
+        metric, nodes=24, clearance=term, margin=0.01, joint_limits=False, softmin=softmin
+    )
+    res = col.solve(q0, q1)
+    assert res.kind == "constrained" and res.active > 0, res.message
+    mids = 0.5 * (res.nodes[1:] + res.nodes[:-1])  # also constrained (midpoints=True)
+    exact = np.array([term.clearances(q).min() for q in [*res.nodes[1:-1], *mids]])
+    assert exact.min() > 0.01 - 1e-6
+    if softmin is None:
+        assert abs(res.min_clearance - exact.min()) < 1e-9
+    else:  # conservative, within log(spheres) / softmin
+        assert exact.min() - np.log(6) / softmin <= res.min_clearance <= exact.min() + 1e-12
+    # the energy is above the unconstrained geodesic's and the path goes round the sphere
+    free = Collocation(metric, nodes=24, joint_limits=False).solve(q0, q1, refine=False)
+    assert res.energy > free.energy
+    assert np.isnan(res.geodesic_residual)

@@ -1,0 +1,106 @@
+"""The planner (`geosyn.metrics.planning`): collision-free minimum-energy paths, clear
+errors for queries that cannot succeed, and the RRT-Connect seed.
+
+References: the exact sphere-obstacle clearances of `ObstacleTerm.clearances` on a path
+checked 4x finer than its samples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.planning import (
+    InCollision,
+    NoPathFound,
+    OutsideJointLimits,
+    Planner,
+    rrt_connect,
+)
+from geosyn.metrics.planning.planner import densify
+from geosyn.metrics.shaping import CapacityExceeded
+from geosyn.robots import load_robot
+from geosyn.world import Box, Sphere
+
+# planar2 with joint limits [-pi, pi]: joint 1 cannot wrap round, so a wall across
+# q1 = 0 separates q1 < 0 from q1 > 0.
+ROBOT = dataclasses.replace(
+    load_robot("planar2"), q_min=np.full(2, -np.pi), q_max=np.full(2, np.pi)
+)
+WALL = Box((0.6, 0.0, 0.0), (0.3, 0.05, 0.5))  # across link 1 at q1 = 0
+POST = Box((1.5, 0.0, 0.0), (0.08, 0.08, 0.5))  # only the outer link reaches it
+
+
+@pytest.fixture(scope="module")
+def planner() -> Planner:
+    return Planner(KineticEnergyMetric(ROBOT), capacity=2, nodes=24, margin=0.01)
+
+
+def test_box_between_start_and_goal_is_avoided_on_a_4x_finer_check(planner: Planner) -> None:
+    q0, q1 = np.array([-0.8, 0.3]), np.array([0.8, -0.3])
+    term = planner.term
+    term.set_obstacles([POST])
+    line = densify(np.array([q0, q1]), 100)
+    assert min(term.min_clearance(q) for q in line) < 0.0  # the straight line collides
+    plan = planner.plan(q0, q1, [POST], budget=20.0)
+    fine = densify(plan.q, 4)
+    exact = np.array([term.min_clearance(q) for q in fine])
+    assert exact.min() > 0.0
+    assert abs(plan.check_clearance - exact.min()) < 1e-9
+    assert plan.result.kind in ("constrained", "geodesic")
+    np.testing.assert_allclose(plan.q[0], q0, atol=1e-12)
+    np.testing.assert_allclose(plan.q[-1], q1, atol=1e-12)
+
+
+def test_free_query_is_a_geodesic(planner: Planner) -> None:
+    plan = planner.plan([0.2, 0.3], [1.0, 0.9], [], budget=20.0)
+    assert plan.result.kind == "geodesic"
+    assert plan.result.geodesic_residual < 1e-8
+
+
+@pytest.mark.parametrize("which", ["start", "goal"])
+def test_start_or_goal_in_collision_names_obstacle_and_sphere(planner: Planner, which: str) -> None:
+    free, hit = np.array([-1.0, 0.0]), np.array([0.0, 0.0])  # q1 = 0: link 1 in the wall
+    q0, q1 = (hit, free) if which == "start" else (free, hit)
+    with pytest.raises(InCollision, match=f"{which} is in collision.*obstacle 1") as info:
+        planner.plan(q0, q1, [Sphere((0.0, -2.5, 0.0), 0.1), WALL], budget=2.0)
+    err = info.value
+    assert err.which == which and err.obstacle == 1 and err.clearance < 0.0
+    assert err.joint == ROBOT.collision_spheres()[err.sphere].joint
+
+
+def test_outside_limits_and_capacity(planner: Planner) -> None:
+    with pytest.raises(OutsideJointLimits, match="goal: joint 0"):
+        planner.plan([0.0, 0.0], [4.0, 0.0], [], budget=2.0)
+    with pytest.raises(CapacityExceeded, match="capacity is 2"):
+        planner.plan([0.0, 0.0], [1.0, 0.0], [POST, WALL, Sphere((0, 2, 0), 0.1)], budget=2.0)
+
+
+def test_unreachable_goal_fails_within_the_budget(planner: Planner) -> None:
+    budget = 3.0
+    with pytest.raises(NoPathFound, match="within the 3 s budget.*RRT-Connect") as info:
+        planner.plan([-1.0, 0.0], [1.0, 0.0], [WALL], budget=budget, seed=3)
+    # stops when the budget is spent (plus one IPOPT iteration or edge check)
+    assert info.value.elapsed < budget + 1.0
+    assert len(info.value.attempts) >= 2
+
+
+def test_rrt_connect_path_is_valid_and_seeded() -> None:
+    """Reference validity: a disc obstacle in a 2-D box, checked on the path 20x finer."""
+    center, radius = np.array([0.0, 0.0]), 0.5
+
+    def valid(Q: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(Q - center, axis=1) > radius
+
+    lo, hi = np.full(2, -2.0), np.full(2, 2.0)
+    q0, q1 = np.array([-1.0, 0.0]), np.array([1.0, 0.0])
+    path, _ = rrt_connect(valid, q0, q1, lo, hi, step=0.3, resolution=0.01, budget=5.0, seed=1)
+    again, _ = rrt_connect(valid, q0, q1, lo, hi, step=0.3, resolution=0.01, budget=5.0, seed=1)
+    assert path is not None and again is not None
+    np.testing.assert_array_equal(path, again)
+    np.testing.assert_array_equal(path[0], q0)
+    np.testing.assert_array_equal(path[-1], q1)
+    assert np.all(valid(densify(path, 20)))
