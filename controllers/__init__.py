@@ -16,6 +16,7 @@ from geosyn.controllers.mpc import GeodesicMPC, MPCPlan, OpenLoopSolution
 from geosyn.controllers.plant import PinocchioPlant, Rollout
 from geosyn.controllers.qp import QPController
 from geosyn.controllers.reference import (
+    CoupledReference,
     GeodesicReference,
     JointTrajectoryReference,
     Reference,
@@ -29,6 +30,7 @@ __all__ = [
     "Controller",
     "ControllerDiagnostics",
     "ControllerError",
+    "CoupledReference",
     "GeodesicMPC",
     "MPCPlan",
     "OpenLoopSolution",

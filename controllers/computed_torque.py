@@ -42,8 +42,11 @@ class ComputedTorque(Controller):
         metric: optional metric used only for reference generation and replanning.
         reference: optional reference to track.
         compensate_friction: add the robot's joint friction to the torque,
-            ``D v + f_c tanh(v / friction_velocity)`` (``robot.damping``, ``robot.frictionloss``:
-            the file's viscous damping and dry friction). ``None`` (default): on exactly when
+            ``D v + f_c tanh(v_r / friction_velocity)`` (``robot.damping``,
+            ``robot.frictionloss``: the file's viscous damping and dry friction). Dry
+            friction is a feed-forward on the reference velocity ``v_r``: compensated on the
+            measured velocity, its smoothed sign is a high-gain positive feedback near rest
+            that destabilises light joints (it spun the xarm7's wrist up from rest). ``None`` (default): on exactly when
             the robot has joint friction; the choice is recorded in ``diagnostics.notes``.
         friction_velocity: velocity [rad/s or m/s] over which the dry-friction
             compensation goes smoothly from 0 to ``f_c`` (a smoothed sign), > 0.
@@ -71,6 +74,7 @@ class ComputedTorque(Controller):
                 f"compensate_friction must be true, false or None, got {compensate_friction!r}"
             )
         self.friction_velocity = check_positive(friction_velocity, "friction_velocity")
+        self._v_ref = np.zeros(robot.model.nv)  # last reference velocity [rad/s]
         has = robot.has_joint_friction
         self.compensate_friction = has if compensate_friction is None else compensate_friction
         if self.compensate_friction:
@@ -83,16 +87,17 @@ class ComputedTorque(Controller):
         self._damping = np.asarray(robot.damping, dtype=np.float64)
         self._friction = np.asarray(robot.frictionloss, dtype=np.float64)
 
-    def joint_friction(self, v: Vector) -> Vector:
-        """The robot's joint friction torque to compensate, ``D v + f_c tanh(v / v_s)``.
+    def joint_friction(self, v: Vector, v_ref: Vector) -> Vector:
+        """The robot's joint friction torque to compensate, ``D v + f_c tanh(v_r / v_s)``.
 
         Args:
-            v: (nv,) joint velocities [rad/s].
+            v: (nv,) measured joint velocities [rad/s] (viscous damping).
+            v_ref: (nv,) reference joint velocities [rad/s] (dry friction, feed-forward).
 
         Returns:
             (nv,) torques [N m] (a new array).
         """
-        out = np.tanh(v / self.friction_velocity)
+        out = np.tanh(v_ref / self.friction_velocity)
         out *= self._friction
         out += self._damping * v
         return out
@@ -109,6 +114,7 @@ class ComputedTorque(Controller):
             (nv,) acceleration [rad/s^2], in an internal buffer overwritten by the next call.
         """
         q_ref, v_ref, a_ref = self._reference.sample(t)  # type: ignore[union-attr]
+        self._v_ref = v_ref
         out = self._a_des
         np.subtract(q_ref, q, out=out)
         out *= self.kp
@@ -122,5 +128,5 @@ class ComputedTorque(Controller):
         a_des = self.desired_acceleration(t, q, v)
         tau = pin.rnea(self._model, self._data, q, v, a_des)
         if self.compensate_friction:
-            tau = tau + self.joint_friction(v)
+            tau = tau + self.joint_friction(v, self._v_ref)
         return tau

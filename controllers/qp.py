@@ -187,7 +187,7 @@ class QPController(ComputedTorque):
         self._A[:, :n] = pin.crba(model, data, q)
         np.negative(pin.rnea(model, data, q, v, self._zero), out=self._b)
         if self.compensate_friction:  # joint friction joins the bias torques
-            self._b -= self.joint_friction(v)
+            self._b -= self.joint_friction(v, self._v_ref)
         dt = self.dt
         x, w, d, bound = self._x2, self._w2, self._d2, self._bound2
         x[:n] = q

@@ -24,11 +24,23 @@ def _is_complex(x: object) -> bool:
     )
 
 
+def _is_bool(x: object) -> bool:
+    """True for booleans, boolean arrays and sequences holding a boolean (refused rather
+    than read as 0/1: a mask passed where a vector is expected is a bug)."""
+    if isinstance(x, (bool, np.bool_)):
+        return True
+    if isinstance(x, (np.ndarray, np.generic)):
+        return x.dtype == np.bool_
+    if isinstance(x, (list, tuple)):
+        return any(isinstance(e, (bool, np.bool_)) for e in x)
+    return False
+
+
 def check_vector(x: object, n: int, name: str) -> Vector:
     """Return ``x`` as a finite float64 (n,) array, or raise `InvalidArgument`.
 
     A finite float64 (n,) ndarray is returned as is (no copy, O(n)); anything else is
-    converted and checked. Complex input is refused, not cast.
+    converted and checked. Complex and boolean input is refused, not cast.
 
     Args:
         x: candidate vector.
@@ -44,6 +56,8 @@ def check_vector(x: object, n: int, name: str) -> Vector:
         return x
     if _is_complex(x):
         raise InvalidArgument(f"{name} must be real (float), got complex values {x!r}")
+    if _is_bool(x):
+        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got booleans {x!r}")
     try:
         arr = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError) as err:

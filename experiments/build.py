@@ -253,6 +253,7 @@ def simulate(
         disturbances=build_disturbances(cfg) if disturbances is None else disturbances,
         seed=cfg.seed,
         plant=cfg.robot.plant,
+        contact=cfg.scene.contact,
         **sim.kwargs(),
     )
     return s.run(q0, v0, sim.duration if duration is None else duration, reference)

@@ -283,13 +283,27 @@ def run_ray(
                     ) from err
                 advance()
     except BaseException:
-        for ref in pending:  # force: the task's process ends (its partial run is removed on re-run)
-            with contextlib.suppress(Exception):
-                ray.cancel(ref, force=True)
+        if not started:  # the caller's Ray session goes on: stop this sweep's tasks
+            _cancel_running(ray, pending)
+        # else ray.shutdown() below ends the job, and the cluster kills its workers (their
+        # partial runs are removed on re-run). No ray.cancel then: cancelling a task whose
+        # result is just arriving aborts the driver in Ray 2.60 (a failed RAY_CHECK
+        # "Tried to complete task that was not pending", a stack dump and exit 1).
         raise
     finally:
         if started:
             ray.shutdown()
+
+
+def _cancel_running(ray: Any, refs: list[Any]) -> None:
+    """Force-cancel the tasks of ``refs`` that have not finished (their processes end)."""
+    if not refs:
+        return
+    with contextlib.suppress(Exception):
+        _, refs = ray.wait(refs, num_returns=len(refs), timeout=0)
+    for ref in refs:
+        with contextlib.suppress(Exception):
+            ray.cancel(ref, force=True)
 
 
 def _sigterm_handler() -> Any:

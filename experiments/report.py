@@ -122,14 +122,17 @@ def print_summary(
 
 
 #: Row metrics that stay meaningful when a row's run did not complete: facts of the plan
-#: (path energies, planned clearance) and counts up to the stop; every other metric of a
-#: failed row was measured on a truncated run and becomes NaN ("not measured").
+#: (path energies, planned clearance) and counts up to the stop (an obstacle contact
+#: before the stop happened, whatever came after); every other metric of a failed row was
+#: measured on a truncated run and becomes NaN ("not measured").
 KEPT_WHEN_FAILED = frozenset(
     {
         "ok",
         "wall_time",
         "fallbacks",
         "saturations",
+        "max_contact_force",
+        "contact_time",
         "path_energy",
         "energy_shaped_metric",
         "energy_unshaped_metric",

@@ -8,6 +8,13 @@ renders one video per motion (`geosyn.sim.Clip`: the controller's name, time sta
 end effector's reference and actual paths, arrows for pushes and wrenches, payloads and
 obstacles) and never raises: the run is kept, and what failed is returned, for the
 runner to record in ``run.json`` and the run log.
+
+A run simulated on the robot's original MJCF file (``robot: {plant: file}``) is drawn
+from that file. A procedure can add balls to its videos: ``video_markers`` (M, 3) [m],
+fixed points shown in every video of the run (goals, pick and place points, in
+`MARKER_RGBA`), and ``{name}__target_position`` (T, 3) [m], a target that moves with the
+motion ``name`` (sampled at its ``{name}__t``; radius ``{name}__target_radius`` [m],
+default `TARGET_RADIUS`; in `TARGET_RGBA`).
 """
 
 from __future__ import annotations
@@ -21,6 +28,12 @@ import numpy as np
 from geosyn.experiments.schema import ExperimentConfig
 from geosyn.robots import Robot
 
+#: Results key of the fixed points drawn in every video of a run, (M, 3) [m].
+MARKERS = "video_markers"
+#: Radius [m] and colour of those points; radius and colour of a moving target.
+MARKER_RADIUS, MARKER_RGBA = 0.015, (0.95, 0.6, 0.05, 0.9)
+TARGET_RADIUS, TARGET_RGBA = 0.02, (0.1, 0.85, 0.1, 1.0)
+
 
 class RunMotion(NamedTuple):
     """One motion stored in a run's results.
@@ -31,6 +44,8 @@ class RunMotion(NamedTuple):
         q: (T, nq) joint positions [rad].
         q_ref: (T, nq) reference positions [rad] (NaN: none), or None.
         simulated: a closed-loop run (disturbances act on it), not a computed path.
+        target: (T, 3) position of a target moving with it [m], or None.
+        target_radius: the target's radius [m].
     """
 
     name: str
@@ -38,6 +53,8 @@ class RunMotion(NamedTuple):
     q: np.ndarray
     q_ref: np.ndarray | None
     simulated: bool
+    target: np.ndarray | None = None
+    target_radius: float = TARGET_RADIUS
 
 
 def run_motions(results: dict[str, np.ndarray], nq: int) -> list[RunMotion]:
@@ -68,12 +85,39 @@ def run_motions(results: dict[str, np.ndarray], nq: int) -> list[RunMotion]:
             continue
         q_ref = results.get(f"{name}__q_ref")
         simulated = f"{name}__tau_applied" in results
-        motion = RunMotion(name, t, q, None if q_ref is None else np.asarray(q_ref), simulated)
+        target = results.get(f"{name}__target_position")
+        if target is not None and np.shape(target) != (len(t), 3):
+            target = None
+        radius = float(results.get(f"{name}__target_radius", TARGET_RADIUS))
+        motion = RunMotion(
+            name,
+            t,
+            q,
+            None if q_ref is None else np.asarray(q_ref),
+            simulated,
+            None if target is None else np.asarray(target, dtype=np.float64),
+            radius,
+        )
         (sims if simulated else paths).append(motion)
     return sims or paths
 
 
-def _clip(cfg: ExperimentConfig, robot: Robot, motion: RunMotion) -> Any:
+def _markers(motion: RunMotion, fixed: np.ndarray | None) -> list[Any]:
+    """The balls of a motion's video: the run's fixed points, the motion's moving target."""
+    from geosyn.sim.render_scene import Marker
+
+    out = []
+    if fixed is not None:
+        for point in np.asarray(fixed, dtype=np.float64).reshape(-1, 3):
+            out.append(Marker(np.zeros(1), point[None, :], MARKER_RADIUS, MARKER_RGBA))
+    if motion.target is not None:
+        out.append(Marker(motion.t, motion.target, motion.target_radius, TARGET_RGBA))
+    return out
+
+
+def _clip(
+    cfg: ExperimentConfig, robot: Robot, motion: RunMotion, fixed: np.ndarray | None = None
+) -> Any:
     from geosyn.experiments import build as B
     from geosyn.sim import Clip, Motion
 
@@ -91,6 +135,8 @@ def _clip(cfg: ExperimentConfig, robot: Robot, motion: RunMotion) -> Any:
         trail=o.trail,
         disturbances=B.build_disturbances(cfg) if motion.simulated else (),
         label=motion.name,
+        plant=cfg.robot.plant,
+        markers=_markers(motion, fixed),
     )
 
 
@@ -107,8 +153,9 @@ def write_videos(
 
     Returns:
         ``{"files": [names written], "frames": F, "seconds_per_frame": s, "error": None or
-        "what failed: why", "robot_drawn_as": "its own meshes" or "collision capsules
-        (why)"}``; a kind that stores no motion gets an error saying so.
+        "what failed: why", "robot_drawn_as": "its own meshes", "collision capsules
+        (why)" or "the simulated plant: its original file ..."}``; a kind that stores no
+        motion gets an error saying so.
     """
     record: dict[str, Any] = {"files": [], "frames": 0, "seconds_per_frame": None, "error": None}
     motions = run_motions(results, robot.nq)
@@ -123,7 +170,7 @@ def write_videos(
     for motion in motions:
         path = out_dir / f"video_{motion.name}.{cfg.outputs.video_format}"
         try:
-            clip = _clip(cfg, robot, motion)
+            clip = _clip(cfg, robot, motion, results.get(MARKERS))
             clip.save(path)
         except Exception as err:  # a failed video never throws the finished run away
             path.unlink(missing_ok=True)
@@ -134,9 +181,11 @@ def write_videos(
     if record["frames"]:
         record["seconds_per_frame"] = (time.perf_counter() - t0) / record["frames"]
     if clip is not None:
-        note = clip.mesh_note()
-        record["robot_drawn_as"] = f"collision capsules ({note})" if note else "its own meshes"
+        try:
+            record["robot_drawn_as"] = clip.drawn_as()
+        except Exception as err:  # recorded, never raised (see above)
+            record["robot_drawn_as"] = f"unknown: {type(err).__name__}: {err}"
     return record
 
 
-__all__ = ["RunMotion", "run_motions", "write_videos"]
+__all__ = ["MARKERS", "RunMotion", "run_motions", "write_videos"]

@@ -10,6 +10,16 @@ q it spans; its kinetic energy in the independent coordinates z is
 
 so geodesics, synergies and everything built on a `Metric` work in z with the base
 metric's fast paths (Pinocchio, RNEA/ABA symbolic forms).
+
+Controllers work in the joints q: a trajectory in z is lifted exactly (S is constant) to
+``q = S z + c``, ``q_dot = S z_dot``, ``q_ddot = S z_ddot`` and tracked on the robot's
+dynamics, by `geosyn.controllers.CoupledReference` (a z-reference such as a
+`GeodesicReference` of this metric, sampled in q) or `geosyn.robots.Coupling.lift`
+(sampled arrays)::
+
+    metric = CoupledMetric(KineticEnergyMetric(robot), robot.coupling)
+    z_ref = GeodesicReference(exp(metric, z0, z_dot0), metric)
+    controller.set_reference(CoupledReference(z_ref, robot.coupling))
 """
 
 from __future__ import annotations
@@ -35,6 +45,9 @@ class CoupledMetric(Metric):
         base: the metric on q.
         coupling: the coupling.
         n: number of independent coordinates.
+
+    Every method takes independent coordinates z (and their velocities) where a `Metric`
+    takes q; `q` maps z to the joints. To track its geodesics, see the module doc.
 
     `G`, `coriolis` and `geodesic_acceleration` allocate a few small arrays.
     """

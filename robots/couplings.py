@@ -13,6 +13,8 @@ independent coordinates z, and
 
 The pull-back metric ``G_z = S^T G S`` (`geosyn.metrics.CoupledMetric`) is the kinetic
 energy of the coupled robot; its geodesics are the robot's passive constrained motions.
+Geodesics and synergies are computed in z; controllers track them in q, lifted by
+`Coupling.lift` (arrays) or `geosyn.controllers.CoupledReference` (a reference).
 """
 
 from __future__ import annotations

@@ -11,7 +11,9 @@ collision capsules: `geosyn.sim.render_scene`), its payloads and obstacles; the 
 effector's reference path
 (green line) and its path so far (blue line), labelled in a legend; the time stamp and the
 run's label (the controller); an arrow on the body for each push or wrench acting then,
-with its force [N]. The OpenGL context is made when drawing starts (`geosyn.sim.offscreen`:
+with its force [N]; markers (`geosyn.sim.render_scene.Marker`: a target, fixed or moving) as
+balls. A run whose plant was the robot's original MJCF file (``Simulation(plant="file")``)
+is drawn from that file (``plant="file"``). The OpenGL context is made when drawing starts (`geosyn.sim.offscreen`:
 EGL on Linux unless ``MUJOCO_GL`` says otherwise); nothing global is set on import.
 """
 
@@ -27,7 +29,7 @@ import mujoco
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
-from geosyn.core.validation import check_int, check_positive
+from geosyn.core.validation import check_choice, check_int, check_positive
 from geosyn.robots.kinematics import frame_positions
 from geosyn.robots.robot import Robot
 from geosyn.sim.camera import CameraView, auto_camera, body_points
@@ -35,8 +37,10 @@ from geosyn.sim.log import SimResult
 from geosyn.sim.offscreen import OffscreenRenderer, Overlay
 from geosyn.sim.render_scene import (
     FrameScene,
+    Marker,
     add_connector,
     add_polyline,
+    add_sphere,
     force_now,
     point_in_body,
 )
@@ -155,9 +159,13 @@ class Clip:
         meshes: draw the robot's own meshes where its model file has them
             (`geosyn.sim.render_scene.FrameScene`; `mesh_note` says why not), else its
             collision capsules.
+        plant: the simulated plant: ``model`` (geosyn's rebuilt model, default) or
+            ``file`` (the robot's original MJCF file, ``Simulation(plant="file")``), which
+            is then drawn as it is (`FrameScene`).
+        markers: balls drawn at fixed or moving points (a target), at each frame's time.
 
     Raises:
-        InvalidArgument: bad sizes or fps, or a log of another robot.
+        InvalidArgument: bad sizes, fps, plant or markers, or a log of another robot.
     """
 
     result: SimResult | Motion
@@ -173,6 +181,8 @@ class Clip:
     label: str = ""
     overlay: bool = True
     meshes: bool = True
+    plant: str = "model"
+    markers: Sequence[Marker] = ()
 
     def __post_init__(self) -> None:
         result, robot = self.result, self.robot
@@ -210,10 +220,19 @@ class Clip:
         object.__setattr__(self, "payloads", tuple(self.payloads))
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
         object.__setattr__(self, "disturbances", tuple(self.disturbances))
+        object.__setattr__(self, "plant", check_choice(self.plant, ("model", "file"), "plant"))
+        markers = tuple(self.markers)
+        if not all(isinstance(m, Marker) for m in markers):
+            raise InvalidArgument("markers must be geosyn.sim.render_scene.Marker objects")
+        object.__setattr__(self, "markers", tuple(m.checked() for m in markers))
 
     def mesh_note(self) -> str:
-        """Why the robot is drawn as capsules ("" when its own meshes are drawn)."""
-        return FrameScene(self.robot, meshes=self.meshes).mesh_note
+        """Why the robot is drawn as capsules ("" when its own file is drawn)."""
+        return FrameScene(self.robot, meshes=self.meshes, plant=self.plant).mesh_note
+
+    def drawn_as(self) -> str:
+        """What the robot is drawn with, in words (`FrameScene.drawn_as`)."""
+        return FrameScene(self.robot, meshes=self.meshes, plant=self.plant).drawn_as
 
     def motion(self) -> Motion:
         """The motion shown; a non-finite state (a diverged run) repeats the previous one."""
@@ -256,17 +275,15 @@ class Clip:
         motion = self.motion()
         idx = self.indices(motion)
         q_frames = motion.q[idx]
-        frame_scene = FrameScene(robot, payloads, self.obstacles, self.meshes)
-        scene, model = frame_scene.scene, frame_scene.scene.model
+        frame_scene = FrameScene(robot, payloads, self.obstacles, self.meshes, self.plant)
+        scene = frame_scene.scene
         # Keep the floor below the robot (planar arms move in the z = 0 plane).
         radius = max((c.radius for c in robot.capsules), default=0.0)
         low = float(body_points(robot, q_frames, payloads)[:, 2].min()) - radius - 0.02
         if frame_scene.has_meshes:  # e.g. the legs of a humanoid whose arm is simulated
             low = min(low, frame_scene.lowest_point(q_frames[0]) - 0.01)
-        for m in {id(model): model, id(frame_scene.model): frame_scene.model}.values():
-            floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
-            if floor >= 0:
-                m.geom_pos[floor, 2] = min(float(m.geom_pos[floor, 2]), low)
+        for m, floor in frame_scene.floors():  # geosyn's floors, not a plane of the file
+            m.geom_pos[floor, 2] = min(float(m.geom_pos[floor, 2]), low)
         view = self.camera or auto_camera(robot, q_frames, payloads, self.obstacles)
         cam = view.mjv_camera()
         trail = self._trails(motion) if self.trail else None
@@ -287,6 +304,8 @@ class Clip:
                     marks, path, ref = trail
                     add_polyline(renderer.scene, ref, _REF_RGBA, _LINE_PX)
                     add_polyline(renderer.scene, path[marks <= k], _PATH_RGBA, _LINE_PX)
+                for mark in self.markers:
+                    add_sphere(renderer.scene, mark.at(tk), mark.radius, mark.rgba)
                 forces = []
                 for d, bid, point in pushes:
                     f = force_now(d, tk)
@@ -362,6 +381,7 @@ def render_video(
     trail: bool = True,
     disturbances: Sequence[Any] = (),
     label: str = "",
+    plant: str = "model",
 ) -> Path:
     """Render a log to a ``.gif`` or ``.mp4`` video, streaming: ``Clip(...).save(path)``.
 
@@ -379,6 +399,8 @@ def render_video(
         trail: draw the end effector's reference and actual paths.
         disturbances: pushes and wrenches are drawn as arrows while they act.
         label: the run's name, shown with the time stamp.
+        plant: ``file`` when the run simulated the robot's original MJCF file (drawn as
+            it is), else ``model``.
 
     Returns:
         The path written.
@@ -388,7 +410,18 @@ def render_video(
         RenderError: no OpenGL context, mp4 without imageio/ffmpeg, or writing failed.
     """
     clip = Clip(
-        result, robot, fps, width, height, payloads, obstacles, camera, trail, disturbances, label
+        result,
+        robot,
+        fps,
+        width,
+        height,
+        payloads,
+        obstacles,
+        camera,
+        trail,
+        disturbances,
+        label,
+        plant=plant,
     )
     return clip.save(path)
 

@@ -12,6 +12,14 @@ geosyn's scene (floor, payloads, obstacles, capsules otherwise), and the decorat
   package directory). It replaces the capsules only if it poses like the simulated model:
   every controlled joint's anchor within `MESH_TOLERANCE` of Pinocchio's at a test
   configuration; otherwise the capsules are drawn and `mesh_note` says why.
+
+A run whose plant was the robot's ORIGINAL MJCF file (``Simulation(plant="file")``,
+`geosyn.sim.file_scene`) is drawn from that file whatever it holds (meshes or primitive
+geoms; ``plant="file"``): it is what was simulated, so no pose check is made and no
+capsule stands in for it. Joints of the file that the robot does not control (passive in
+that simulation, not logged) are drawn at the file's reference configuration ``qpos0``.
+
+`Marker` is a ball drawn at a point that may move (a target the robot reaches).
 """
 
 from __future__ import annotations
@@ -19,11 +27,13 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
 
+from geosyn.core.errors import InvalidArgument
+from geosyn.core.validation import check_choice
 from geosyn.robots.robot import Robot
 from geosyn.sim.scene import Scene, build_scene
 from geosyn.world import Payload
@@ -36,6 +46,9 @@ MESH_TOLERANCE = 1e-3
 SHADOW_MAX_GEOMS = 30
 #: Group the capsules are moved to when meshes replace them (not drawn).
 _HIDDEN_GROUP = 5
+#: Name of the floor geosyn adds to a model file it draws (not added when the file has a
+#: plane of its own in its world body: that one is part of the model and is not moved).
+FILE_FLOOR = "geosyn_floor"
 
 
 def _urdf_for_mujoco(path: Path) -> str:
@@ -59,7 +72,8 @@ def _urdf_for_mujoco(path: Path) -> str:
 
 
 def _decorate(spec: mujoco.MjSpec) -> None:
-    """Add geosyn's sky, overhead light and floor to a model file's spec (as in `build_scene`)."""
+    """Add geosyn's sky, overhead light and floor to a model file's spec (as in `build_scene`;
+    no floor when the file has a plane of its own)."""
     spec.add_texture(
         name="geosyn_sky",
         type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
@@ -72,8 +86,10 @@ def _decorate(spec: mujoco.MjSpec) -> None:
     light = spec.worldbody.add_light(name="geosyn_light", pos=[0.0, 0.0, 4.0], dir=[0.0, 0.0, -1.0])
     light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
     light.castshadow = True
+    if any(g.type == mujoco.mjtGeom.mjGEOM_PLANE for g in spec.worldbody.geoms):
+        return
     floor = spec.worldbody.add_geom(
-        name="floor",
+        name=FILE_FLOOR,
         type=mujoco.mjtGeom.mjGEOM_PLANE,
         size=[3.0, 3.0, 0.1],
         pos=[0.0, 0.0, -0.01],
@@ -90,16 +106,28 @@ def _decorate_xml(xml: str) -> str:
     )
     light = (
         '<light name="geosyn_light" pos="0 0 4" dir="0 0 -1" directional="true"/>'
-        '<geom name="floor" type="plane" size="3 3 0.1" pos="0 0 -0.01" rgba="0.9 0.9 0.9 1"'
+        f'<geom name="{FILE_FLOOR}" type="plane" size="3 3 0.1" pos="0 0 -0.01" rgba="0.9 0.9 0.9 1"'
         ' contype="0" conaffinity="0"/>'
     )
     xml = re.sub(r"(<mujoco\b[^>]*>)", r"\1" + sky, xml, count=1)
     return re.sub(r"(<worldbody>)", r"\1" + light, xml, count=1)
 
 
-def _file_model(robot: Robot) -> tuple[mujoco.MjModel | None, str]:
-    """The robot's own file compiled by MuJoCo, or None and the reason."""
+def _file_model(robot: Robot, plant: bool = False) -> tuple[mujoco.MjModel | None, str]:
+    """The robot's own file compiled by MuJoCo, or None and the reason.
+
+    With ``plant`` (the file was the simulated plant) a file without meshes is drawn too
+    (its primitive geoms), and a file that does not compile is an error.
+
+    Raises:
+        InvalidArgument: ``plant`` and the robot has no MJCF file, or it does not compile.
+    """
     source = getattr(robot, "source_file", None)
+    if plant and (source is None or Path(source).suffix.lower() not in (".xml", ".mjcf")):
+        raise InvalidArgument(
+            f"plant='file' draws the robot's MJCF file, but robot {robot.name!r} comes from"
+            f" {source or 'code (a built-in)'}: use plant='model'"
+        )
     if source is None:
         return None, "the robot has no model file (built in code)"
     path = Path(source)
@@ -113,8 +141,10 @@ def _file_model(robot: Robot) -> tuple[mujoco.MjModel | None, str]:
             _decorate(spec)
             model = spec.compile()
     except (ValueError, OSError) as err:
+        if plant:
+            raise InvalidArgument(f"the file plant {str(path)!r} does not compile: {err}") from err
         return None, f"MuJoCo cannot compile {path.name} for drawing: {err}"
-    if model.nmesh == 0:
+    if model.nmesh == 0 and not plant:
         return None, f"{path.name} has no meshes MuJoCo can read"
     return model, ""
 
@@ -159,12 +189,21 @@ class FrameScene:
         payloads: payloads drawn.
         obstacles: obstacles drawn.
         meshes: draw the robot's own meshes where its file has them.
+        plant: ``model`` (default): the run simulated geosyn's rebuilt model (the file's
+            meshes replace its capsules as above); ``file``: the run simulated the robot's
+            original MJCF file (``Simulation(plant="file")``), which is drawn as it is
+            (meshes or primitive geoms; ``meshes`` is then not consulted).
 
     Attributes:
         scene: geosyn's scene (names resolve here: bodies for force arrows).
         data: its data (kinematics at the posed configuration).
-        model: the model the renderer is built for (the file's when meshes are drawn).
-        mesh_note: why the capsules are drawn ("" when meshes are).
+        model: the model the renderer is built for (the file's when it is drawn).
+        mesh_note: why the capsules are drawn ("" when the file is).
+        plant: the ``plant`` argument.
+
+    Raises:
+        InvalidArgument: an unknown ``plant``; ``plant="file"`` for a robot without an
+            MJCF file or whose file does not compile.
     """
 
     def __init__(
@@ -173,7 +212,9 @@ class FrameScene:
         payloads: Sequence[Payload] = (),
         obstacles: Sequence[Any] = (),
         meshes: bool = True,
+        plant: str = "model",
     ) -> None:
+        self.plant = check_choice(plant, ("model", "file"), "plant")
         self.robot = robot
         self.scene: Scene = build_scene(robot, payloads=payloads, obstacles=obstacles, decor=True)
         self.data = mujoco.MjData(self.scene.model)
@@ -184,18 +225,34 @@ class FrameScene:
         self._file_adr: np.ndarray | None = None
         self._perturb = mujoco.MjvPerturb()
         self.mesh_note = "meshes not requested"
-        if meshes:
+        if meshes or self.plant == "file":
             self.mesh_note = self._use_file()
         self.model = self._file if self._file is not None else self.scene.model
 
+    @property
+    def drawn_as(self) -> str:
+        """What the robot is drawn with, in words (for run records)."""
+        if self.plant == "file" and self._file is not None:
+            name = Path(str(self.robot.source_file)).name
+            what = "its meshes" if self._file.nmesh else "its geoms"
+            return f"the simulated plant: its original file {name} ({what})"
+        return f"collision capsules ({self.mesh_note})" if self.mesh_note else "its own meshes"
+
     def _use_file(self) -> str:
-        model, note = _file_model(self.robot)
+        plant = self.plant == "file"
+        model, note = _file_model(self.robot, plant)
         if model is None:
             return note
         adr = _joint_qpos(model, self.robot)
         if adr is None:
+            if plant:  # Simulation(plant="file") refuses such a file first
+                raise InvalidArgument(
+                    f"the file plant {self.robot.source_file!r} lacks joints of robot"
+                    f" {self.robot.name!r}"
+                )
             return "the model file lacks some of the robot's joints"
-        err = _poses_alike(self.robot, model, adr)
+        # The file plant is what was simulated: it is drawn without a pose check.
+        err = 0.0 if plant else _poses_alike(self.robot, model, adr)
         if err > MESH_TOLERANCE:
             return f"the model file poses {err:.3g} m away from the simulated model"
         geo = self.scene.model
@@ -227,8 +284,20 @@ class FrameScene:
 
     @property
     def has_meshes(self) -> bool:
-        """Whether the robot's own meshes are drawn."""
+        """Whether the robot's own file is drawn (its meshes; with ``plant="file"`` also a
+        file of primitive geoms)."""
         return self._file is not None
+
+    def floors(self) -> list[tuple[mujoco.MjModel, int]]:
+        """(model, geom id) of the floors geosyn added (lowered under the robot by a
+        video); a plane of the robot's own file is not one of them."""
+        out = []
+        for model, name in ((self.scene.model, "floor"), (self._file, FILE_FLOOR)):
+            if model is not None:
+                gid = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name))
+                if gid >= 0:
+                    out.append((model, gid))
+        return out
 
     def pose(self, q: np.ndarray) -> None:
         """Set both models to configuration ``q`` (nq,) [rad] (positions, lights)."""
@@ -260,6 +329,63 @@ class FrameScene:
             self._file, self._file_data, mujoco.MjvOption(), None, camera, cat, scn
         )
         mujoco.mjv_addGeoms(self.scene.model, self.data, self.option, self._perturb, cat, scn)
+
+
+class Marker(NamedTuple):
+    """A ball drawn in a video at a point that may move (e.g. a target the robot reaches).
+
+    Attributes:
+        t: (K,) increasing time stamps [s] (one stamp: a fixed point).
+        position: (K, 3) its centre at those times [m]; linear in between, held outside.
+        radius: its radius [m].
+        rgba: its colour (4 floats in [0, 1]).
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    radius: float = 0.02
+    rgba: tuple[float, float, float, float] = (0.1, 0.85, 0.1, 1.0)
+
+    def checked(self) -> Marker:
+        """This marker with float64 arrays, checked.
+
+        Raises:
+            InvalidArgument: shapes that do not match, unordered times, a radius <= 0.
+        """
+        t = np.atleast_1d(np.asarray(self.t, dtype=np.float64))
+        pos = np.asarray(self.position, dtype=np.float64).reshape(-1, 3)
+        ok = t.ndim == 1 and len(t) >= 1 and pos.shape == (len(t), 3)
+        if not ok or not np.all(np.isfinite(pos)) or np.any(np.diff(t) <= 0.0):
+            raise InvalidArgument(
+                "marker must have increasing t (K,) [s] and finite position (K, 3) [m],"
+                f" got t {t.shape}, position {np.shape(self.position)}"
+            )
+        if not float(self.radius) > 0.0:
+            raise InvalidArgument(f"marker radius must be > 0 [m], got {self.radius!r}")
+        if len(self.rgba) != 4:
+            raise InvalidArgument(f"marker rgba must be 4 floats in [0, 1], got {self.rgba!r}")
+        r, g, b, a = (float(c) for c in self.rgba)
+        return Marker(t, pos, float(self.radius), (r, g, b, a))
+
+    def at(self, time: float) -> np.ndarray:
+        """(3,) centre [m] at ``time`` [s]."""
+        return np.array([np.interp(time, self.t, self.position[:, i]) for i in range(3)])
+
+
+def add_sphere(scn: mujoco.MjvScene, center: np.ndarray, radius: float, rgba: Any) -> None:
+    """Append a visual-only ball of ``radius`` [m] at ``center`` (3,) [m] (ignored when the
+    scene is full)."""
+    if scn.ngeom >= scn.maxgeom:
+        return
+    mujoco.mjv_initGeom(
+        scn.geoms[scn.ngeom],
+        mujoco.mjtGeom.mjGEOM_SPHERE,
+        np.full(3, float(radius)),
+        np.asarray(center, dtype=np.float64),
+        np.eye(3).ravel(),
+        np.asarray(rgba, np.float32),
+    )
+    scn.ngeom += 1
 
 
 def point_in_body(scene: Scene, d: Any) -> np.ndarray | None:
@@ -306,11 +432,14 @@ def force_now(d: Any, t: float) -> np.ndarray | None:
 
 
 __all__ = [
+    "FILE_FLOOR",
     "MESH_TOLERANCE",
     "SHADOW_MAX_GEOMS",
     "FrameScene",
+    "Marker",
     "add_connector",
     "add_polyline",
+    "add_sphere",
     "force_now",
     "point_in_body",
 ]

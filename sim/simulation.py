@@ -397,7 +397,7 @@ class Simulation:
             ke_log[k] = 0.5 * float(d.qvel @ mv)
             if clearance is not None:
                 clear_log[k] = clearance(d.xpos, d.xmat)
-            if contact_geoms:
+            if contact_geoms and rk4:  # mj_forward solved this tick's contact forces
                 contact_log[k] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
             if n_pay:
                 pay_log[k] = m.body_mass[pay_ids]
@@ -417,6 +417,10 @@ class Simulation:
             # -- physics over the tick
             if not rk4:
                 mujoco.mj_step2(m, d)
+                # the constraint forces of the contacts mj_step1 found are solved only now
+                # (before mj_step2, efc_force is the previous step's, or unset at t=0)
+                if contact_geoms:
+                    contact_log[k] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
             for _ in extra_steps:
                 mujoco.mj_step(m, d)
 

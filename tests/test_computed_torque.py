@@ -161,3 +161,26 @@ def test_compute_validates_state_and_needs_reference(synergy_reference):
         ctl.compute(np.inf, Q0, V0)
     # Lists are accepted (validated and converted).
     assert ctl.compute(0.0, list(Q0), list(V0)).shape == (7,)
+
+
+def test_friction_compensation_keeps_a_light_wrist_at_rest() -> None:
+    """xarm7's file has damping and dry friction (1 N m) on joints as light as its wrist:
+    dry friction compensated on the measured velocity spun the wrist up from rest (2.4 rad
+    in 0.5 s); as a feed-forward on the reference velocity it holds the pose exactly."""
+    import warnings
+
+    from geosyn.controllers import JointTrajectoryReference
+    from geosyn.robots import load_robot
+    from geosyn.sim import Simulation
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot("xarm7")
+    assert robot.has_joint_friction
+    q0 = robot.neutral()
+    ref = JointTrajectoryReference(np.array([0.0, 1.0]), np.stack([q0, q0]))
+    ctl = ComputedTorque(robot, 400.0, 40.0)
+    assert ctl.compensate_friction
+    res = Simulation(robot, ctl).run(q0, None, 0.5, ref)
+    assert res.status == "ok"
+    assert np.abs(res.q - q0).max() <= 1e-9

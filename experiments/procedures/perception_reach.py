@@ -14,7 +14,8 @@ more than ``bound``), integrates the combined geodesic from the start and tracks
 Reported: success rate (hand within ``success_radius`` of the true final target), the
 perception-to-torque latency (image in hand to torque out, rendering excluded), the
 perception error, the map's error before refinement and the error and time of `reach`
-alone on the same targets.
+alone on the same targets. ``--video`` films the first target's run (``example``) with
+the ball where the simulation put it at each tick (``example__target_position``).
 """
 
 from __future__ import annotations
@@ -247,6 +248,9 @@ class PerceptionReach(Procedure):
                 if i == 0:  # the ball is the scene's only "obstacle": no clearance kept
                     arrays = B.sim_arrays("example", res)
                     out |= {k: v for k, v in arrays.items() if not k.endswith("__clearance")}
+                    # the ball where the simulation put it at each tick (drawn in the video)
+                    out["example__target_position"] = np.array([path(t) for t in res.t])
+                    out["example__target_radius"] = np.array(p.radius)
                     out["example_log_t"] = np.array([r[0] for r in log])
                     out["example_estimates"] = np.array([r[1] for r in log])
                     out["example_truth"] = np.array([r[2] for r in log])

@@ -18,7 +18,9 @@ plan in the true metric of each phase (``energy``: the paths at constant speed i
 own parameter, what a geodesic minimises; ``timed_energy``: with the rest-to-rest time
 law, which weights the middle of each path more), the tracked effort, the tracking error, the
 clearance to the obstacle, and the largest difference between the load metric and the
-mass matrix of the robot with the object attached (Pinocchio).
+mass matrix of the robot with the object attached (Pinocchio). ``--video`` films the three
+tracked runs with the pick, via and place points drawn; the object, a body of the scene
+from the start (massless until the grasp), is drawn at the hand throughout.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from geosyn.experiments.plots import COLORS, figure, save, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import EFFORT_LABEL, Duration, Steps
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
+from geosyn.experiments.video import MARKERS
 from geosyn.metrics import KineticEnergyMetric, Metric
 from geosyn.metrics.shaping import LoadTerm, ShapedMetric
 from geosyn.robots import Robot
@@ -202,6 +205,7 @@ class PickAndPlace(Procedure):
         q_check = W[1:]
         out: dict[str, np.ndarray] = {
             "points": points,
+            MARKERS: points,  # pick, via and place, shown in the videos
             "waypoints": W,
             "reach_errors": np.array([s.reach_error for s in task.segments]),
             "times": np.array([t_grasp, t_carry, t_end, t_release]),

@@ -10,11 +10,16 @@ the config's payloads and obstacles (the controllers' model does not include the
   the true plant; reported: path energy under both metrics, executed kinetic energy
   integral, effort, tracking error.
 - `ObstacleShaping` (``obstacle_shaping``): a barrier term keeps the geodesic away from
-  the obstacles; reported: minimum clearance (planned path and executed run), energy.
+  the obstacles; reported: minimum clearance (planned path and executed run), energy, and
+  with ``scene.contact: true`` (the obstacles collide in MuJoCo) the largest obstacle
+  contact force and the time in contact of each run. A run that the contact stops (it
+  diverges after the robot hit an obstacle) keeps its stop as its status, with the contact
+  named as the cause.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +33,7 @@ from geosyn.experiments.procedures.common import PathComparison, track_with_each
 from geosyn.experiments.schema import ExperimentConfig, LogReference
 from geosyn.metrics import Geodesic, Metric, exp, log, path_energy
 from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
+from geosyn.sim.log import RUN_META
 
 
 def _geodesic(
@@ -38,6 +44,23 @@ def _geodesic(
     q0, q1 = np.array(ref.q_start), np.array(ref.goal)
     u = log(metric, q0, q1, steps=ref.steps, v_init=v_init)
     return exp(metric, q0, u / ref.duration, ref.duration, ref.steps), u
+
+
+def _with_contact_cause(status: str, run: dict[str, np.ndarray]) -> str:
+    """``status`` of a run, with the obstacle contact named as the cause of a stop.
+
+    Args:
+        status: the run's status (``ok``, ``diverged: ...``, ``controller failed: ...``).
+        run: its arrays by field name (``t`` [s], ``contact_force`` [N]).
+    """
+    force = run["contact_force"]
+    if status == "ok" or not force.size or not (force > 0.0).any():
+        return status
+    first = int(np.argmax(force > 0.0))
+    return (
+        f"{status}; cause: the robot hit an obstacle (scene.contact: true) from"
+        f" t={float(run['t'][first]):.4g} s, contact force up to {float(force.max()):.4g} N"
+    )
 
 
 class _Shaping(PathComparison):
@@ -62,6 +85,8 @@ class _Shaping(PathComparison):
         "rms_error": "rad",
         "planned_clearance": "m",
         "executed_clearance": "m",
+        "max_contact_force": "N",
+        "contact_time": "s",
     }
 
     @classmethod
@@ -111,9 +136,15 @@ class _Shaping(PathComparison):
             )
             q0, v0, _ = ref.sample(0.0)
             # the controllers' model is the robot alone: the unshaped metric
-            out |= track_with_each_controller(
+            runs = track_with_each_controller(
                 cfg, robot, metrics["unshaped"], ref, q0, v0, f"{name}_", advance
             )
+            out |= runs
+            for key in [k for k in runs if k.endswith("__status")]:
+                prefix = key[: -len("__status")]
+                status = _with_contact_cause(str(runs[key]), B.sim_view(runs, prefix))
+                meta = json.loads(str(runs[prefix + RUN_META])) | {"status": status}
+                out[key], out[prefix + RUN_META] = np.array(status), np.array(json.dumps(meta))
         return out
 
     def path_summary(
@@ -130,6 +161,9 @@ class _Shaping(PathComparison):
         if np.isfinite(planned).any():
             out["planned_clearance"] = float(planned.min())
             out["executed_clearance"] = float(run["clearance"].min())
+            force = run["contact_force"]
+            out["max_contact_force"] = float(force.max()) if force.size else 0.0
+            out["contact_time"] = float(np.count_nonzero(force > 0.0) * dt)
         out["ok"] = float(str(run["status"]) == "ok")
         return out
 

@@ -11,7 +11,8 @@ in their own parameter, which the geodesic minimises, and the geodesic's saving;
 ``timed_energy``: with the rest-to-rest time law), the jumps of
 position/velocity/acceleration at the junctions, each segment's geodesic residual, the
 reach errors, and per tracked run the effort, RMS tracking error, final hand error and
-minimum clearance to the scene's obstacles.
+minimum clearance to the scene's obstacles. ``--video`` films every tracked run with the
+goals drawn (``video_markers``, `geosyn.experiments.video`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from geosyn.experiments.procedures.common import (
     track_with_each_controller,
 )
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
+from geosyn.experiments.video import MARKERS
 from geosyn.robots.kinematics import frame_positions
 from geosyn.synergies.sequence import SynergySequence, reach_sequence, straight_sequence
 
@@ -102,6 +104,7 @@ class SynergySequenceProcedure(Procedure):
         advance()
         out: dict[str, np.ndarray] = {
             "targets": targets,
+            MARKERS: targets,  # the goals, shown in the videos
             "waypoints": geo.waypoints,
             "junction_times": geo.junction_times,
             "junction_jumps": geo.junction_jumps(),

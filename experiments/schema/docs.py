@@ -24,7 +24,7 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
         "seed": ("", "seed of every random draw (noise, demonstrations)"),
         "robot": ("", "the robot"),
         "metric": ("", "the metric: kinetic energy plus shaping terms"),
-        "scene": ("", "payloads and obstacles of the MuJoCo scene"),
+        "scene": ("", "payloads and obstacles of the MuJoCo scene, and whether they collide"),
         "synergies": ("", "synergies of the robot (needed by a combination reference)"),
         "reference": ("", "what the controllers track"),
         "controllers": ("", "the controllers; each one runs the experiment"),
@@ -48,6 +48,7 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
     "SceneConfig": {
         "payloads": ("", "rigid payloads welded to links"),
         "obstacles": ("", "obstacles (seen by obstacle terms and the clearance)"),
+        "contact": ("", "obstacles collide with the robot in MuJoCo (false: visual only)"),
     },
     "SphereConfig": {"center": ("m", "(3,) centre"), "radius": ("m", "radius")},
     "BoxConfig": {

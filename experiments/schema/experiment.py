@@ -32,9 +32,18 @@ class SimulationConfig(Section):
     control_dt: PositiveFloat = _SIMULATION["control_dt"]
     substeps: Annotated[int, Field(ge=1, le=1000)] = _SIMULATION["substeps"]
     integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = _SIMULATION["integrator"]
-    contact: bool = _SIMULATION["contact"]
     torque_limits: bool = _SIMULATION["torque_limits"]
     position_limits: bool = _SIMULATION["position_limits"]
+
+    @model_validator(mode="before")
+    @classmethod
+    def _contact_is_a_scene_option(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "contact" in data:
+            raise ValueError(
+                "'contact' is not a simulation setting: set scene.contact:"
+                f" {str(data['contact']).lower()} (whether the obstacles collide with the robot)"
+            )
+        return data
 
     @model_validator(mode="after")
     def _at_least_one_tick(self) -> SimulationConfig:
@@ -131,6 +140,8 @@ def consistency_errors(cfg: ExperimentConfig, nv: int) -> list[tuple[str, str]]:
             errors.append(_out_of_range(f"metric.terms.{i}.payload", term.payload, n_pay))
         if term.type == "obstacle" and not cfg.scene.obstacles:
             errors.append((f"metric.terms.{i}", "an obstacle term needs scene.obstacles"))
+    if cfg.scene.contact and not cfg.scene.obstacles:
+        errors.append(("scene.contact", "true needs scene.obstacles (there is nothing to collide)"))
     for i, dist in enumerate(cfg.disturbances):
         if (
             dist.type == "payload_change"

@@ -9,6 +9,7 @@ from pydantic import Field, field_validator
 
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
 from geosyn.experiments.schema.values import FiniteFloat, NonNegFloat, PositiveFloat, Vec3
+from geosyn.sim import Simulation
 from geosyn.world import Payload
 
 
@@ -116,11 +117,23 @@ class PayloadConfig(Section):
     name: str | None = _PAYLOAD["name"]
 
 
+#: ``contact`` of `geosyn.sim.Simulation` (the one place the config sets it: ``scene.contact``)
+_CONTACT = python_defaults(Simulation)["contact"]
+
+
 class SceneConfig(Strict):
-    """Payload bodies and obstacles of the MuJoCo scene (also seen by shaping terms)."""
+    """Payload bodies and obstacles of the MuJoCo scene (also seen by shaping terms).
+
+    ``contact``: the obstacles collide with the robot and its payloads in MuJoCo
+    (``Simulation(contact=...)``); each run then logs the total obstacle contact force
+    (``contact_force`` [N]) next to the clearance. False (the Python default): the
+    obstacles are visual only and the robot passes through them (the clearance, negative
+    inside, is still logged).
+    """
 
     payloads: list[PayloadConfig] = []
     obstacles: list[ObstacleConfig] = []
+    contact: bool = _CONTACT
 
 
 __all__ = [
