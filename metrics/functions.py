@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from geosyn.core.codegen import compile_function, numpy_function
+from geosyn.core.calls import numpy_function
+from geosyn.core.codegen import compile_function
 from geosyn.core.validation import check_choice
 from geosyn.metrics.derived import sx_metric_derivatives
 
@@ -162,7 +163,7 @@ class MetricFunctions:
 
         The metric's parameter values are appended when the function takes one more
         input than given. Calls go through CasADi's zero-copy buffers
-        (`geosyn.core.codegen.numpy_function`), one wrapper per key, made on first use.
+        (`geosyn.core.calls.numpy_function`), one wrapper per key, made on first use.
 
         Args:
             key: as in `get`.

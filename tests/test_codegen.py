@@ -15,7 +15,8 @@ import pinocchio as pin
 import pytest
 
 from geosyn.core import GeosynError, InvalidArgument, codegen
-from geosyn.core.codegen import CodegenError, clear_cache, compile_function, numpy_function
+from geosyn.core.calls import numpy_function
+from geosyn.core.codegen import CodegenError, clear_cache, compile_function
 from geosyn.robots import symbolic
 
 

@@ -22,7 +22,13 @@ from geosyn.experiments.metrics import (
     standard_metrics,
 )
 from geosyn.experiments.plots import torque_plot, tracking_error_plot
-from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
+from geosyn.experiments.procedures.base import (
+    SECTIONS,
+    Procedure,
+    RunContext,
+    check_required,
+    register,
+)
 from geosyn.experiments.procedures.common import Duration, track_with_each_controller
 from geosyn.experiments.schema import ExperimentConfig, Strict
 
@@ -88,18 +94,7 @@ class PushRecovery(Procedure):
     """Each controller tracks the reference through the configured disturbances."""
 
     kind = "push_recovery"
-    sections = (
-        "robot",
-        "metric",
-        "scene",
-        "synergies",
-        "reference",
-        "controllers",
-        "disturbances",
-        "simulation",
-        "outputs",
-        "params",
-    )
+    sections = SECTIONS  # every section
     description = "track a synergy combination under a push, a payload change and torque noise; compare controllers"
     Params = PushRecoveryParams
     units = {

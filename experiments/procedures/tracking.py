@@ -28,7 +28,13 @@ from geosyn.experiments.metrics import (
     standard_metrics,
 )
 from geosyn.experiments.plots import torque_plot, tracking_error_plot
-from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
+from geosyn.experiments.procedures.base import (
+    SECTIONS,
+    Procedure,
+    RunContext,
+    check_required,
+    register,
+)
 from geosyn.experiments.procedures.common import track_with_each_controller
 from geosyn.experiments.schema import (
     ExperimentConfig,
@@ -141,18 +147,7 @@ class Tracking(Procedure):
     """Every controller tracks the reference through the disturbances; standard metrics."""
 
     kind = "tracking"
-    sections = (
-        "robot",
-        "metric",
-        "scene",
-        "synergies",
-        "reference",
-        "controllers",
-        "disturbances",
-        "simulation",
-        "outputs",
-        "params",
-    )
+    sections = SECTIONS  # every section
     description = "general closed loop: any robot, metric, scene, reference, controllers and disturbances; standard metrics"
     Params = TrackingParams
     units = UNITS | {"threshold": "rad", "reference_end": "s", "planned_clearance": "m"}

@@ -29,7 +29,8 @@ from collections.abc import Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from geosyn.core.codegen import compile_function, numpy_function
+from geosyn.core.calls import numpy_function
+from geosyn.core.codegen import compile_function
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
 from geosyn.core.validation import check_vector

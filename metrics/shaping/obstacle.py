@@ -18,10 +18,11 @@ from collections.abc import Callable, Sequence
 import casadi as ca
 import numpy as np
 
-from geosyn.core.codegen import numpy_function as _numpy_call
+from geosyn.core.calls import numpy_function as _numpy_call
 from geosyn.core.validation import check_int, check_positive, check_vector
 from geosyn.metrics.shaping.base import MetricTerm
 from geosyn.metrics.shaping.errors import CapacityExceeded, InvalidTermArgument, term_arguments
+from geosyn.metrics.shaping.profiles import GATES, PROFILES
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.distance import rounded_box_distance
 from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
@@ -46,48 +47,6 @@ INACTIVE_CLEARANCE = 10.0
 PARAMS_PER_OBSTACLE = ROUNDED_BOX_SIZE + 1
 """Parameters per obstacle slot (17): centre (3), rotation (9, row-major), half-extents (3),
 rounding radius (1), active flag (1)."""
-
-
-# -- weight profiles w(d) and velocity gates ---------------------------------------------
-
-
-def _inverse_square(d: ca.SX, term: ObstacleTerm) -> ca.SX:
-    # w = gain (1/d - 1/d_cut)^2 for d < d_cut, 0 beyond: ~gain/d^2 near contact, C1 at the
-    # cutoff; d clamped at d_min so the weight stays finite at and inside the boundary.
-    dd = ca.fmax(d, term.d_min)
-    u = ca.fmax(1.0 / dd - 1.0 / term.cutoff, 0.0)
-    return term.gain * u * u
-
-
-def _rmp(d: ca.SX, term: ObstacleTerm) -> ca.SX:
-    # RMPflow-like bounded weight gain exp(-d/l) / (d/l + eps), times a C1 cutoff factor.
-    dd = ca.fmax(d, 0.0)
-    s = ca.fmax(1.0 - dd / term.cutoff, 0.0)
-    return term.gain * s * s * ca.exp(-dd / term.length) / (dd / term.length + term.epsilon)
-
-
-PROFILES: dict[str, Callable[[ca.SX, ObstacleTerm], ca.SX]] = {
-    "inverse_square": _inverse_square,
-    "rmp": _rmp,
-}
-"""Registry of weight profiles ``w(d)`` by name (see `ObstacleTerm`)."""
-
-
-def _gate_none(ddot: ca.SX, term: ObstacleTerm) -> ca.SX | float:
-    return 1.0
-
-
-def _gate_approach(ddot: ca.SX, term: ObstacleTerm) -> ca.SX:
-    # Smoothstep from 0 (d not decreasing) to 1 (approaching at gate_speed or faster).
-    s = ca.fmin(ca.fmax(-ddot / term.gate_speed, 0.0), 1.0)
-    return s * s * (3.0 - 2.0 * s)
-
-
-GATES: dict[str, Callable[[ca.SX, ObstacleTerm], ca.SX | float]] = {
-    "none": _gate_none,
-    "approach": _gate_approach,
-}
-"""Registry of velocity gates by name (see `ObstacleTerm`)."""
 
 
 DISTANCES: dict[str, Callable[[], ca.Function]] = {
