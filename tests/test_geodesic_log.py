@@ -168,3 +168,21 @@ def test_log_reports_and_enforces_its_discretization_error() -> None:
     assert 0.0 < res.discretization_error < 1e-4
     with pytest.raises(GeodesicNotFound, match="raise steps"):
         log_solve(metric, q0, q1, steps=50, discretization_tol=1e-3 * res.discretization_error)
+
+
+def test_log_solve_stops_within_its_wall_time_budget() -> None:
+    """max_time bounds the whole solve: the brief's hard planar2 pair needs the target
+    continuation (plain Newton stalls); with a 5 ms budget the solve gives up at once and
+    says why, with 10 s it solves as without a budget."""
+    import time
+
+    metric = get_metric("planar2")
+    q0, q1 = np.array([0.2, 0.3]), np.array([1.5, 1.8])
+    t0 = time.monotonic()
+    with pytest.raises(GeodesicNotFound, match="time budget max_time=0.005 s"):
+        log_solve(metric, q0, q1, max_time=0.005)
+    assert time.monotonic() - t0 < 1.0
+    res = log_solve(metric, q0, q1, max_time=10.0)
+    np.testing.assert_allclose(res.v0, log_solve(metric, q0, q1).v0, atol=1e-12)
+    with pytest.raises(InvalidArgument, match="max_time"):
+        log_solve(metric, q0, q1, max_time=0.0)

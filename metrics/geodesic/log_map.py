@@ -9,6 +9,7 @@ multistart follow. `log` returns only the velocity.
 from __future__ import annotations
 
 import math
+import time
 from typing import NamedTuple, TypedDict
 
 import numpy as np
@@ -67,6 +68,7 @@ class LogOptions(TypedDict, total=False):
     seed: int
     continuation: bool
     discretization_tol: float
+    max_time: float | None
 
 
 def log_solve(
@@ -82,6 +84,7 @@ def log_solve(
     seed: int = 0,
     continuation: bool = True,
     discretization_tol: float = 1e-4,
+    max_time: float | None = None,
 ) -> LogResult:
     """Log map with diagnostics: the v0 whose geodesic reaches q1 at t = 1.
 
@@ -120,6 +123,9 @@ def log_solve(
         discretization_tol: largest accepted change of q(1) [rad] when the converged v0
             is integrated with twice the steps; a solution above it is rejected and the
             next strategy tried (raise ``steps`` for stiff metrics).
+        max_time: wall-time budget of the whole solve [s], > 0, or None (iterations
+            only); a strategy running when it expires stops at its next Newton iteration
+            and the solve raises `GeodesicNotFound` saying so.
 
     Returns:
         The solution and how it was found.
@@ -137,6 +143,9 @@ def log_solve(
     tol = check_positive(tol, "tol")
     discretization_tol = check_positive(discretization_tol, "discretization_tol")
     max_iter = check_int(max_iter, "max_iter", low=1)
+    deadline = math.inf
+    if max_time is not None:
+        deadline = time.monotonic() + check_positive(max_time, "max_time", "s")
     multistart = check_int(multistart, "multistart", low=0)
     seed = check_int(seed, "seed")
     straight = q1 - q0
@@ -169,7 +178,7 @@ def log_solve(
         starts.append((straight, "newton(straight-line)"))
     else:
         starts.append((straight, "newton"))
-    budget = Budget(max_iter)
+    budget = Budget(max_iter, deadline)
     for guess, label in starts:
         v, r, ok, _ = newton(shooter, q1, guess.copy(), tol, budget)
         keep(v, r)
@@ -177,7 +186,7 @@ def log_solve(
             return res
     spent += budget.used
     if continuation and parameter_homotopy(metric, 0.0) is not None:
-        budget = Budget(max_iter)
+        budget = Budget(max_iter, deadline)
         v, r, ok = parameter_continuation(shooter, metric, q1, starts[0][0], tol, budget)
         if ok and (res := accept(v, r, "parameter continuation", budget)) is not None:
             return res
@@ -185,7 +194,7 @@ def log_solve(
             keep(v, r)
         spent += budget.used
     if continuation:
-        budget = Budget(max_iter)
+        budget = Budget(max_iter, deadline)
         v, r, ok = target_continuation(shooter, q1, tol, budget)
         if ok and (res := accept(v, r, "continuation", budget)) is not None:
             return res
@@ -194,7 +203,7 @@ def log_solve(
         spent += budget.used
     rng = np.random.default_rng(seed)
     scale = 0.5 * max(float(np.linalg.norm(straight)), 1e-3)
-    budget = Budget(max_iter)
+    budget = Budget(max_iter, deadline)
     for _ in range(multistart):
         if budget.left <= 0:
             break
@@ -208,6 +217,11 @@ def log_solve(
         f"log: no geodesic from q0={q0.tolist()} to q1={q1.tolist()} found with "
         f"steps={steps}, tol={tol:g}, max_iter={max_iter}, multistart={multistart}: "
         f"best residual {best_r:.3e} rad after {spent} Newton iterations"
+        + (
+            f"; stopped by the time budget max_time={max_time:g} s"
+            if time.monotonic() >= deadline
+            else ""
+        )
         + (
             f"; {len(coarse)} converged solution(s) rejected: their end point moved by "
             f"{min(coarse):.1e} rad or more with 2 x steps (discretization_tol="

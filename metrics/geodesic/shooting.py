@@ -9,6 +9,7 @@ about an order of magnitude more C code, for no gain in speed.
 from __future__ import annotations
 
 import math
+import time
 
 import casadi as ca
 import numpy as np
@@ -93,15 +94,31 @@ class Shooter:
 
 
 class Budget:
-    """Newton iterations left and used by one strategy of the log map.
+    """Newton iterations left and used by one strategy of the log map, and a deadline.
 
     Args:
         max_iter: iterations allowed.
+        deadline: `time.monotonic()` after which no iteration is left [s] (default: none).
     """
 
-    def __init__(self, max_iter: int) -> None:
-        self.left = max_iter
+    def __init__(self, max_iter: int, deadline: float = math.inf) -> None:
+        self._left = max_iter
         self.used = 0
+        self.deadline = deadline
+
+    @property
+    def left(self) -> int:
+        """Iterations left: 0 once the deadline has passed."""
+        return self._left if time.monotonic() < self.deadline else 0
+
+    @left.setter
+    def left(self, value: int) -> None:
+        self._left = value
+
+    @property
+    def expired(self) -> bool:
+        """True once the deadline has passed."""
+        return time.monotonic() >= self.deadline
 
 
 def residual_norm(r: np.ndarray) -> float:
