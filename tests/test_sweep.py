@@ -520,10 +520,13 @@ def _locked_runs(out: Path) -> list[Path]:
 def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
     tmp_path, request, monkeypatch, executor
 ):
-    """A sweep of 6 runs killed three times (both signals; after >= 1, 3 and 5 complete
-    runs), each re-run announcing exactly the runs complete before it; complete runs are
-    never redone (their ``finished_ns`` stamps stay) and the last re-run completes the
-    rest. On Ray, the tasks of a killed driver end within 5 s (their run locks freed)."""
+    """A sweep of 10 runs killed three times (both signals; after >= 1, 3 and 5 complete
+    runs, and always after its announcement and at least one run of its own), each
+    re-run announcing exactly the runs complete before it; complete runs are never redone
+    (their ``finished_ns`` stamps stay) and the last re-run completes the rest. On Ray,
+    the tasks of a killed driver end within 5 s (their run locks freed); a task about to
+    finish may still complete its run, so a kill point never waits on a count the previous
+    launch already reached."""
     import signal
     import subprocess
     import time
@@ -535,11 +538,12 @@ def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
         extra += ["--ray", address]
         monkeypatch.setenv("RAY_AUTH_MODE", "token")
     out = tmp_path / "sweep"
-    args = ["sweep", SRC, "--grid", "controllers.0.kp=100,200,300", "--seeds", "2"]
+    args = ["sweep", SRC, "--grid", "controllers.0.kp=100,200,300,400,500", "--seeds", "2"]
     args += ["--out", str(out), "--no-progress"]
     for o in [*BASE, "simulation.duration=0.6", "params.duration=0.6"]:
         args += ["--set", o]
     script = str(Path(sys.executable).with_name("geosyn"))
+    total = 10
     complete: dict[str, int] = {}
     orphan_lifetimes, counts = [], []
     for signame, k in KILL_CHAINS[executor]:
@@ -553,7 +557,8 @@ def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
                 cwd=tmp_path,
             )
             deadline = time.monotonic() + 120
-            while len(_timestamps(out)) < k:
+            k_here = min(max(k, len(complete) + 1), total - 1)
+            while len(_timestamps(out)) < k_here or not _ANNOUNCE.search(err_file.read_text()):
                 assert proc.poll() is None, err_file.read_text()[-3000:]
                 assert time.monotonic() < deadline, "no progress within 120 s"
                 time.sleep(0.02)
@@ -572,7 +577,7 @@ def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
         assert not _locked_runs(out)
         # this launch saw exactly the runs complete before it, and ran only the others
         (announce,) = _ANNOUNCE.findall(text)
-        assert announce == (str(6 - len(complete)), "6", str(len(complete))), announce
+        assert announce == (str(total - len(complete)), str(total), str(len(complete))), announce
         now = _timestamps(out)
         for run, stamp in complete.items():  # none lost, none redone
             assert now[run] == stamp
@@ -583,7 +588,7 @@ def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
     # the last re-run, in this process, completes exactly the missing runs
     res = sweep(
         SRC,
-        {"controllers.0.kp": ["100", "200", "300"]},
+        {"controllers.0.kp": ["100", "200", "300", "400", "500"]},
         seeds=2,
         out=out,
         overrides=[*BASE, "simulation.duration=0.6", "params.duration=0.6"],
@@ -591,15 +596,15 @@ def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
         workers=2,
         ray_address=None if executor == "local" else address,
     )
-    assert (res.ran, res.skipped) == (6 - len(complete), len(complete))
+    assert (res.ran, res.skipped) == (total - len(complete), len(complete))
     final = _timestamps(out)
-    assert len(final) == 6
+    assert len(final) == total
     for run, stamp in complete.items():
         assert final[run] == stamp
-    assert [row["n_runs"] for row in res.aggregate] == [2, 2, 2]
+    assert [row["n_runs"] for row in res.aggregate] == [2, 2, 2, 2, 2]
     assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
     print(
-        f"\n{executor}: kills {KILL_CHAINS[executor]} left {counts} of 6 runs complete; orphans gone after"
+        f"\n{executor}: kills {KILL_CHAINS[executor]} left {counts} of {total} runs complete; orphans gone after"
         f" {[round(x, 2) for x in orphan_lifetimes]} s"
     )
     if executor == "ray":
