@@ -147,7 +147,7 @@ def test_builtin_synergy_sequence_saves_energy_and_keeps_clear(tmp_path):
     assert s["geodesic.min_clearance"] > 0.0 and s["straight.min_clearance"] > 0.0
     # the sphere collides in MuJoCo (scene.contact) and neither run touches it
     for path in ("geodesic", "straight"):
-        assert s[f"{path}_computed_torque.max_contact_force"] == 0.0
+        assert s[f"{path}.max_contact_force"] == 0.0
 
 
 def test_builtin_config_checks_one_duration_per_goal():

@@ -141,20 +141,23 @@ class SynergySequenceProcedure(Procedure):
             "max_residual": float(np.max(results["residuals"])),
             "max_reach_error": float(np.max(results["reach_errors"])),
         }
+        # effort, rms_error, ok, min_clearance, ... of each run: the standard metrics
+        # (`Procedure.full_summary`), in the rows `run_rows` names.
         goal = results["targets"][-1]
-        dt = cfg.simulation.control_dt
-        for name in PLANS:
-            for label in cfg.controller_labels():
-                run = B.sim_view(results, f"{name}_{label}")
-                row = name if len(cfg.controllers) == 1 else f"{name}_{label}"
-                hand = frame_positions(robot, run["q"][-1:], frame)[0]
-                out[f"{row}.effort"] = B.effort(run["tau_applied"], dt)
-                out[f"{row}.rms_error"] = float(np.sqrt(np.mean(run["tracking_error"] ** 2)))
-                out[f"{row}.final_hand_error"] = float(np.linalg.norm(hand - goal))
-                out[f"{row}.ok"] = float(str(run["status"]) == "ok")
-                if cfg.scene.obstacles:
-                    out[f"{row}.min_clearance"] = float(np.min(run["clearance"]))
+        for prefix, row in self.run_rows(cfg, results).items():
+            run = B.sim_view(results, prefix)
+            hand = frame_positions(robot, run["q"][-1:], frame)[0]
+            out[f"{row}.final_hand_error"] = float(np.linalg.norm(hand - goal))
         return out
+
+    def run_rows(self, cfg: ExperimentConfig, results: dict[str, np.ndarray]) -> dict[str, str]:
+        """One row per plan and controller, named by the plan alone with one controller."""
+        one = len(cfg.controllers) == 1
+        return {
+            f"{name}_{label}": name if one else f"{name}_{label}"
+            for name in PLANS
+            for label in cfg.controller_labels()
+        }
 
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
