@@ -33,8 +33,11 @@ What is compared, on the same problem and the same plant:
   torque controls, RK4 nodes, BoxFDDP, 1 warm-started iteration per solve, first control
   plus Riccati feedback ``-K_0 dx`` between solves, single-threaded like geosyn's solver
   (``--croc-threads``; see ``croc_runner.THREADS`` for why); see its docstring.
-- geosyn (`run_geosyn`): ``GeodesicMPC(control="torque")`` with its defaults (fatrop,
-  Gauss-Newton Hessian of the compiled RK4 step, warm-started, ``effort="torque"``).
+- geosyn (`run_geosyn`): ``GeodesicMPC(control="torque", solver="ddp")`` with its
+  default weights: box-DDP with compiled RK4-on-ABA Jacobians and Riccati steps, one
+  warm-started iteration per solve, its Riccati feedback saturated at the torque limits
+  between solves (``effort="torque"``). ``--geosyn-option solver=fatrop`` times the
+  interior-point solver instead (Gauss-Newton Hessian of the compiled RK4 step).
 - Both: N in {10, 40}, dt = 20 ms, re-solve every 20 ms, the same weights (geosyn's
   defaults), costs tracking (q, v) of the reference and regularising the torque around
   the reference's inverse dynamics, torque limits. Scenarios: ``on_reference`` (start on
@@ -210,14 +213,14 @@ class GeosynSide:
             from geosyn.controllers import GeodesicMPC
 
             start = time.perf_counter()
+            options = {"control": "torque", **self.options}
             self.mpcs[horizon] = GeodesicMPC(
                 self.robot,
                 self.metric,
                 horizon=horizon,
                 dt=MPC_DT,
-                control="torque",
                 reference=self.reference,
-                **self.options,
+                **options,
             )
             self.build_time[horizon] = time.perf_counter() - start
         return self.mpcs[horizon]
@@ -227,11 +230,12 @@ class GeosynSide:
 def run_geosyn(side: GeosynSide, ref: ReferenceSamples, scenario: str, horizon: int) -> dict:
     """geosyn's torque-level MPC on the shared plant: a summary and arrays like the runner's.
 
-    The controller is geosyn's current ``GeodesicMPC(control="torque")`` with its default
-    solver and weights; its own plan tracking (planned torque + M(q) PD on the Hermite-
-    interpolated plan) runs between solves. Issue 13 replaces the controller built in
-    `GeosynSide.mpc`; this function's contract (same plant, same reference samples, the
-    unclipped commanded torque recorded) stays.
+    The controller is ``GeodesicMPC(control="torque", **options)`` (``solver="ddp"``
+    unless ``--geosyn-option`` says otherwise) with its default weights; its own plan
+    following runs between solves (ddp: ``u_0 + K_0 dx`` saturated at the torque limits;
+    fatrop/ipopt: planned torque + M(q) PD). The command recorded is the controller's
+    output before `Controller.compute` clips it (``last_unclipped_torque``); the summary
+    also counts the ticks whose command sits at a limit (``ticks_at_limit``).
     """
     mpc = side.mpc(horizon)
     q0, v0 = initial_state(scenario, ref)
@@ -243,7 +247,10 @@ def run_geosyn(side: GeosynSide, ref: ReferenceSamples, scenario: str, horizon: 
 
     model = panda_model()
     roll = run_closed_loop(model, q0, v0, DURATION, policy)
-    return summarize(scenario, horizon, roll, ref, model)
+    summary = summarize(scenario, horizon, roll, ref, model)
+    at_limit = np.abs(roll.tau_cmd) >= np.asarray(model.effortLimit) * (1.0 - 1e-12)
+    summary["ticks_at_limit"] = int(np.count_nonzero(at_limit.any(axis=1)))
+    return summary
 
 
 def summarize(
@@ -302,14 +309,20 @@ def pooled(runs: list[dict]) -> dict:
     }
 
 
-def table(results: dict[tuple[str, int, str], list[dict]], croc_version: str) -> str:
+def table(
+    results: dict[tuple[str, int, str], list[dict]],
+    croc_version: str,
+    geosyn_solver: str = "ddp",
+    geosyn_control: str = "torque",
+) -> str:
     rows = [
         "| solver | control level | N | scenario | median / p99 per solve [ms]"
         " | CPU median [ms] | iterations | tracking RMS [rad]"
         " | ticks over a torque limit (max excess) | geosyn / Crocoddyl median (p99); CPU |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    names = {"crocoddyl": f"Crocoddyl {croc_version} BoxFDDP", "geosyn": "geosyn fatrop"}
+    names = {"crocoddyl": f"Crocoddyl {croc_version} BoxFDDP", "geosyn": f"geosyn {geosyn_solver}"}
+    levels = {"crocoddyl": "torque", "geosyn": geosyn_control}
     keys = sorted({(n, s) for _, n, s in results}, key=lambda k: (k[0], SCENARIOS.index(k[1])))
     for horizon, scenario in keys:
         croc = results.get(("crocoddyl", horizon, scenario))
@@ -326,7 +339,7 @@ def table(results: dict[tuple[str, int, str], list[dict]], croc_version: str) ->
                     f" CPU {p['cpu'] / pc['cpu']:.2f}"
                 )
             rows.append(
-                f"| {names[solver]} | torque | {horizon} | {scenario} | {p['median']:.2f} / "
+                f"| {names[solver]} | {levels[solver]} | {horizon} | {scenario} | {p['median']:.2f} / "
                 f"{p['p99']:.2f} | {p['cpu']:.2f} | {p['iters']:g} | {p['rms']:.2e} | {p['over']} "
                 f"({100 * p['excess']:.2f} %) | {ratio} |"
             )
@@ -369,7 +382,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"creating the reference {REFERENCE.relative_to(HERE.parent)} (geosyn exp)")
         ref = make_reference()
     results: dict[tuple[str, int, str], list[dict]] = {}
-    options = {}
+    options: dict = {"solver": "ddp"}  # geosyn's torque-level default is fatrop
     for item in args.geosyn_option:
         key, _, value = item.partition("=")
         try:
@@ -422,7 +435,14 @@ def main(argv: list[str] | None = None) -> int:
                             results.setdefault(("geosyn", horizon, scenario), []).append(run)
             print(f"round {rnd + 1}/{args.rounds} done", flush=True)
     print()
-    print(table(results, croc_info.get("crocoddyl", "?")))
+    solver, control = (
+        str(options.get(k, d)) for k, d in (("solver", "ddp"), ("control", "torque"))
+    )
+    print(table(results, croc_info.get("crocoddyl", "?"), solver, control))
+    for (who, horizon, scenario), runs in sorted(results.items()):
+        if who == "geosyn":
+            ticks = max(int(r.get("ticks_at_limit", 0)) for r in runs)
+            print(f"geosyn N={horizon} {scenario}: command at a torque limit on {ticks} ticks")
     if side is not None:
         print(
             "geosyn build times [s]: "

@@ -3,7 +3,8 @@
 1. Real-time factor (simulated time / wall time of `Simulation.run`) on the panda at a
    1 kHz control rate and 1 kHz physics (implicitfast), tracking a 2 s joint trajectory,
    for each controller that exists: computed torque (target >= 20x), the inverse-dynamics
-   QP (>= 5x) and the geodesic MPC re-solving at 50 Hz (>= 1x). Each controller is built
+   QP (>= 5x), the geodesic MPC re-solving at 50 Hz (>= 1x; acceleration level) and the
+   torque-level MPC at 50 Hz with N = 20, box-DDP and fatrop (>= 2x, issue 13). Each controller is built
    and warmed up (a 50 ms run: compiled functions loaded, solver caches filled) before
    the timed run; the build time is printed separately. The best of ``--repeat`` runs is
    reported, with the share of the wall time spent inside ``controller.compute``.
@@ -30,7 +31,13 @@ from geosyn.robots import load_robot
 from geosyn.sim import Simulation, TorqueNoise
 
 SWEEP_RUN = 2.0  # simulated time of each sweep run [s]
-TARGETS = {"computed torque": 20.0, "QP": 5.0, "MPC (50 Hz)": 1.0}
+TARGETS = {
+    "computed torque": 20.0,
+    "QP": 5.0,
+    "MPC (50 Hz)": 1.0,
+    "MPC torque ddp": 2.0,
+    "MPC torque fatrop": 2.0,
+}
 
 
 def panda_task(duration: float = 2.0):
@@ -69,6 +76,20 @@ def controllers(robot):
                 lambda: GeodesicMPC(robot, KineticEnergyMetric(robot), horizon=20, dt=0.02),
             )
         )
+        for solver in ("ddp", "fatrop"):  # torque level (issue 13), 50 Hz, N = 20
+            out.append(
+                (
+                    f"MPC torque {solver}",
+                    lambda solver=solver: GeodesicMPC(
+                        robot,
+                        KineticEnergyMetric(robot),
+                        horizon=20,
+                        dt=0.02,
+                        control="torque",
+                        solver=solver,
+                    ),  # fmt: skip
+                )
+            )
     except ImportError as err:
         print(f"MPC: not available ({err})")
     return out

@@ -54,11 +54,12 @@ def _rk4_pinocchio(model: pin.Model, x: np.ndarray, tau: np.ndarray, h: float) -
 
 
 @pytest.mark.slow
-def test_first_torques_equal_ipopt_and_the_plan_obeys_the_dynamics() -> None:
+@pytest.mark.parametrize("solver", ["fatrop", "ddp"])
+def test_first_torques_equal_ipopt_and_the_plan_obeys_the_dynamics(solver: str) -> None:
     robot = get_robot("panda")
     # 0.05 rad off the reference, at rest: the torques are far from the reference's.
     q, v = Q0 + 0.05, np.zeros(7)
-    fast = _mpc(tol=1e-10, max_iter=200)
+    fast = _mpc(solver=solver, tol=1e-10, max_iter=200)
     tight = _mpc(solver="ipopt", tol=1e-12, max_iter=500)
     plans = []
     for mpc in (fast, tight):
@@ -80,11 +81,12 @@ def test_first_torques_equal_ipopt_and_the_plan_obeys_the_dynamics() -> None:
 
 
 @pytest.mark.slow
-def test_warm_solves_after_a_250_newton_push_keep_limits_and_recover() -> None:
+@pytest.mark.parametrize("solver", ["fatrop", "ddp"])
+def test_warm_solves_after_a_250_newton_push_keep_limits_and_recover(solver: str) -> None:
     robot = get_robot("panda")
     model, data = robot.model, robot.model.createData()
     frame = model.getFrameId("panda_link5")
-    mpc = _mpc()
+    mpc = _mpc(solver=solver)
     q0, v0 = reference().sample(0.0)[:2]
     mpc.reset(q0, v0)
     plant = PinocchioPlant(robot, dt=1e-3)
@@ -96,6 +98,8 @@ def test_warm_solves_after_a_250_newton_push_keep_limits_and_recover() -> None:
     for _ in range(1000):
         t, q, v = plant.t, plant.q, plant.v
         tau = mpc.compute(t, q, v)
+        if solver == "ddp":  # its saturated Riccati feedback never commands beyond a limit
+            assert np.all(np.abs(mpc.last_unclipped_torque) <= robot.tau_max)
         if mpc.plan is not None and mpc.plan.t == t:  # a solve happened at this tick
             plans.append((t, mpc.plan, mpc.diagnostics.fallback_used))
         tau_ext = np.zeros(7)

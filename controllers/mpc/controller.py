@@ -26,6 +26,7 @@ import numpy as np
 
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import NoReference
+from geosyn.controllers.mpc.ddp_tracking import DDPTracking, check_ddp_settings
 from geosyn.controllers.mpc.gauss_newton import cached_stage_dynamics
 from geosyn.controllers.mpc.ocp import OCPBuilder
 from geosyn.controllers.mpc.open_loop import OpenLoopOCP, OpenLoopSolution
@@ -33,8 +34,8 @@ from geosyn.controllers.mpc.plan import (
     EPS_T,
     MPCPlan,
     PlanFollower,
+    ReferenceSampler,
     ReferenceSamples,
-    sample_reference,
 )
 from geosyn.controllers.mpc.problem import ShootingNLP, SolveResult, pack_parameters
 from geosyn.controllers.mpc.settings import (
@@ -97,7 +98,13 @@ class GeodesicMPC(Controller):
         metric: the metric of the geodesic reference; weighs the ``"metric"`` effort.
         horizon: number of stages N (>= 1).
         dt: stage length and re-solve period [s] (> 0).
-        solver: ``"fatrop"`` or ``"ipopt"``.
+        solver: ``"fatrop"`` or ``"ipopt"`` (interior point on the multiple-shooting
+            NLP), or ``"ddp"``: box-constrained DDP with compiled stage derivatives
+            and Riccati feedback between solves, the fastest torque-level solver
+            (needs ``control="torque"`` and ``effort="torque"``; position and velocity
+            limits become stiff penalties; a warm solve is one DDP step; its
+            ``solver_options`` are `geosyn.controllers.mpc.ddp_tracking.DDP_OPTIONS`;
+            `solve_open_loop` then uses IPOPT). See `geosyn.controllers.mpc.ddp_tracking`.
         q_weight: scalar or (nv,) weight on the position error [1/rad^2].
         v_weight: scalar or (nv,) weight on the velocity error [s^2/rad^2].
         tau_weight: scalar or (nv,) effort weight: [1/(N m)^2] for the torque and metric
@@ -187,6 +194,8 @@ class GeodesicMPC(Controller):
             solver, tol, max_iter, mu_init, mu_warm, solver_options, max_solve_time
         )
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
+        if self.solver_settings.name == "ddp":
+            check_ddp_settings(self.settings, self.hessian)
         self.kp = check_gain(kp, n, "kp")
         self.kd = check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
@@ -194,11 +203,18 @@ class GeodesicMPC(Controller):
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
         self.ocp = OCPBuilder(robot, metric, s, self.solver_settings)
         self._follower = PlanFollower(
-            self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance
-        )
+            self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance,
+            robot.tau_max,
+        )  # fmt: skip
         self._open_loop = OpenLoopOCP(self.ocp)
+        self._sampler = ReferenceSampler(self._model, self._data)
         start = time.perf_counter()
-        self._nlp = self._build_tracking()
+        self._ddp: DDPTracking | None = None
+        self._nlp: ShootingNLP | None = None
+        if self.solver_settings.name == "ddp":
+            self._ddp = self._build_ddp()
+        else:
+            self._nlp = self._build_tracking()
         self.build_time = time.perf_counter() - start
         self._plan: MPCPlan | None = None
         self._lam: tuple[np.ndarray, np.ndarray] | None = None
@@ -223,6 +239,18 @@ class GeodesicMPC(Controller):
                 )
         return self.ocp.tracking(self.ocp.dynamics(gravity=True), gauss_newton=False)
 
+    def _build_ddp(self) -> DDPTracking:
+        s = self.settings
+        try:
+            return DDPTracking(
+                self.robot, s, self.solver_settings, self.kp, self.kd, progress=_report_progress
+            )
+        except CodegenError as err:
+            self._note("compiled", f"DDP stage functions on CasADi's VM: not compiled ({err})")
+            return DDPTracking(
+                self.robot, s, self.solver_settings, self.kp, self.kd, compiled=False
+            )
+
     # -- controller hooks ------------------------------------------------------------
     def _on_reset(self, q: Vector, v: Vector, t: float) -> None:
         self._on_reference_changed()
@@ -230,6 +258,7 @@ class GeodesicMPC(Controller):
 
     def _on_reference_changed(self) -> None:
         # A new reference invalidates the warm start (a different task).
+        self._sampler.clear()
         self._plan = None
         self._lam = None
         self._t_solve = -math.inf
@@ -255,15 +284,18 @@ class GeodesicMPC(Controller):
         Raises:
             NoReference: no reference was set.
         """
-        if self._reference is None:
-            raise NoReference(f"{type(self).__name__}.solve called before set_reference")
         N = self.N
-        ref = sample_reference(self._reference, self._model, self._data, t, N, self.dt)
+        ref = self._reference_samples(t)
         effort_ref = ref.a[:N] if self.effort == "acceleration" else ref.tau
         p = pack_parameters(
             x_init, ref.q[N], ref.q, ref.v, effort_ref, self.ocp.metric_parameters()
         )
         return p, ref
+
+    def _reference_samples(self, t: float) -> ReferenceSamples:
+        if self._reference is None:
+            raise NoReference(f"{type(self).__name__}.solve called before set_reference")
+        return self._sampler.sample(self._reference, t, self.N, self.dt)
 
     def solve(self, t: float, q: Vector, v: Vector) -> MPCPlan:
         """Solve the tracking OCP from the measured state at time ``t`` (no fallback).
@@ -284,14 +316,24 @@ class GeodesicMPC(Controller):
         """
         q = check_vector(q, self.nv, "q")
         v = check_vector(v, self.nv, "v")
-        nlp, N = self._nlp, self.N
+        N = self.N
         x_init = np.concatenate([q, v])
-        p, ref = self.problem_parameters(t, x_init)
+        if self._ddp is not None:
+            ref = self._reference_samples(t)
+        else:
+            p, ref = self.problem_parameters(t, x_init)
         r = self.robot
         outside = outside_state_margin(q, v, r.q_min, r.q_max, r.v_max)
         if outside:
             self.solve_count += 1
             return self._failed_plan(t, f"skipped: measured state {outside}", 0.0)
+        if self._ddp is not None:
+            self.solve_count += 1
+            start = time.perf_counter()
+            plan = self._ddp.solve(t, x_init, ref, self._plan)
+            return self._within_budget(plan._replace(solve_time=time.perf_counter() - start))
+        nlp = self._nlp
+        assert nlp is not None  # built when the solver is not "ddp"
         prev, lam = self._plan, self._lam
         j = -1 if prev is None or lam is None else int(round((t - prev.t) / self.dt))
         if prev is not None and lam is not None and 0 <= j < N:
@@ -311,15 +353,20 @@ class GeodesicMPC(Controller):
             status = f"exception: {err}".splitlines()[0][:200]
             res = SolveResult(nan_x, nan_u, nan_u.copy(), math.nan, status, 0, False, None)
         solve_time = time.perf_counter() - start
-        budget = self.solver_settings.max_solve_time
-        if res.success and solve_time > budget:
-            status = f"over budget: {solve_time:.3g} s > max_solve_time {budget:.3g} s"
-            res = res._replace(success=False, status=f"{status} ({res.status})")
         if res.success:
             self._lam = res.multipliers
-        return MPCPlan(
+        plan = MPCPlan(
             t, res.x, res.u, res.tau, res.status, res.iterations, res.success, solve_time
         )
+        return self._within_budget(plan)
+
+    def _within_budget(self, plan: MPCPlan) -> MPCPlan:
+        """A successful plan solved in more than ``max_solve_time`` counts as failed."""
+        budget = self.solver_settings.max_solve_time
+        if plan.success and plan.solve_time > budget:
+            status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
+            return plan._replace(success=False, status=f"{status} ({plan.status})")
+        return plan
 
     def _failed_plan(self, t: float, status: str, solve_time: float) -> MPCPlan:
         nan_u = np.full((self.N, self.nv), np.nan)

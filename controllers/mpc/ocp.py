@@ -11,6 +11,7 @@ minimum-effort open-loop OCP (`geosyn.controllers.mpc.open_loop`).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
@@ -123,13 +124,17 @@ class OCPBuilder:
         return ShootingNLP.from_problem(problem, graph, *build_solvers(graph, self.solver))
 
     def open_loop(self, *, free_v0: bool, gravity: bool) -> ShootingNLP:
-        """The minimum-metric-effort NLP between two configurations (exact Hessian)."""
+        """The minimum-metric-effort NLP between two configurations (exact Hessian;
+        solved by IPOPT when the tracking solver is ``"ddp"``)."""
         dynamics = self.dynamics(gravity)
         problem = self.problem(
             dynamics, effort="metric", gravity=gravity, open_loop=True, free_v0=free_v0
         )
         graph = transcribe(problem, ca.SX, mapped=False)
-        return ShootingNLP.from_problem(problem, graph, *build_solvers(graph, self.solver))
+        solver = self.solver
+        if solver.name == "ddp":  # an NLP with a terminal equality: IPOPT solves it
+            solver = replace(solver, name="ipopt", options={})
+        return ShootingNLP.from_problem(problem, graph, *build_solvers(graph, solver))
 
 
 EFFORT_TERMS: dict[str, Callable[[OCPBuilder, bool], CostTerm]] = {

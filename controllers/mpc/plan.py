@@ -15,6 +15,7 @@ __all__ = [
     "EPS_T",
     "MPCPlan",
     "PlanFollower",
+    "ReferenceSampler",
     "ReferenceSamples",
     "plan_state",
     "sample_reference",
@@ -36,6 +37,8 @@ class MPCPlan(NamedTuple):
         iterations: solver iterations.
         success: the solver reported success and the result is finite.
         solve_time: wall-clock time of the solver call [s].
+        K: (N, nv, 2 nv) feedback gains of a DDP solve (``solver="ddp"``), else None:
+            the torque ``u_j + K_j (x - x^*)`` minimises the stage's local model.
     """
 
     t: float
@@ -46,6 +49,7 @@ class MPCPlan(NamedTuple):
     iterations: int
     success: bool
     solve_time: float
+    K: np.ndarray | None = None
 
 
 class ReferenceSamples(NamedTuple):
@@ -90,6 +94,50 @@ def sample_reference(
     return ReferenceSamples(qr, vr, ar, tr)
 
 
+class ReferenceSampler:
+    """`sample_reference` that reuses the samples of the previous call (allocates).
+
+    A receding-horizon controller samples ``t + k dt`` with ``t`` advancing by whole
+    stages: the samples it shares with the previous call are shifted instead of
+    evaluated again (the reference and its inverse dynamics at a time differing only by
+    the rounding of ``t + k dt``), so a solve samples one new stage, not ``N + 1``.
+
+    Args:
+        model: Pinocchio model for the inverse dynamics.
+        data: its workspace.
+    """
+
+    def __init__(self, model: pin.Model, data: pin.Data) -> None:
+        self._model, self._data = model, data
+        self._last: tuple[Reference, float, int, float, ReferenceSamples] | None = None
+
+    def clear(self) -> None:
+        """Forget the previous samples (a new reference)."""
+        self._last = None
+
+    def sample(self, reference: Reference, t: float, N: int, dt: float) -> ReferenceSamples:
+        """The samples of `sample_reference` (arrays owned by the caller)."""
+        last = self._last
+        j = -1
+        if last is not None and last[0] is reference and last[2] == N and last[3] == dt:
+            j = int(round((t - last[1]) / dt))
+            if abs(t - last[1] - j * dt) > EPS_T:
+                j = -1
+        if 0 <= j <= N and last is not None:
+            prev = last[4]
+            if j == 0:
+                out = ReferenceSamples(*(a.copy() for a in prev))
+            else:  # stages N - j .. N are new (row N - j of q, v, a is sampled again)
+                tail = sample_reference(reference, self._model, self._data, t + (N - j) * dt, j, dt)
+                out = ReferenceSamples(
+                    *(np.concatenate([a[j:N], b]) for a, b in zip(prev, tail, strict=True))
+                )
+        else:
+            out = sample_reference(reference, self._model, self._data, t, N, dt)
+        self._last = (reference, t, N, dt, out)
+        return out
+
+
 def plan_state(plan: MPCPlan, t: float, dt: float) -> tuple[int, np.ndarray, np.ndarray]:
     """Stage index and planned ``(q, v)`` at time ``t``: cubic Hermite between stages.
 
@@ -123,7 +171,9 @@ class PlanFollower:
 
     (torque control), or ``tau = RNEA(q, v, u^*_j + K_p (q^* - q) + K_d (v^* - v))``
     (acceleration control), with ``(q^*, v^*)`` the cubic Hermite interpolation of the
-    planned states (`plan_state`).
+    planned states (`plan_state`). A plan with DDP gains (``plan.K``) is followed by its
+    own feedback, saturated at the torque limits like the DDP rollout:
+    ``tau = clip(u^*_j + K_j ((q, v) - (q^*, v^*)), -tau_max, tau_max)``.
 
     Args:
         model: Pinocchio model of the plant.
@@ -133,6 +183,8 @@ class PlanFollower:
         kp: (nv,) stiffness [1/s^2].
         kd: (nv,) damping [1/s].
         plan_tolerance: max joint deviation from a plan that may still be followed [rad].
+        tau_max: (nv,) torque limits [N m] saturating the DDP feedback (None: no plan
+            with gains is expected).
 
     Each method allocates only (nv,) arrays (and ``M`` in torque control).
     """
@@ -146,8 +198,10 @@ class PlanFollower:
         kp: Vector,
         kd: Vector,
         plan_tolerance: float,
+        tau_max: Vector | None = None,
     ) -> None:
         self._model, self._data = model, data
+        self.tau_max = None if tau_max is None else np.asarray(tau_max, dtype=np.float64)
         self.torque_control = control == "torque"
         self.dt, self.kp, self.kd = dt, kp, kd
         self.plan_tolerance = plan_tolerance
@@ -155,6 +209,9 @@ class PlanFollower:
     def torque(self, plan: MPCPlan, t: float, q: Vector, v: Vector) -> Vector:
         """(nv,) torque [N m] that follows ``plan`` at time ``t`` from the state ``(q, v)``."""
         j, q_p, v_p = plan_state(plan, t, self.dt)
+        if plan.K is not None and self.tau_max is not None:
+            tau = plan.u[j] + plan.K[j] @ np.concatenate([q - q_p, v - v_p])
+            return np.clip(tau, -self.tau_max, self.tau_max)
         fb = self.kp * (q_p - q) + self.kd * (v_p - v)
         if self.torque_control:
             M = pin.crba(self._model, self._data, q)

@@ -31,7 +31,7 @@ __all__ = [
     "solver_settings",
 ]
 
-SOLVERS = ("fatrop", "ipopt")
+SOLVERS = ("fatrop", "ipopt", "ddp")
 """Names accepted by ``GeodesicMPC(solver=...)``."""
 EFFORTS = ("torque", "metric", "acceleration")
 """Names accepted by ``GeodesicMPC(effort=...)``."""
@@ -83,7 +83,8 @@ class SolverSettings:
     """How the NLPs are solved (validated).
 
     Attributes:
-        name: ``"fatrop"`` or ``"ipopt"``.
+        name: ``"fatrop"``, ``"ipopt"`` or ``"ddp"`` (box-DDP, torque control only:
+            `geosyn.controllers.mpc.ddp_tracking`).
         tol: solver tolerance.
         max_iter: iteration limit per solve.
         mu_init: initial barrier parameter of cold solves.

@@ -78,7 +78,7 @@ class MPCConfig(_ControllerBase):
     type: Literal["mpc"]
     horizon: Annotated[int, Field(ge=1, le=1000)] = _MPC["horizon"]
     dt: PositiveFloat = _MPC["dt"]
-    solver: Literal["fatrop", "ipopt"] = _MPC["solver"]
+    solver: Literal["fatrop", "ipopt", "ddp"] = _MPC["solver"]
     q_weight: NonNegFloat = _MPC["q_weight"]
     v_weight: NonNegFloat = _MPC["v_weight"]
     tau_weight: NonNegFloat | None = _MPC["tau_weight"]

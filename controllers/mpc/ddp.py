@@ -1,0 +1,376 @@
+"""The compiled stage pieces of the Riccati (box-DDP) solver of the torque-level OCP.
+
+One C library per robot, stage length and RK4 step count (weights, limits and the
+reference are inputs, so one library serves every horizon and tuning):
+
+- ``ddp_lin``: ``(x, u) -> (A, B)``, the Jacobians of the RK4 step on the ABA (chain rule
+  through RK4, `geosyn.controllers.mpc.gauss_newton.rk4_parts`);
+- ``ddp_riccati``: one backward Riccati step: the stage's Q-function (Gauss-Newton: the
+  dynamics' curvature is dropped; the costs are quadratic), the box-constrained QP of the
+  control update (projected Newton, `BOX_ITERATIONS` steps), the feedforward ``k``, the
+  feedback ``K`` on the free controls and the value function of the stage before;
+- ``ddp_forward``: one step of the closed-loop rollout,
+  ``u = clip(u_bar + alpha k + K (x - x_bar))`` then ``x' = F(x, u)``, with its cost;
+- ``ddp_terminal``: the terminal cost and its derivatives.
+
+Costs (as `geosyn.controllers.mpc.costs` with ``effort="torque"``): per stage
+``|q - q_r|^2_Wq + |v - v_r|^2_Wv + |u - tau_r|^2_Wu`` plus the soft state limits
+``w_lim (|max(q - q_max, 0)|^2 + |max(q_min - q, 0)|^2 + |max(|v| - v_max, 0)|^2)``
+(zero inside the limits); terminal ``|x - x_r|^2_WN`` plus the same soft limits. The
+torque limits are hard (the box QP, and the clip of the rollout).
+
+Parameters ``P`` (`parameter_vector`): ``(Wq, Wv, Wu, WN, q_min, q_max, v_max, tau_max,
+w_lim, reg)``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from collections.abc import Callable
+from pathlib import Path
+from typing import NamedTuple
+
+import casadi as ca
+import numpy as np
+
+from geosyn.controllers.mpc import gauss_newton
+from geosyn.core.codegen import compile_recipe
+from geosyn.robots.robot import Robot
+
+__all__ = [
+    "BOX_ITERATIONS",
+    "BOUND_INF",
+    "DDPParts",
+    "ddp_parts",
+    "parameter_vector",
+]
+
+BOX_ITERATIONS = 6
+"""Projected-Newton steps of the box QP per stage (from the clipped unconstrained step;
+exact once the active set is found, which takes one step per newly active joint)."""
+BOUND_INF = 1e10
+"""An infinite joint limit is passed as this value [rad, rad/s]."""
+
+
+class DDPParts(NamedTuple):
+    """The compiled (or, without a compiler, interpreted) stage functions.
+
+    Attributes:
+        lin: ``(x (2n,), u (n,)) -> (A (2n, 2n), B (2n, n))``.
+        riccati: ``(Vx, Vxx, A, B, x, u, x_r, tau_r, P) -> (Vx', Vxx', k, K, dV (2,))``.
+        forward: ``(x, x_bar, u_bar, k, K, alpha, x_r, tau_r, P) -> (u, x_next, cost)``.
+        terminal: ``(x, x_r, P) -> (cost, Vx, Vxx)``.
+    """
+
+    lin: ca.Function
+    riccati: ca.Function
+    forward: ca.Function
+    terminal: ca.Function
+
+
+def parameter_vector(
+    q_weight: np.ndarray,
+    v_weight: np.ndarray,
+    effort_weight: np.ndarray,
+    terminal_weight: np.ndarray,
+    q_min: np.ndarray,
+    q_max: np.ndarray,
+    v_max: np.ndarray,
+    tau_max: np.ndarray,
+    limit_weight: float,
+    regularisation: float,
+) -> np.ndarray:
+    """The parameter vector ``P`` of the stage functions (infinite limits -> `BOUND_INF`).
+
+    Args:
+        q_weight, v_weight: (n,) tracking weights [1/rad^2], [s^2/rad^2].
+        effort_weight: (n,) torque weight [1/(N m)^2].
+        terminal_weight: (2n,) terminal weight (q then v).
+        q_min, q_max: (n,) position limits [rad]; v_max: (n,) velocity limits [rad/s].
+        tau_max: (n,) torque limits [N m].
+        limit_weight: weight of the soft state limits.
+        regularisation: added to the diagonal of each stage's control Hessian.
+    """
+
+    def finite(a: np.ndarray) -> np.ndarray:
+        return np.clip(np.asarray(a, dtype=np.float64), -BOUND_INF, BOUND_INF)
+
+    return np.concatenate(
+        [
+            q_weight,
+            v_weight,
+            effort_weight,
+            terminal_weight,
+            finite(q_min),
+            finite(q_max),
+            finite(v_max),
+            np.asarray(tau_max, dtype=np.float64),
+            [limit_weight, regularisation],
+        ]
+    ).astype(np.float64)
+
+
+class _Params(NamedTuple):
+    wx: ca.SX
+    wu: ca.SX
+    wN: ca.SX
+    q_min: ca.SX
+    q_max: ca.SX
+    v_max: ca.SX
+    tau_max: ca.SX
+    w_lim: ca.SX
+    reg: ca.SX
+
+
+def _split(P: ca.SX, n: int) -> _Params:
+    sizes = (2 * n, n, 2 * n, n, n, n, n, 1, 1)
+    parts, i = [], 0
+    for s in sizes:
+        parts.append(P[i : i + s])
+        i += s
+    return _Params(*parts)
+
+
+def n_parameters(n: int) -> int:
+    """Length of ``P`` for ``n`` joints."""
+    return 9 * n + 2
+
+
+def _limit_terms(x: ca.SX, p: _Params, n: int) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """Soft state limits: (value, gradient (2n,), Gauss-Newton Hessian diagonal (2n,))."""
+    q, v = x[:n], x[n:]
+    hi_q, lo_q = ca.fmax(q - p.q_max, 0), ca.fmax(p.q_min - q, 0)
+    hi_v, lo_v = ca.fmax(v - p.v_max, 0), ca.fmax(-v - p.v_max, 0)
+    value = p.w_lim * (ca.sumsqr(hi_q) + ca.sumsqr(lo_q) + ca.sumsqr(hi_v) + ca.sumsqr(lo_v))
+    grad = 2 * p.w_lim * ca.vertcat(hi_q - lo_q, hi_v - lo_v)
+    active = ca.vertcat(
+        ca.logic_or(q > p.q_max, q < p.q_min), ca.logic_or(v > p.v_max, -v > p.v_max)
+    )
+    return value, grad, 2 * p.w_lim * active
+
+
+def _stage_derivatives(
+    x: ca.SX, u: ca.SX, xr: ca.SX, tr: ca.SX, p: _Params, n: int
+) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
+    """Stage cost and its derivatives: (l, lx, lxx diag, lu, luu diag)."""
+    ex, eu = x - xr, u - tr
+    lim, lim_grad, lim_hess = _limit_terms(x, p, n)
+    value = ca.dot(p.wx, ex * ex) + ca.dot(p.wu, eu * eu) + lim
+    return value, 2 * p.wx * ex + lim_grad, 2 * p.wx + lim_hess, 2 * p.wu * eu, 2 * p.wu
+
+
+def _cholesky(H: ca.SX) -> ca.SX:
+    """Lower Cholesky factor of a symmetric positive-definite SX matrix (unrolled)."""
+    n = H.shape[0]
+    L = ca.SX.zeros(n, n)
+    for j in range(n):
+        s = H[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        L[j, j] = ca.sqrt(s)
+        for i in range(j + 1, n):
+            s = H[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / L[j, j]
+    return L
+
+
+def _cholesky_solve(L: ca.SX, b: ca.SX) -> ca.SX:
+    """``(L L^T)^{-1} b`` for an (n, m) right-hand side, by two triangular sweeps."""
+    n = L.shape[0]
+    y = ca.SX.zeros(b.shape)
+    for i in range(n):
+        s = b[i, :]
+        for k in range(i):
+            s -= L[i, k] * y[k, :]
+        y[i, :] = s / L[i, i]
+    z = ca.SX.zeros(b.shape)
+    for i in reversed(range(n)):
+        s = y[i, :]
+        for k in range(i + 1, n):
+            s -= L[k, i] * z[k, :]
+        z[i, :] = s / L[i, i]
+    return z
+
+
+def _free_mask(k: ca.SX, grad: ca.SX, lo: ca.SX, hi: ca.SX) -> ca.SX:
+    """1 for a free control, 0 for one at a bound with the gradient pushing outwards."""
+    clamped = ca.logic_or(ca.logic_and(k <= lo, grad > 0), ca.logic_and(k >= hi, grad < 0))
+    return 1 - clamped
+
+
+def _masked(H: ca.SX, free: ca.SX) -> ca.SX:
+    """The Hessian of the free controls, with the identity on the clamped ones."""
+    return H * (free @ free.T) + ca.diag(1 - free)
+
+
+def box_qp(H: ca.SX, g: ca.SX, lo: ca.SX, hi: ca.SX, iterations: int) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """``min 0.5 k^T H k + g^T k`` s.t. ``lo <= k <= hi``: projected Newton, unrolled.
+
+    Starts from the clipped unconstrained minimiser; each step solves the free block
+    and keeps the best of four projected step lengths (never worse than the current k).
+
+    Returns:
+        ``(k, free, L)``: the solution (n,), the free-control mask (n,) and the Cholesky
+        factor of the free block (identity on the clamped controls).
+    """
+
+    def clip(z: ca.SX) -> ca.SX:
+        return ca.fmin(ca.fmax(z, lo), hi)
+
+    def value(z: ca.SX) -> ca.SX:
+        return ca.dot(z, 0.5 * (H @ z) + g)
+
+    k = clip(-_cholesky_solve(_cholesky(H), g))
+    for _ in range(iterations):
+        grad = g + H @ k
+        free = _free_mask(k, grad, lo, hi)
+        d = -_cholesky_solve(_cholesky(_masked(H, free)), free * grad)
+        best, best_value = k, value(k)
+        # Projected Newton steps, and a projected gradient step of length 1 / trace(H)
+        # (<= 1 / lambda_max: it never increases the value), so a bent Newton
+        # direction cannot stall the iteration.
+        candidates = [clip(k + step * d) for step in (1.0, 0.5, 0.25, 0.1)]
+        candidates.append(clip(k - grad / ca.trace(H)))
+        for cand in candidates:
+            cand_value = value(cand)
+            better = cand_value < best_value
+            best = ca.if_else(better, cand, best)
+            best_value = ca.if_else(better, cand_value, best_value)
+        k = best
+    free = _free_mask(k, g + H @ k, lo, hi)
+    return k, free, _cholesky(_masked(H, free))
+
+
+def _riccati(n: int) -> ca.Function:
+    nx = 2 * n
+    Vx, Vxx = ca.SX.sym("Vx", nx), ca.SX.sym("Vxx", nx, nx)
+    A, B = ca.SX.sym("A", nx, nx), ca.SX.sym("B", nx, n)
+    x, u, xr, tr = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
+    P = ca.SX.sym("P", n_parameters(n))
+    p = _split(P, n)
+    _, lx, lxx, lu, luu = _stage_derivatives(x, u, xr, tr, p, n)
+    VA, VB = Vxx @ A, Vxx @ B
+    Qx, Qu = lx + A.T @ Vx, lu + B.T @ Vx
+    Qxx = ca.diag(lxx) + A.T @ VA
+    Qux = B.T @ VA
+    Quu = ca.diag(luu + p.reg) + B.T @ VB
+    Quu = 0.5 * (Quu + Quu.T)
+    k, free, L = box_qp(Quu, Qu, -p.tau_max - u, p.tau_max - u, BOX_ITERATIONS)
+    K = -_cholesky_solve(L, (free @ ca.DM.ones(1, nx)) * Qux)
+    Vx_new = Qx + K.T @ (Quu @ k + Qu) + Qux.T @ k
+    # K is zero on the clamped rows and -Quu_ff^-1 Qux_f on the free ones, so
+    # K^T Quu K + K^T Qux + Qux^T K = Qux^T K (the textbook form, fewer products).
+    Vxx_new = Qxx + Qux.T @ K
+    Vxx_new = 0.5 * (Vxx_new + Vxx_new.T)
+    dV = ca.vertcat(ca.dot(k, Qu), 0.5 * ca.dot(k, Quu @ k))
+    return ca.Function(
+        "ddp_riccati",
+        [Vx, Vxx, A, B, x, u, xr, tr, P],
+        [Vx_new, Vxx_new, k, K, dV],
+        ["Vx", "Vxx", "A", "B", "x", "u", "xr", "tr", "P"],
+        ["Vx_prev", "Vxx_prev", "k", "K", "dV"],
+        {"cse": True},
+    )
+
+
+def _terminal(n: int) -> ca.Function:
+    nx = 2 * n
+    x, xr, P = ca.SX.sym("x", nx), ca.SX.sym("xr", nx), ca.SX.sym("P", n_parameters(n))
+    p = _split(P, n)
+    e = x - xr
+    lim, lim_grad, lim_hess = _limit_terms(x, p, n)
+    cost = ca.dot(p.wN, e * e) + lim
+    return ca.Function(
+        "ddp_terminal",
+        [x, xr, P],
+        [cost, 2 * p.wN * e + lim_grad, ca.densify(ca.diag(2 * p.wN + lim_hess))],
+        ["x", "xr", "P"],
+        ["cost", "Vx", "Vxx"],
+        {"cse": True},
+    )
+
+
+def _stage_cost(n: int) -> ca.Function:
+    nx = 2 * n
+    x, u, xr, tr = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
+    P = ca.SX.sym("P", n_parameters(n))
+    cost = _stage_derivatives(x, u, xr, tr, _split(P, n), n)[0]
+    return ca.Function("ddp_cost", [x, u, xr, tr, P], [cost], {"cse": True})
+
+
+def _forward(n: int, F: ca.Function) -> ca.Function:
+    nx = 2 * n
+    x, xb, ub = ca.MX.sym("x", nx), ca.MX.sym("xb", nx), ca.MX.sym("ub", n)
+    k, K, alpha = ca.MX.sym("k", n), ca.MX.sym("K", n, nx), ca.MX.sym("alpha")
+    xr, tr, P = ca.MX.sym("xr", nx), ca.MX.sym("tr", n), ca.MX.sym("P", n_parameters(n))
+    tau_max = P[8 * n : 9 * n]  # the layout of _split
+    u = ca.fmin(ca.fmax(ub + alpha * k + K @ (x - xb), -tau_max), tau_max)
+    cost = _stage_cost(n)(x, u, xr, tr, P)
+    return ca.Function(
+        "ddp_forward",
+        [x, xb, ub, k, K, alpha, xr, tr, P],
+        [u, F(x, u), cost],
+        ["x", "xb", "ub", "k", "K", "alpha", "xr", "tr", "P"],
+        ["u", "xn", "cost"],
+    )
+
+
+def _lin(n: int, jac: ca.Function) -> ca.Function:
+    x, u = ca.MX.sym("x", 2 * n), ca.MX.sym("u", n)
+    A, B = jac(x, u, ca.MX(2 * n, 1))
+    return ca.Function("ddp_lin", [x, u], [ca.densify(A), ca.densify(B)], ["x", "u"], ["A", "B"])
+
+
+def make_functions(robot: Robot, dt: float, rk4_steps: int) -> list[ca.Function]:
+    """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation)."""
+    F, jac = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[:2]
+    n = robot.nv
+    return [_lin(n, jac), _riccati(n), _forward(n, F), _terminal(n)]
+
+
+_NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")
+
+
+def _recipe(robot: Robot, dt: float, rk4_steps: int) -> str:
+    digest = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+    stage = gauss_newton.stage_recipe(robot, dt, "torque", rk4_steps, True)
+    return "\0".join(["geosyn-mpc-ddp-v1", digest, BOX_ITERATIONS.__repr__(), stage])
+
+
+def ddp_parts(
+    robot: Robot,
+    dt: float,
+    rk4_steps: int,
+    *,
+    compiled: bool = True,
+    progress: Callable[[str], None] | None = None,
+) -> DDPParts:
+    """The stage functions of the DDP solver, compiled through the recipe cache.
+
+    A robot, ``dt`` and ``rk4_steps`` seen before load in milliseconds; a first build
+    generates and compiles C (seconds for 7 DoF; ``progress`` gets a line per step).
+
+    Args:
+        robot: the robot (its model, with gravity).
+        dt: stage length [s].
+        rk4_steps: RK4 steps per stage.
+        compiled: False: the same functions on CasADi's virtual machine (no compiler).
+        progress: receives progress lines of a first build.
+
+    Raises:
+        CodegenError: no compiler, or compiling/loading failed (only when ``compiled``).
+    """
+    if not compiled:
+        return DDPParts(*make_functions(robot, dt, rk4_steps))
+    name = re.sub(r"\W", "_", f"geosyn_ddp_{robot.name}")
+    lib = compile_recipe(
+        name,
+        _recipe(robot, dt, rk4_steps),
+        lambda: make_functions(robot, dt, rk4_steps),
+        load=list(_NAMES),
+        progress=progress,
+    )
+    return DDPParts(*(lib[k] for k in _NAMES))

@@ -1,0 +1,247 @@
+"""`RiccatiSolver`: box-constrained DDP (iLQR) iterations of the torque-level tracking OCP.
+
+The OCP is the one `geosyn.controllers.mpc.ocp` builds with ``control="torque"`` and
+``effort="torque"`` (RK4 on the ABA per stage, quadratic tracking and torque costs, hard
+torque limits), with the position and velocity limits as stiff penalties instead of hard
+bounds (`geosyn.controllers.mpc.ddp`). One iteration is two calls into compiled code:
+
+1. backward: the stage Jacobians along the current trajectory, then the Riccati
+   recursion from the terminal cost, each stage's control update a box QP (Gauss-Newton
+   Hessian, the dynamics' curvature dropped);
+2. forward: the closed-loop rollout ``u_k = clip(u_bar_k + alpha k_k + K_k (x_k - x_bar_k))``,
+   ``x_{k+1} = F(x_k, u_k)`` from the measured state, with its cost.
+
+A cold solve rolls the guess out first and iterates with a backtracking line search on
+``alpha`` until the largest control update is below ``tol`` (relative to the torque
+scale). A warm solve (the previous plan shifted) takes ``warm_iterations`` full steps, a
+real-time iteration like Crocoddyl's one-iteration MPC. Each iteration's two graphs are
+built once per horizon as CasADi MX functions calling the compiled stage functions, so
+Python only enters and leaves twice per iteration.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import casadi as ca
+import numpy as np
+
+from geosyn.controllers.mpc.ddp import DDPParts
+from geosyn.core.calls import numpy_function
+
+__all__ = ["LINE_SEARCH_STEPS", "MAX_REGULARISATION", "ROUNDING", "RiccatiResult", "RiccatiSolver"]
+
+LINE_SEARCH_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125)
+"""Step lengths ``alpha`` tried by a cold solve, longest first."""
+MAX_REGULARISATION = 1e4
+"""Largest control-Hessian regularisation a cold solve's line search raises to before
+it gives up [1/(N m)^2]."""
+ROUNDING = 1e-9
+"""A cold solve whose line search finds no decrease has converged when the predicted
+decrease is below this fraction of the cost (rounding, not a failure)."""
+
+
+class RiccatiResult(NamedTuple):
+    """One solve.
+
+    Attributes:
+        x: (N+1, 2n) states [rad, rad/s]; u: (N, n) torques [N m].
+        K: (N, n, 2n) feedback gains of the last backward pass [N m / rad, N m s / rad].
+        cost: cost of the returned trajectory.
+        iterations: backward passes done.
+        status: ``"converged"``, ``"warm step"``, ``"max_iter"`` or why it failed.
+        success: a finite trajectory that a solve accepts.
+    """
+
+    x: np.ndarray
+    u: np.ndarray
+    K: np.ndarray
+    cost: float
+    iterations: int
+    status: str
+    success: bool
+
+
+class RiccatiSolver:
+    """Backward and forward passes over ``N`` stages (graphs built once; allocates).
+
+    Args:
+        parts: the stage functions (`geosyn.controllers.mpc.ddp.ddp_parts`).
+        N: number of stages.
+        n: number of joints.
+        P: the parameter vector (`geosyn.controllers.mpc.ddp.parameter_vector`).
+        tol: convergence tolerance of cold solves: the largest control update divided
+            by ``1 + max |u|`` [-].
+        max_iter: iteration limit of cold solves.
+        warm_iterations: iterations of a warm solve (full steps, no line search).
+    """
+
+    def __init__(
+        self,
+        parts: DDPParts,
+        N: int,
+        n: int,
+        P: np.ndarray,
+        *,
+        tol: float,
+        max_iter: int,
+        warm_iterations: int,
+    ) -> None:
+        self.N, self.n, self.P = N, n, np.asarray(P, dtype=np.float64)
+        self.tol, self.max_iter, self.warm_iterations = tol, max_iter, warm_iterations
+        self._backward = numpy_function(_backward_graph(parts, N, n))
+        self._forward = numpy_function(_forward_graph(parts, N, n))
+        self._zero_k = np.zeros((n, N))
+        self._zero_K = np.zeros((n, 2 * n * N))
+
+    def solve(
+        self,
+        x0: np.ndarray,
+        x_bar: np.ndarray,
+        u_bar: np.ndarray,
+        x_r: np.ndarray,
+        tau_r: np.ndarray,
+        *,
+        warm: bool,
+        K_guess: np.ndarray | None = None,
+    ) -> RiccatiResult:
+        """Iterate from the guess ``(x_bar, u_bar)``.
+
+        Args:
+            x0: (2n,) measured state [rad, rad/s].
+            x_bar: (N+1, 2n) state guess: a rollout of ``u_bar`` (from any start) for a
+                warm solve; for a cold solve the states the rollout's feedback acts on.
+            u_bar: (N, n) torque guess [N m].
+            x_r: (N+1, 2n) reference states; tau_r: (N, n) reference torques [N m].
+            warm: a warm solve (see the class docstring).
+            K_guess: (N, n, 2n) feedback of a cold solve's first rollout,
+                ``u_k = clip(u_bar_k + K_k (x_k - x_bar_k))`` (None: open loop). A
+                stabilising feedback keeps the first guess near ``x_bar`` when the open
+                loop would drift far (and the Gauss-Newton model with it).
+        """
+        XR, TR, P = x_r.T, tau_r.T, self.P.copy()  # the graphs' buffers copy them in
+        base_reg = float(P[-1])
+        scale = 1.0 + float(np.max(np.abs(u_bar))) if u_bar.size else 1.0
+        if warm:
+            Xb, Ub, cost = x_bar.T, u_bar.T, np.inf
+            iterations = self.warm_iterations
+        else:
+            K0 = self._zero_K if K_guess is None else _stack_gains(K_guess)
+            X, U, c = self._forward(x0, x_bar.T, u_bar.T, self._zero_k, K0, 0.0, XR, TR, P)
+            Xb, Ub, cost = X.copy(), U.copy(), float(c[0])
+            iterations = self.max_iter
+        K = self._zero_K
+        status = "max_iter"
+        for it in range(iterations):
+            k, K, dV = (a.copy() for a in self._backward(Xb, Ub, XR, TR, P))
+            if not (np.all(np.isfinite(k)) and np.all(np.isfinite(K))):
+                return self._failed(Xb, Ub, it + 1, "non-finite backward pass")
+            accepted, alpha, c_new = False, 1.0, np.nan
+            for alpha in (1.0,) if warm else LINE_SEARCH_STEPS:
+                X, U, c = self._forward(x0, Xb, Ub, k, K, alpha, XR, TR, P)
+                c_new = float(c[0])
+                decrease = c_new <= cost + 1e-4 * alpha * min(float(dV[0]), 0.0)
+                if np.isfinite(c_new) and (warm or decrease):
+                    accepted = True
+                    break
+            if not accepted:
+                if warm or not np.isfinite(cost):
+                    return self._failed(Xb, Ub, it + 1, "non-finite rollout")
+                if -float(dV[0]) <= ROUNDING * max(cost, 1.0):
+                    status = "converged (no decrease left above rounding)"
+                    return self._result(Xb, Ub, K, cost, it + 1, status, True)
+                if P[-1] >= MAX_REGULARISATION:
+                    return self._failed(Xb, Ub, it + 1, "line search failed")
+                P[-1] = max(100.0 * P[-1], 1e-6)  # Levenberg-Marquardt: shorter steps
+                continue
+            P[-1] = max(0.1 * P[-1], base_reg)
+            step = float(np.max(np.abs(alpha * k))) if k.size else 0.0
+            Xb, Ub, cost = X.copy(), U.copy(), c_new
+            if warm:
+                status = "warm step"
+            elif step <= self.tol * scale:
+                return self._result(Xb, Ub, K, cost, it + 1, "converged", True)
+        return self._result(Xb, Ub, K, cost, iterations, status, warm)
+
+    def _result(
+        self, X: np.ndarray, U: np.ndarray, K: np.ndarray, cost: float, it: int, status: str,
+        success: bool,
+    ) -> RiccatiResult:  # fmt: skip
+        n, N = self.n, self.N
+        gains = K.reshape(n, 2 * n, N, order="F").transpose(2, 0, 1).copy()
+        return RiccatiResult(X.T.copy(), U.T.copy(), gains, cost, it, status, success)
+
+    def _failed(self, X: np.ndarray, U: np.ndarray, it: int, status: str) -> RiccatiResult:
+        return self._result(X, U, self._zero_K, np.nan, it, status, False)
+
+
+def _stack_gains(K: np.ndarray) -> np.ndarray:
+    """(N, n, 2n) gains -> the (n, 2n N) block row of the graphs."""
+    return np.ascontiguousarray(np.concatenate(list(K), axis=1))
+
+
+class _Inputs(NamedTuple):
+    X: ca.MX
+    U: ca.MX
+    XR: ca.MX
+    TR: ca.MX
+    P: ca.MX
+
+
+def _inputs(N: int, n: int, n_p: int) -> _Inputs:
+    return _Inputs(
+        ca.MX.sym("X", 2 * n, N + 1),
+        ca.MX.sym("U", n, N),
+        ca.MX.sym("XR", 2 * n, N + 1),
+        ca.MX.sym("TR", n, N),
+        ca.MX.sym("P", n_p),
+    )
+
+
+def _backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
+    """``(X, U, XR, TR, P) -> (k (n, N), K (n, 2n N), dV (2,))`` (MX, N calls per piece)."""
+    nx = 2 * n
+    s = _inputs(N, n, parts.riccati.size1_in(8))
+    A_all, B_all = parts.lin.map(N)(s.X[:, :N], s.U)
+    _, Vx, Vxx = parts.terminal(s.X[:, N], s.XR[:, N], s.P)
+    ks: list[ca.MX] = [ca.MX()] * N
+    Ks: list[ca.MX] = [ca.MX()] * N
+    dV = ca.MX.zeros(2)
+    for k in reversed(range(N)):
+        A, B = A_all[:, k * nx : (k + 1) * nx], B_all[:, k * n : (k + 1) * n]
+        Vx, Vxx, ks[k], Ks[k], dv = parts.riccati(
+            Vx, Vxx, A, B, s.X[:, k], s.U[:, k], s.XR[:, k], s.TR[:, k], s.P
+        )
+        dV = dV + dv
+    return ca.Function(
+        "ddp_backward",
+        list(s),
+        [ca.horzcat(*ks), ca.horzcat(*Ks), dV],
+        ["X", "U", "XR", "TR", "P"],
+        ["k", "K", "dV"],
+    )
+
+
+def _forward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
+    """``(x0, X, U, k, K, alpha, XR, TR, P) -> (X', U', cost)`` (MX, N forward steps)."""
+    nx = 2 * n
+    s = _inputs(N, n, parts.riccati.size1_in(8))
+    x0, k_all, K_all = ca.MX.sym("x0", nx), ca.MX.sym("k", n, N), ca.MX.sym("K", n, nx * N)
+    alpha = ca.MX.sym("alpha")
+    x, xs, us, cost = x0, [x0], [], ca.MX(0)
+    for k in range(N):
+        u, x, c = parts.forward(
+            x, s.X[:, k], s.U[:, k], k_all[:, k], K_all[:, k * nx : (k + 1) * nx], alpha,
+            s.XR[:, k], s.TR[:, k], s.P,
+        )  # fmt: skip
+        xs.append(x)
+        us.append(u)
+        cost = cost + c
+    cost = cost + parts.terminal(x, s.XR[:, N], s.P)[0]
+    return ca.Function(
+        "ddp_rollout",
+        [x0, s.X, s.U, k_all, K_all, alpha, s.XR, s.TR, s.P],
+        [ca.horzcat(*xs), ca.horzcat(*us), cost],
+        ["x0", "X_bar", "U_bar", "k", "K", "alpha", "XR", "TR", "P"],
+        ["X", "U", "cost"],
+    )

@@ -1,0 +1,149 @@
+"""The box-DDP solver of the torque-level MPC (``GeodesicMPC(solver="ddp")``, issue 13):
+its box QP against SciPy, its feedback gains against finite differences of re-solved
+problems, its warm step against a cold solve, the reference sampler against
+`sample_reference`, and its refusals of bad input."""
+
+from __future__ import annotations
+
+import functools
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from conftest import get_metric, get_robot
+from geosyn.controllers.mpc import GeodesicMPC
+from geosyn.controllers.mpc.ddp import BOX_ITERATIONS, box_qp
+from geosyn.controllers.mpc.plan import ReferenceSampler, sample_reference
+from geosyn.controllers.reference import GeodesicReference
+from geosyn.core.errors import GeosynError, InvalidArgument
+from geosyn.synergies.synergy import GeodesicSynergy
+
+Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])  # Panda "ready" [rad]
+V0 = np.array([0.4, 0.3, -0.3, 0.4, 0.5, -0.4, 0.6])  # [rad/s]
+
+
+@functools.cache
+def reference() -> GeodesicReference:
+    synergy = GeodesicSynergy(get_metric("panda"), Q0, V0)
+    return GeodesicReference(synergy, time_scale=1.5, duration=1.0, steps=200)
+
+
+def _mpc(**kw) -> GeodesicMPC:
+    options = {"horizon": 10, "dt": 0.02, "control": "torque", "solver": "ddp", **kw}
+    return GeodesicMPC(get_robot("panda"), get_metric("panda"), reference=reference(), **options)
+
+
+def test_box_qp_matches_scipy_on_seeded_problems() -> None:
+    """The unrolled projected Newton reaches the box-QP optimum (L-BFGS-B to 1e-12)."""
+    n = 7
+    H, g, lo, hi = (
+        ca.SX.sym(s, *d) for s, d in [("H", (n, n)), ("g", (n, 1)), ("lo", (n, 1)), ("hi", (n, 1))]
+    )
+    k, free, _ = box_qp(H, g, lo, hi, BOX_ITERATIONS)
+    qp = ca.Function("qp", [H, g, lo, hi], [k, free])
+    rng = np.random.default_rng(3)
+    active_counts = []
+    for _ in range(100):
+        M = rng.normal(size=(n, n))
+        Hn, gn = M @ M.T + 0.1 * np.eye(n), 3.0 * rng.normal(size=n)
+        lon, hin = -rng.uniform(0.1, 1.0, n), rng.uniform(0.1, 1.0, n)
+        kk, ff = (np.asarray(a).ravel() for a in qp(Hn, gn, lon, hin))
+        ref = minimize(
+            lambda z, H=Hn, g=gn: 0.5 * z @ H @ z + g @ z, np.zeros(n),
+            jac=lambda z, H=Hn, g=gn: H @ z + g,
+            bounds=list(zip(lon, hin, strict=True)), method="L-BFGS-B",
+            options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 10000},
+        )  # fmt: skip
+        value = 0.5 * kk @ Hn @ kk + gn @ kk
+        assert np.all(kk >= lon) and np.all(kk <= hin)
+        assert value <= ref.fun + 1e-9 * (1 + abs(ref.fun)), (value, ref.fun)
+        np.testing.assert_allclose(kk, ref.x, atol=1e-5)
+        # The free mask is the complement of the bounds that hold k with an outward gradient.
+        grad = Hn @ kk + gn
+        clamped = ((kk <= lon) & (grad > 0)) | ((kk >= hin) & (grad < 0))
+        np.testing.assert_array_equal(ff, 1.0 - clamped)
+        active_counts.append(int(clamped.sum()))
+    assert max(active_counts) >= 3  # the draw exercises several active bounds at once
+
+
+def test_feedback_gain_is_the_sensitivity_of_the_optimal_torque() -> None:
+    """At the optimum, ``K_0 = d u_0^* / d x_0`` (finite differences of converged cold
+    solves; Gauss-Newton drops the dynamics' curvature, so agreement is to ~1 %)."""
+    mpc = _mpc(tol=1e-12, max_iter=200)
+    q, v = reference().sample(0.0)[:2]
+    x0 = np.concatenate([q, v])
+    mpc.reset(q, v)
+    plan = mpc.solve(0.0, q, v)
+    assert plan.success and plan.K is not None
+    assert np.all(np.abs(plan.u) < get_robot("panda").tau_max)  # no bound active
+    h = 1e-5
+    fd = np.empty((7, 14))
+    for i in range(14):
+        dx = np.zeros(14)
+        dx[i] = h
+        u = []
+        for sign in (1.0, -1.0):
+            mpc.reset(q, v)
+            x = x0 + sign * dx
+            u.append(mpc.solve(0.0, x[:7], x[7:]).u[0])
+        fd[:, i] = (u[0] - u[1]) / (2 * h)
+    err = np.linalg.norm(plan.K[0] - fd) / np.linalg.norm(fd)
+    assert err < 1e-2, err
+
+
+def test_a_warm_step_from_the_optimum_stays_at_the_optimum() -> None:
+    """Shifting a converged plan by one stage and taking one DDP step from the state it
+    predicts lands on the cold solve of that problem (RTI from a good guess: 1e-3 rel.)."""
+    mpc = _mpc(tol=1e-12, max_iter=200)
+    q, v = reference().sample(0.0)[:2]
+    q = q + 0.02
+    mpc.reset(q, v)
+    first = mpc.solve(0.0, q, v)
+    mpc._plan = first  # the controller keeps a successful plan the same way
+    x1 = first.x[1]
+    warm = mpc.solve(mpc.dt, x1[:7], x1[7:])
+    assert warm.status == "warm step" and warm.iterations == 1
+    cold = _mpc(tol=1e-12, max_iter=200)
+    cold.reset(x1[:7], x1[7:])
+    ref = cold.solve(mpc.dt, x1[:7], x1[7:])
+    err = np.linalg.norm(warm.u[0] - ref.u[0]) / np.linalg.norm(ref.u[0])
+    assert err < 1e-3, err
+
+
+def test_reference_sampler_shifts_what_sample_reference_computes() -> None:
+    robot = get_robot("panda")
+    model, data = robot.model, robot.model.createData()
+    sampler = ReferenceSampler(model, data)
+    for t in (0.0, 0.02, 0.06, 0.06, 0.1, 0.31, 0.33):  # whole-stage shifts, a repeat, a jump
+        got = sampler.sample(reference(), t, 10, 0.02)
+        want = sample_reference(reference(), model, data, t, 10, 0.02)
+        for a, b in zip(got, want, strict=True):
+            assert a.shape == b.shape
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"control": "acceleration"}, "control='torque'"),
+        ({"effort": "metric"}, "effort='torque'"),
+        ({"hessian": "exact"}, "hessian"),
+        ({"solver_options": {"max_iter": 3}}, "warm_iterations"),
+        ({"solver_options": {"warm_iterations": 0}}, "warm_iterations"),
+        ({"solver": "ddpx"}, "solver"),
+    ],
+)
+def test_bad_ddp_settings_are_refused_by_name(kwargs: dict, named: str) -> None:
+    with pytest.raises(InvalidArgument, match=named) as info:
+        _mpc(**kwargs)
+    assert isinstance(info.value, GeosynError)
+
+
+def test_the_open_loop_ocp_still_solves_with_ddp_tracking() -> None:
+    """``solve_open_loop`` uses IPOPT when the tracking solver is DDP (documented)."""
+    mpc = _mpc()
+    sol = mpc.solve_open_loop(Q0, Q0 + 0.1)
+    assert sol.success, sol.status
+    np.testing.assert_allclose(sol.q[-1], Q0 + 0.1, atol=1e-6)
