@@ -14,7 +14,7 @@ from scipy.optimize import minimize
 
 from conftest import get_metric, get_robot
 from geosyn.controllers.mpc import GeodesicMPC
-from geosyn.controllers.mpc.ddp import BOX_ITERATIONS, box_qp
+from geosyn.controllers.mpc.ddp import BOX_ITERATIONS, box_qp, riccati_step
 from geosyn.controllers.mpc.plan import ReferenceSampler, sample_reference
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import GeosynError, InvalidArgument
@@ -147,3 +147,26 @@ def test_the_open_loop_ocp_still_solves_with_ddp_tracking() -> None:
     sol = mpc.solve_open_loop(Q0, Q0 + 0.1)
     assert sol.success, sol.status
     np.testing.assert_allclose(sol.q[-1], Q0 + 0.1, atol=1e-6)
+
+
+def test_mx_riccati_step_equals_the_sx_one() -> None:
+    """Robots beyond SX_RICCATI_MAX_JOINTS get the MX form (LDL^T solves, loops): the
+    same step to rounding, with and without active torque bounds."""
+    n = 7
+    sx, mx = riccati_step(n, ca.SX), riccati_step(n, ca.MX)
+    rng = np.random.default_rng(5)
+    for tau_scale in (1e3, 0.5):  # bounds inactive, then several active
+        M = rng.normal(size=(2 * n, 2 * n))
+        args = [
+            rng.normal(size=2 * n), M @ M.T, np.eye(2 * n) + 0.02 * rng.normal(size=(2 * n, 2 * n)),
+            0.02 * rng.normal(size=(2 * n, n)), rng.normal(size=2 * n), rng.normal(size=n),
+            rng.normal(size=2 * n), rng.normal(size=n),
+            np.concatenate([np.full(2 * n, 10.0), np.full(n, 1e-3), np.full(2 * n, 100.0),
+                            np.full(n, -3.0), np.full(n, 3.0), np.full(n, 2.0),
+                            np.full(n, tau_scale), [1e6, 1e-9]]),
+        ]  # fmt: skip
+        out_sx, out_mx = sx(*args), mx(*args)
+        for a, b in zip(out_sx, out_mx, strict=True):
+            np.testing.assert_allclose(np.asarray(b), np.asarray(a), rtol=1e-9, atol=1e-9)
+        if tau_scale < 1:
+            assert np.any(np.abs(np.asarray(out_sx[2]).ravel() + args[5]) >= tau_scale - 1e-12)

@@ -29,7 +29,7 @@ import hashlib
 import re
 from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -41,14 +41,21 @@ from geosyn.robots.robot import Robot
 __all__ = [
     "BOX_ITERATIONS",
     "BOUND_INF",
+    "SX_RICCATI_MAX_JOINTS",
     "DDPParts",
     "ddp_parts",
     "parameter_vector",
+    "riccati_step",
+    "spd_solve",
 ]
 
 BOX_ITERATIONS = 6
 """Projected-Newton steps of the box QP per stage (from the clipped unconstrained step;
 exact once the active set is found, which takes one step per newly active joint)."""
+_Sym = TypeVar("_Sym", ca.SX, ca.MX)
+
+SX_RICCATI_MAX_JOINTS = 12
+"""Robots with more joints get the MX form of the Riccati step (see `_riccati`)."""
 BOUND_INF = 1e10
 """An infinite joint limit is passed as this value [rad, rad/s]."""
 
@@ -195,6 +202,15 @@ def _cholesky_solve(L: ca.SX, b: ca.SX) -> ca.SX:
     return z
 
 
+def spd_solve(H: _Sym, b: _Sym) -> _Sym:
+    """``H^{-1} b`` for a symmetric positive-definite ``H``: an unrolled Cholesky
+    factorisation in SX (small, fastest), CasADi's LDL^T solver in MX (compact code for
+    many joints)."""
+    if isinstance(H, ca.MX):
+        return ca.solve(H, b, "ldl")
+    return _cholesky_solve(_cholesky(H), b)
+
+
 def _free_mask(k: ca.SX, grad: ca.SX, lo: ca.SX, hi: ca.SX) -> ca.SX:
     """1 for a free control, 0 for one at a bound with the gradient pushing outwards."""
     clamped = ca.logic_or(ca.logic_and(k <= lo, grad > 0), ca.logic_and(k >= hi, grad < 0))
@@ -206,15 +222,15 @@ def _masked(H: ca.SX, free: ca.SX) -> ca.SX:
     return H * (free @ free.T) + ca.diag(1 - free)
 
 
-def box_qp(H: ca.SX, g: ca.SX, lo: ca.SX, hi: ca.SX, iterations: int) -> tuple[ca.SX, ca.SX, ca.SX]:
+def box_qp(H: _Sym, g: _Sym, lo: _Sym, hi: _Sym, iterations: int) -> tuple[_Sym, _Sym, _Sym]:
     """``min 0.5 k^T H k + g^T k`` s.t. ``lo <= k <= hi``: projected Newton, unrolled.
 
     Starts from the clipped unconstrained minimiser; each step solves the free block
     and keeps the best of four projected step lengths (never worse than the current k).
 
     Returns:
-        ``(k, free, L)``: the solution (n,), the free-control mask (n,) and the Cholesky
-        factor of the free block (identity on the clamped controls).
+        ``(k, free, H_free)``: the solution (n,), the free-control mask (n,) and the
+        Hessian of the free controls (identity on the clamped ones).
     """
 
     def clip(z: ca.SX) -> ca.SX:
@@ -223,11 +239,11 @@ def box_qp(H: ca.SX, g: ca.SX, lo: ca.SX, hi: ca.SX, iterations: int) -> tuple[c
     def value(z: ca.SX) -> ca.SX:
         return ca.dot(z, 0.5 * (H @ z) + g)
 
-    k = clip(-_cholesky_solve(_cholesky(H), g))
+    k = clip(-spd_solve(H, g))
     for _ in range(iterations):
         grad = g + H @ k
         free = _free_mask(k, grad, lo, hi)
-        d = -_cholesky_solve(_cholesky(_masked(H, free)), free * grad)
+        d = -spd_solve(_masked(H, free), free * grad)
         best, best_value = k, value(k)
         # Projected Newton steps, and a projected gradient step of length 1 / trace(H)
         # (<= 1 / lambda_max: it never increases the value), so a bent Newton
@@ -241,15 +257,21 @@ def box_qp(H: ca.SX, g: ca.SX, lo: ca.SX, hi: ca.SX, iterations: int) -> tuple[c
             best_value = ca.if_else(better, cand_value, best_value)
         k = best
     free = _free_mask(k, g + H @ k, lo, hi)
-    return k, free, _cholesky(_masked(H, free))
+    return k, free, _masked(H, free)
 
 
-def _riccati(n: int) -> ca.Function:
+def riccati_step(n: int, sym: type | None = None) -> ca.Function:
+    """The Riccati step ``ddp_riccati`` for ``n`` joints (see `DDPParts`): ``sym`` SX
+    (straight-line code) or MX (loops and an LDL^T solver); None: SX up to
+    `SX_RICCATI_MAX_JOINTS` joints, MX beyond (the SX form grows as n^3: 60 MB of C at
+    32 joints)."""
     nx = 2 * n
-    Vx, Vxx = ca.SX.sym("Vx", nx), ca.SX.sym("Vxx", nx, nx)
-    A, B = ca.SX.sym("A", nx, nx), ca.SX.sym("B", nx, n)
-    x, u, xr, tr = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
-    P = ca.SX.sym("P", n_parameters(n))
+    if sym is None:
+        sym = ca.SX if n <= SX_RICCATI_MAX_JOINTS else ca.MX
+    Vx, Vxx = sym.sym("Vx", nx), sym.sym("Vxx", nx, nx)
+    A, B = sym.sym("A", nx, nx), sym.sym("B", nx, n)
+    x, u, xr, tr = sym.sym("x", nx), sym.sym("u", n), sym.sym("xr", nx), sym.sym("tr", n)
+    P = sym.sym("P", n_parameters(n))
     p = _split(P, n)
     _, lx, lxx, lu, luu = _stage_derivatives(x, u, xr, tr, p, n)
     VA, VB = Vxx @ A, Vxx @ B
@@ -258,8 +280,8 @@ def _riccati(n: int) -> ca.Function:
     Qux = B.T @ VA
     Quu = ca.diag(luu + p.reg) + B.T @ VB
     Quu = 0.5 * (Quu + Quu.T)
-    k, free, L = box_qp(Quu, Qu, -p.tau_max - u, p.tau_max - u, BOX_ITERATIONS)
-    K = -_cholesky_solve(L, (free @ ca.DM.ones(1, nx)) * Qux)
+    k, free, H_free = box_qp(Quu, Qu, -p.tau_max - u, p.tau_max - u, BOX_ITERATIONS)
+    K = -spd_solve(H_free, (free @ ca.DM.ones(1, nx)) * Qux)
     Vx_new = Qx + K.T @ (Quu @ k + Qu) + Qux.T @ k
     # K is zero on the clamped rows and -Quu_ff^-1 Qux_f on the free ones, so
     # K^T Quu K + K^T Qux + Qux^T K = Qux^T K (the textbook form, fewer products).
@@ -272,7 +294,7 @@ def _riccati(n: int) -> ca.Function:
         [Vx_new, Vxx_new, k, K, dV],
         ["Vx", "Vxx", "A", "B", "x", "u", "xr", "tr", "P"],
         ["Vx_prev", "Vxx_prev", "k", "K", "dV"],
-        {"cse": True},
+        {"cse": True} if sym is ca.SX else {},
     )
 
 
@@ -328,7 +350,7 @@ def make_functions(robot: Robot, dt: float, rk4_steps: int) -> list[ca.Function]
     """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation)."""
     F, jac = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[:2]
     n = robot.nv
-    return [_lin(n, jac), _riccati(n), _forward(n, F), _terminal(n)]
+    return [_lin(n, jac), riccati_step(n), _forward(n, F), _terminal(n)]
 
 
 _NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")
