@@ -36,6 +36,7 @@ import numpy as np
 
 from geosyn.controllers.mpc import gauss_newton
 from geosyn.core.codegen import compile_recipe
+from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
 
 __all__ = [
@@ -46,10 +47,11 @@ __all__ = [
     "ddp_parts",
     "parameter_vector",
     "riccati_step",
+    "rk4_linearisation",
     "spd_solve",
 ]
 
-BOX_ITERATIONS = 6
+BOX_ITERATIONS = 5
 """Projected-Newton steps of the box QP per stage (from the clipped unconstrained step;
 exact once the active set is found, which takes one step per newly active joint)."""
 _Sym = TypeVar("_Sym", ca.SX, ca.MX)
@@ -340,17 +342,56 @@ def _forward(n: int, F: ca.Function) -> ca.Function:
     )
 
 
-def _lin(n: int, jac: ca.Function) -> ca.Function:
+def rk4_linearisation(robot: Robot, dt: float, rk4_steps: int) -> ca.Function:
+    """``ddp_lin: (x, u) -> (A, B)``, the Jacobians of the RK4 step on the ABA (gravity
+    on), by the chain rule through RK4 (as `gauss_newton.rk4_parts`) with one SX call
+    per RK4 stage giving the ODE's value and Jacobian together (no separate ODE call)."""
+    n = robot.nv
+    g = np.asarray(robot.gravity, dtype=np.float64)
+    q, v, u_s, a_s = (ca.SX.sym(name, n) for name in ("q", "v", "u", "a"))
+    acc = symbolic.aba(robot.model, q, v, u_s, g)
+    # d(ABA)/d(q, v) = -M^-1 d(RNEA)/d(q, v) at a = ABA, d(ABA)/du = M^-1: 28 % fewer
+    # operations than differentiating the ABA itself (panda: 14.1k against 19.5k).
+    d_rnea = ca.jacobian(symbolic.rnea(robot.model, q, v, a_s, g), ca.vertcat(q, v))
+    sens = spd_solve(symbolic.crba(robot.model, q), ca.horzcat(-d_rnea, ca.SX.eye(n)))
+    sens = ca.substitute(sens, a_s, acc)
+    top = ca.horzcat(ca.SX(n, n), ca.SX.eye(n))
+    ode = ca.Function(
+        "ddp_ode",
+        [ca.vertcat(q, v), u_s],
+        [
+            ca.vertcat(v, acc),
+            ca.vertcat(top, sens[:, : 2 * n]),
+            ca.vertcat(ca.SX(n, n), sens[:, 2 * n :]),
+        ],
+        {"cse": True},
+    )
     x, u = ca.MX.sym("x", 2 * n), ca.MX.sym("u", n)
-    A, B = jac(x, u, ca.MX(2 * n, 1))
-    return ca.Function("ddp_lin", [x, u], [ca.densify(A), ca.densify(B)], ["x", "u"], ["A", "B"])
+    hs = dt / rk4_steps
+    weights = (hs / 6.0, hs / 3.0, hs / 3.0, hs / 6.0)
+    xk, Dx, Du = x, ca.MX.eye(2 * n), ca.MX(2 * n, n)
+    for _ in range(rk4_steps):
+        k_prev: ca.MX | None = None
+        dx_prev, du_prev = ca.MX(2 * n, 2 * n), ca.MX(2 * n, n)
+        x_next, Dx_next, Du_next = xk, Dx, Du
+        for c, w in zip((0.0, 0.5 * hs, 0.5 * hs, hs), weights, strict=True):
+            k_i, A, B = ode(xk if k_prev is None else xk + c * k_prev, u)
+            dx_prev, du_prev = A @ (Dx + c * dx_prev), A @ (Du + c * du_prev) + B
+            x_next, Dx_next, Du_next = (
+                x_next + w * k_i,
+                Dx_next + w * dx_prev,
+                Du_next + w * du_prev,
+            )
+            k_prev = k_i
+        xk, Dx, Du = x_next, Dx_next, Du_next
+    return ca.Function("ddp_lin", [x, u], [ca.densify(Dx), ca.densify(Du)], ["x", "u"], ["A", "B"])
 
 
 def make_functions(robot: Robot, dt: float, rk4_steps: int) -> list[ca.Function]:
     """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation)."""
-    F, jac = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[:2]
+    F = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[0]
     n = robot.nv
-    return [_lin(n, jac), riccati_step(n), _forward(n, F), _terminal(n)]
+    return [rk4_linearisation(robot, dt, rk4_steps), riccati_step(n), _forward(n, F), _terminal(n)]
 
 
 _NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")

@@ -116,7 +116,7 @@ class ReferenceSampler:
         self._last = None
 
     def sample(self, reference: Reference, t: float, N: int, dt: float) -> ReferenceSamples:
-        """The samples of `sample_reference` (arrays owned by the caller)."""
+        """The samples of `sample_reference` (the next call reads them: do not modify)."""
         last = self._last
         j = -1
         if last is not None and last[0] is reference and last[2] == N and last[3] == dt:
@@ -124,18 +124,31 @@ class ReferenceSampler:
             if abs(t - last[1] - j * dt) > EPS_T:
                 j = -1
         if 0 <= j <= N and last is not None:
-            prev = last[4]
-            if j == 0:
-                out = ReferenceSamples(*(a.copy() for a in prev))
-            else:  # stages N - j .. N are new (row N - j of q, v, a is sampled again)
-                tail = sample_reference(reference, self._model, self._data, t + (N - j) * dt, j, dt)
-                out = ReferenceSamples(
-                    *(np.concatenate([a[j:N], b]) for a, b in zip(prev, tail, strict=True))
-                )
+            out = self._shifted(last[4], reference, t, N, dt, j)
         else:
             out = sample_reference(reference, self._model, self._data, t, N, dt)
         self._last = (reference, t, N, dt, out)
         return out
+
+    def _shifted(
+        self, prev: ReferenceSamples, reference: Reference, t: float, N: int, dt: float, j: int
+    ) -> ReferenceSamples:
+        """``prev`` shifted by ``j`` stages: samples at stages ``N - j + 1 .. N`` and the
+        inverse dynamics at ``N - j .. N - 1`` are new."""
+        q, v, a = (np.empty_like(x) for x in prev[:3])
+        tau = np.empty_like(prev.tau)
+        keep = N + 1 - j
+        q[:keep], v[:keep], a[:keep], tau[: N - j] = (
+            prev.q[j:],
+            prev.v[j:],
+            prev.a[j:],
+            prev.tau[j:],
+        )
+        for k in range(keep, N + 1):
+            q[k], v[k], a[k] = reference.sample(t + k * dt)
+        for k in range(N - j, N):
+            tau[k] = pin.rnea(self._model, self._data, q[k], v[k], a[k])
+        return ReferenceSamples(q, v, a, tau)
 
 
 def plan_state(plan: MPCPlan, t: float, dt: float) -> tuple[int, np.ndarray, np.ndarray]:

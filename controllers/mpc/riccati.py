@@ -119,7 +119,14 @@ class RiccatiSolver:
                 stabilising feedback keeps the first guess near ``x_bar`` when the open
                 loop would drift far (and the Gauss-Newton model with it).
         """
-        XR, TR, P = x_r.T, tau_r.T, self.P.copy()  # the graphs' buffers copy them in
+        XR, TR, P = x_r.T, tau_r.T, self.P  # the graphs' buffers copy them in
+        if warm and self.warm_iterations == 1:  # the real-time iteration, lean
+            k, K, _ = self._backward(x_bar.T, u_bar.T, XR, TR, P)
+            X, U, c = self._forward(x0, x_bar.T, u_bar.T, k, K, 1.0, XR, TR, P)
+            if not np.isfinite(c[0]):
+                return self._failed(x_bar.T, u_bar.T, 1, "non-finite warm step")
+            return self._result(X, U, K, float(c[0]), 1, "warm step", True)
+        P = P.copy()
         base_reg = float(P[-1])
         scale = 1.0 + float(np.max(np.abs(u_bar))) if u_bar.size else 1.0
         if warm:

@@ -72,7 +72,9 @@ class QPConfig(_ControllerBase):
 
 class MPCConfig(_ControllerBase):
     """`GeodesicMPC`. ``effort``/``tau_weight`` None: chosen from ``control`` by the
-    controller; ``solver_options`` are passed to the NLP solver as they are."""
+    controller; ``solver_options`` are passed to the NLP solver as they are (fatrop,
+    ipopt), or are the box-DDP's options (``solver: ddp``, torque control and effort:
+    ``warm_iterations``, ``limit_weight``, ``regularisation``)."""
 
     builds = (GeodesicMPC,)
     type: Literal["mpc"]
