@@ -29,7 +29,7 @@ import hashlib
 import re
 from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple, TypeVar
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -54,7 +54,7 @@ __all__ = [
 BOX_ITERATIONS = 5
 """Projected-Newton steps of the box QP per stage (from the clipped unconstrained step;
 exact once the active set is found, which takes one step per newly active joint)."""
-_Sym = TypeVar("_Sym", ca.SX, ca.MX)
+_Sym = Any  # a CasADi SX or MX expression (the box QP and solves are written for both)
 
 SX_RICCATI_MAX_JOINTS = 12
 """Robots with more joints get the MX form of the Riccati step (see `_riccati`)."""
@@ -213,13 +213,13 @@ def spd_solve(H: _Sym, b: _Sym) -> _Sym:
     return _cholesky_solve(_cholesky(H), b)
 
 
-def _free_mask(k: ca.SX, grad: ca.SX, lo: ca.SX, hi: ca.SX) -> ca.SX:
+def _free_mask(k: _Sym, grad: _Sym, lo: _Sym, hi: _Sym) -> _Sym:
     """1 for a free control, 0 for one at a bound with the gradient pushing outwards."""
     clamped = ca.logic_or(ca.logic_and(k <= lo, grad > 0), ca.logic_and(k >= hi, grad < 0))
     return 1 - clamped
 
 
-def _masked(H: ca.SX, free: ca.SX) -> ca.SX:
+def _masked(H: _Sym, free: _Sym) -> _Sym:
     """The Hessian of the free controls, with the identity on the clamped ones."""
     return H * (free @ free.T) + ca.diag(1 - free)
 
@@ -262,7 +262,7 @@ def box_qp(H: _Sym, g: _Sym, lo: _Sym, hi: _Sym, iterations: int) -> tuple[_Sym,
     return k, free, _masked(H, free)
 
 
-def riccati_step(n: int, sym: type | None = None) -> ca.Function:
+def riccati_step(n: int, sym: Any = None) -> ca.Function:
     """The Riccati step ``ddp_riccati`` for ``n`` joints (see `DDPParts`): ``sym`` SX
     (straight-line code) or MX (loops and an LDL^T solver); None: SX up to
     `SX_RICCATI_MAX_JOINTS` joints, MX beyond (the SX form grows as n^3: 60 MB of C at
