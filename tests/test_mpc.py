@@ -202,14 +202,14 @@ def test_failure_after_success_keeps_previous_plan() -> None:
     mpc.compute(0.0, q0, v0)
     plan = mpc.plan
     assert plan is not None and plan.success and not mpc.diagnostics.fallback_used
-    good_nlp = mpc._nlp
+    good = mpc._tracker
     try:
-        mpc._nlp = failing._nlp  # same problem, max_iter=1: the next solve fails
+        mpc._tracker = failing._tracker  # same problem, max_iter=1: the next solve fails
         # 0.01 rad off the plan: within plan_tolerance, but one iteration cannot converge.
         q1, v1 = plan.x[1, :2] + 0.01, plan.x[1, 2:]
         tau = mpc.compute(0.02, q1, v1)
     finally:
-        mpc._nlp = good_nlp
+        mpc._tracker = good
     d = mpc.diagnostics
     assert d.fallback_used and d.extra["fallback"] == 1.0
     assert d.solver_status != "0"

@@ -3,9 +3,9 @@
 The OCP is built once by `geosyn.controllers.mpc.ocp.OCPBuilder`; this class only
 re-solves it every ``dt`` seconds (when ``t`` has advanced by at least ``dt`` since the
 last solve) and follows the plan in between (`geosyn.controllers.mpc.plan.PlanFollower`).
-Each solve warm-starts from the previous plan shifted by the elapsed stages (its
-multipliers too, which IPOPT uses and fatrop ignores), else cold-starts from the
-reference samples.
+Each solve warm-starts from the previous plan shifted by the elapsed stages, else
+cold-starts from the reference samples: `geosyn.controllers.mpc.nlp_tracking` (fatrop,
+IPOPT) and `geosyn.controllers.mpc.ddp_tracking` (box-DDP) say how.
 
 A failed solve (solver status not successful, an exception, non-finite numbers) is
 flagged in the diagnostics (``fallback_used``, ``solver_status``, ``iterations``) and
@@ -28,6 +28,7 @@ from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import NoReference
 from geosyn.controllers.mpc.ddp_tracking import DDPTracking, check_ddp_settings
 from geosyn.controllers.mpc.gauss_newton import cached_stage_dynamics
+from geosyn.controllers.mpc.nlp_tracking import NLPTracking, tracking_parameters
 from geosyn.controllers.mpc.ocp import OCPBuilder
 from geosyn.controllers.mpc.open_loop import OpenLoopOCP, OpenLoopSolution
 from geosyn.controllers.mpc.plan import (
@@ -37,7 +38,7 @@ from geosyn.controllers.mpc.plan import (
     ReferenceSampler,
     ReferenceSamples,
 )
-from geosyn.controllers.mpc.problem import ShootingNLP, SolveResult, pack_parameters
+from geosyn.controllers.mpc.problem import ShootingNLP
 from geosyn.controllers.mpc.settings import (
     HESSIANS,
     ocp_settings,
@@ -209,15 +210,13 @@ class GeodesicMPC(Controller):
         self._open_loop = OpenLoopOCP(self.ocp)
         self._sampler = ReferenceSampler(self._model, self._data)
         start = time.perf_counter()
-        self._ddp: DDPTracking | None = None
-        self._nlp: ShootingNLP | None = None
+        self._tracker: DDPTracking | NLPTracking
         if self.solver_settings.name == "ddp":
-            self._ddp = self._build_ddp()
+            self._tracker = self._build_ddp()
         else:
-            self._nlp = self._build_tracking()
+            self._tracker = NLPTracking(self._build_tracking(), self.ocp)
         self.build_time = time.perf_counter() - start
         self._plan: MPCPlan | None = None
-        self._lam: tuple[np.ndarray, np.ndarray] | None = None
         self._t_solve = -math.inf
         self._using_fallback = False
         self.solve_count = 0
@@ -260,7 +259,7 @@ class GeodesicMPC(Controller):
         # A new reference invalidates the warm start (a different task).
         self._sampler.clear()
         self._plan = None
-        self._lam = None
+        self._tracker.forget()
         self._t_solve = -math.inf
 
     @property
@@ -284,13 +283,8 @@ class GeodesicMPC(Controller):
         Raises:
             NoReference: no reference was set.
         """
-        N = self.N
         ref = self._reference_samples(t)
-        effort_ref = ref.a[:N] if self.effort == "acceleration" else ref.tau
-        p = pack_parameters(
-            x_init, ref.q[N], ref.q, ref.v, effort_ref, self.ocp.metric_parameters()
-        )
-        return p, ref
+        return tracking_parameters(self.ocp, x_init, ref), ref
 
     def _reference_samples(self, t: float) -> ReferenceSamples:
         if self._reference is None:
@@ -316,49 +310,16 @@ class GeodesicMPC(Controller):
         """
         q = check_vector(q, self.nv, "q")
         v = check_vector(v, self.nv, "v")
-        N = self.N
         x_init = np.concatenate([q, v])
-        if self._ddp is not None:
-            ref = self._reference_samples(t)
-        else:
-            p, ref = self.problem_parameters(t, x_init)
+        ref = self._reference_samples(t)
         r = self.robot
+        self.solve_count += 1
         outside = outside_state_margin(q, v, r.q_min, r.q_max, r.v_max)
         if outside:
-            self.solve_count += 1
             return self._failed_plan(t, f"skipped: measured state {outside}", 0.0)
-        if self._ddp is not None:
-            self.solve_count += 1
-            start = time.perf_counter()
-            plan = self._ddp.solve(t, x_init, ref, self._plan)
-            return self._within_budget(plan._replace(solve_time=time.perf_counter() - start))
-        nlp = self._nlp
-        assert nlp is not None  # built when the solver is not "ddp"
-        prev, lam = self._plan, self._lam
-        j = -1 if prev is None or lam is None else int(round((t - prev.t) / self.dt))
-        if prev is not None and lam is not None and 0 <= j < N:
-            solver, guess = nlp.solver, nlp.shifted_guess(prev.x, prev.u, lam, j, x_init)
-        else:
-            x0 = np.hstack([ref.q, ref.v])
-            x0[0] = x_init
-            u0 = ref.tau if self.control == "torque" else ref.a[:N]
-            solver, guess = nlp.cold(), {"x0": nlp.pack(x0, u0)}
-        self.solve_count += 1
         start = time.perf_counter()
-        try:
-            res = nlp.run(solver, p, guess)
-        except RuntimeError as err:
-            nan_u = np.full((N, self.nv), np.nan)
-            nan_x = np.full((N + 1, 2 * self.nv), np.nan)
-            status = f"exception: {err}".splitlines()[0][:200]
-            res = SolveResult(nan_x, nan_u, nan_u.copy(), math.nan, status, 0, False, None)
-        solve_time = time.perf_counter() - start
-        if res.success:
-            self._lam = res.multipliers
-        plan = MPCPlan(
-            t, res.x, res.u, res.tau, res.status, res.iterations, res.success, solve_time
-        )
-        return self._within_budget(plan)
+        plan = self._tracker.solve(t, x_init, ref, self._plan)
+        return self._within_budget(plan._replace(solve_time=time.perf_counter() - start))
 
     def _within_budget(self, plan: MPCPlan) -> MPCPlan:
         """A successful plan solved in more than ``max_solve_time`` counts as failed."""
@@ -390,7 +351,7 @@ class GeodesicMPC(Controller):
                 self._using_fallback = True
                 if not self._follower.usable(self._plan, t, q):
                     self._plan = None
-                    self._lam = None
+                    self._tracker.forget()
         if self._using_fallback:
             d.fallback_used = True
             if self._plan is not None and self._follower.usable(self._plan, t, q):

@@ -133,6 +133,10 @@ class DDPTracking:
         self._zero_K = np.zeros((n, 2 * n))
         self._P = P
 
+    def forget(self) -> None:
+        """Nothing to drop: a DDP warm start is the previous plan itself (with its
+        gains), which the controller passes to `solve` or not."""
+
     def solve(
         self, t: float, x_init: np.ndarray, ref: ReferenceSamples, previous: MPCPlan | None
     ) -> MPCPlan:
