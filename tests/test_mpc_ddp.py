@@ -9,6 +9,7 @@ import functools
 
 import casadi as ca
 import numpy as np
+import pinocchio as pin
 import pytest
 from scipy.optimize import minimize
 
@@ -170,3 +171,39 @@ def test_mx_riccati_step_equals_the_sx_one() -> None:
             np.testing.assert_allclose(np.asarray(b), np.asarray(a), rtol=1e-9, atol=1e-9)
         if tau_scale < 1:
             assert np.any(np.abs(np.asarray(out_sx[2]).ravel() + args[5]) >= tau_scale - 1e-12)
+
+
+@pytest.mark.parametrize(("horizon", "rk4_steps"), [(1, 1), (6, 2)])
+def test_ddp_plan_obeys_the_dynamics_for_other_horizons_and_rk4_steps(
+    horizon: int, rk4_steps: int
+) -> None:
+    """planar2, converged cold solve: each planned state is ``rk4_steps`` RK4 steps of
+    ``pin.aba`` under the planned torque (1e-10), torques within the limits."""
+    robot = get_robot("planar2")
+    model, data = robot.model, robot.model.createData()
+    q0 = np.array([0.3, -0.4])
+    synergy = GeodesicSynergy(get_metric("planar2"), q0, np.array([0.5, -0.3]))
+    mpc = GeodesicMPC(
+        robot, get_metric("planar2"), horizon=horizon, dt=0.05, control="torque",
+        solver="ddp", rk4_steps=rk4_steps, tol=1e-10, max_iter=100,
+        reference=GeodesicReference(synergy, duration=1.0, steps=100),
+    )  # fmt: skip
+    q, v = q0 + 0.05, np.zeros(2)
+    mpc.reset(q, v)
+    plan = mpc.solve(0.0, q, v)
+    assert plan.success, plan.status
+    h = mpc.dt / rk4_steps
+
+    def f(z: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        return np.concatenate([z[2:], pin.aba(model, data, z[:2], z[2:], tau)])
+
+    for k in range(horizon):
+        x = plan.x[k].copy()
+        for _ in range(rk4_steps):
+            k1 = f(x, plan.u[k])
+            k2 = f(x + 0.5 * h * k1, plan.u[k])
+            k3 = f(x + 0.5 * h * k2, plan.u[k])
+            k4 = f(x + h * k3, plan.u[k])
+            x = x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+        np.testing.assert_allclose(plan.x[k + 1], x, rtol=0, atol=1e-10)
+    assert np.all(np.abs(plan.u) <= robot.tau_max)

@@ -114,7 +114,7 @@ def parameter_vector(
             finite(q_min),
             finite(q_max),
             finite(v_max),
-            np.asarray(tau_max, dtype=np.float64),
+            finite(tau_max),
             [limit_weight, regularisation],
         ]
     ).astype(np.float64)

@@ -21,6 +21,7 @@ Python only enters and leaves twice per iteration.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import casadi as ca
@@ -89,8 +90,8 @@ class RiccatiSolver:
     ) -> None:
         self.N, self.n, self.P = N, n, np.asarray(P, dtype=np.float64)
         self.tol, self.max_iter, self.warm_iterations = tol, max_iter, warm_iterations
-        self._backward = numpy_function(_backward_graph(parts, N, n))
-        self._forward = numpy_function(_forward_graph(parts, N, n))
+        self._backward = _matrix_function(_backward_graph(parts, N, n), N, (0,))
+        self._forward = _matrix_function(_forward_graph(parts, N, n), N, (1,))
         self._zero_k = np.zeros((n, N))
         self._zero_K = np.zeros((n, 2 * n * N))
 
@@ -180,6 +181,28 @@ class RiccatiSolver:
 
     def _failed(self, X: np.ndarray, U: np.ndarray, it: int, status: str) -> RiccatiResult:
         return self._result(X, U, self._zero_K, np.nan, it, status, False)
+
+
+def _matrix_function(
+    fun: ca.Function, N: int, matrices: tuple[int, ...]
+) -> Callable[..., tuple[np.ndarray, ...]]:
+    """`numpy_function`, keeping the outputs ``matrices`` (n, N) two-dimensional when
+    N = 1 (`numpy_function` shows an (n, 1) block as an (n,) vector, and wants (n,)
+    arrays for (n, 1) inputs)."""
+    call = numpy_function(fun)
+    if N > 1:
+        return call
+    flat_in = [1 in (fun.size1_in(i), fun.size2_in(i)) for i in range(fun.n_in())]
+
+    def matrix_call(*args: np.ndarray) -> tuple[np.ndarray, ...]:
+        fitted = [
+            np.reshape(a, -1, order="F") if flat and np.ndim(a) == 2 else a
+            for a, flat in zip(args, flat_in, strict=True)
+        ]
+        outs = call(*fitted)
+        return tuple(o.reshape(-1, 1) if i in matrices else o for i, o in enumerate(outs))
+
+    return matrix_call
 
 
 def _stack_gains(K: np.ndarray) -> np.ndarray:
