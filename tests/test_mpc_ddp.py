@@ -15,7 +15,8 @@ from scipy.optimize import minimize
 
 from conftest import get_metric, get_robot
 from geosyn.controllers.mpc import GeodesicMPC
-from geosyn.controllers.mpc.ddp import BOX_ITERATIONS, box_qp, riccati_step
+from geosyn.controllers.mpc.box_qp import BOX_ITERATIONS, box_qp
+from geosyn.controllers.mpc.ddp import riccati_step
 from geosyn.controllers.mpc.plan import ReferenceSampler, sample_reference
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import GeosynError, InvalidArgument
@@ -129,7 +130,7 @@ def test_reference_sampler_shifts_what_sample_reference_computes() -> None:
     ("kwargs", "named"),
     [
         ({"control": "acceleration"}, "control='torque'"),
-        ({"effort": "metric"}, "effort='torque'"),
+        ({"effort": "acceleration"}, "effort"),
         ({"hessian": "exact"}, "hessian"),
         ({"solver_options": {"max_iter": 3}}, "warm_iterations"),
         ({"solver_options": {"warm_iterations": 0}}, "warm_iterations"),
@@ -207,3 +208,31 @@ def test_ddp_plan_obeys_the_dynamics_for_other_horizons_and_rk4_steps(
             x = x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
         np.testing.assert_allclose(plan.x[k + 1], x, rtol=0, atol=1e-10)
     assert np.all(np.abs(plan.u) <= robot.tau_max)
+
+
+def test_metric_effort_ddp_equals_ipopt() -> None:
+    """``effort="metric"``: the converged DDP's first torques equal IPOPT's optimum of
+    the same OCP (tol 1e-12) to 1e-6 relative, 0.05 rad off the reference at rest."""
+    q, v = Q0 + 0.05, np.zeros(7)
+    plans = []
+    for kw in ({"tol": 1e-10, "max_iter": 300}, {"solver": "ipopt", "tol": 1e-12, "max_iter": 500}):
+        mpc = _mpc(effort="metric", **kw)
+        mpc.reset(q, v)
+        plans.append(mpc.solve(0.0, q, v))
+    ddp, ipopt = plans
+    assert ddp.success and ipopt.success, (ddp.status, ipopt.status)
+    err = np.linalg.norm(ddp.u[0] - ipopt.u[0]) / np.linalg.norm(ipopt.u[0])
+    assert err <= 1e-6, err
+
+
+def test_metric_effort_needs_the_robots_kinetic_metric() -> None:
+    """Another model's M(q) (armature 0) is not the OCP's dynamics: refused by name."""
+    from geosyn.metrics import KineticEnergyMetric
+    from geosyn.robots import load_robot
+
+    other = KineticEnergyMetric(load_robot("panda", armature=0.0))
+    with pytest.raises(InvalidArgument, match="KineticEnergyMetric"):
+        GeodesicMPC(
+            get_robot("panda"), other, horizon=5, control="torque", solver="ddp",
+            effort="metric",
+        )  # fmt: skip

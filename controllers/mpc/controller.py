@@ -102,8 +102,9 @@ class GeodesicMPC(Controller):
         solver: ``"fatrop"`` or ``"ipopt"`` (interior point on the multiple-shooting
             NLP), or ``"ddp"``: box-constrained DDP with compiled stage derivatives
             and Riccati feedback between solves, the fastest torque-level solver
-            (needs ``control="torque"`` and ``effort="torque"``; position and velocity
-            limits become stiff penalties; a warm solve is one DDP step; its
+            (needs ``control="torque"``, ``effort`` ``"torque"`` or ``"metric"``;
+            position and velocity limits become stiff penalties; a warm solve is one
+            DDP step; its
             ``solver_options`` are `geosyn.controllers.mpc.ddp_tracking.DDP_OPTIONS`;
             `solve_open_loop` then uses IPOPT). See `geosyn.controllers.mpc.ddp_tracking`.
         q_weight: scalar or (nv,) weight on the position error [1/rad^2].
@@ -196,7 +197,7 @@ class GeodesicMPC(Controller):
         )
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         if self.solver_settings.name == "ddp":
-            check_ddp_settings(self.settings, self.hessian)
+            check_ddp_settings(self.settings, self.hessian, metric, robot)
         self.kp = check_gain(kp, n, "kp")
         self.kd = check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")

@@ -1,20 +1,21 @@
 """The compiled stage pieces of the Riccati (box-DDP) solver of the torque-level OCP.
 
-One C library per robot, stage length and RK4 step count (weights, limits and the
-reference are inputs, so one library serves every horizon and tuning):
+One C library per robot, stage length, RK4 step count and effort (weights, limits and
+the reference are inputs, so one library serves every horizon and tuning):
 
 - ``ddp_lin``: ``(x, u) -> (A, B)``, the Jacobians of the RK4 step on the ABA (chain rule
   through RK4, `geosyn.controllers.mpc.gauss_newton.rk4_parts`);
 - ``ddp_riccati``: one backward Riccati step: the stage's Q-function (Gauss-Newton: the
   dynamics' curvature is dropped; the costs are quadratic), the box-constrained QP of the
-  control update (projected Newton, `BOX_ITERATIONS` steps), the feedforward ``k``, the
+  control update (projected Newton, `geosyn.controllers.mpc.box_qp`), the feedforward ``k``, the
   feedback ``K`` on the free controls and the value function of the stage before;
 - ``ddp_forward``: one step of the closed-loop rollout,
   ``u = clip(u_bar + alpha k + K (x - x_bar))`` then ``x' = F(x, u)``, with its cost;
 - ``ddp_terminal``: the terminal cost and its derivatives.
 
-Costs (as `geosyn.controllers.mpc.costs` with ``effort="torque"``): per stage
-``|q - q_r|^2_Wq + |v - v_r|^2_Wv + |u - tau_r|^2_Wu`` plus the soft state limits
+Costs (as `geosyn.controllers.mpc.costs`): per stage ``|q - q_r|^2_Wq + |v - v_r|^2_Wv``
+plus the effort, ``|u - tau_r|^2_Wu`` (`torque_effort`) or ``w (u - g)^T M^-1 (u - g)``
+(`metric_effort`, one library per effort), plus the soft state limits
 ``w_lim (|max(q - q_max, 0)|^2 + |max(q_min - q, 0)|^2 + |max(|v| - v_max, 0)|^2)``
 (zero inside the limits); terminal ``|x - x_r|^2_WN`` plus the same soft limits. The
 torque limits are hard (the box QP, and the clip of the rollout).
@@ -34,30 +35,27 @@ from typing import Any, NamedTuple
 import casadi as ca
 import numpy as np
 
+from geosyn.controllers.mpc import box_qp as box_qp_module
 from geosyn.controllers.mpc import gauss_newton
+from geosyn.controllers.mpc.box_qp import BOX_ITERATIONS, box_qp, spd_solve
 from geosyn.core.codegen import compile_recipe
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
 
 __all__ = [
-    "BOX_ITERATIONS",
     "BOUND_INF",
     "SX_RICCATI_MAX_JOINTS",
     "DDPParts",
     "ddp_parts",
     "parameter_vector",
+    "metric_effort",
     "riccati_step",
     "rk4_linearisation",
-    "spd_solve",
+    "torque_effort",
 ]
 
-BOX_ITERATIONS = 5
-"""Projected-Newton steps of the box QP per stage (from the clipped unconstrained step;
-exact once the active set is found, which takes one step per newly active joint)."""
-_Sym = Any  # a CasADi SX or MX expression (the box QP and solves are written for both)
-
 SX_RICCATI_MAX_JOINTS = 12
-"""Robots with more joints get the MX form of the Riccati step (see `_riccati`)."""
+"""Robots with more joints get the MX form of the Riccati step (see `riccati_step`)."""
 BOUND_INF = 1e10
 """An infinite joint limit is passed as this value [rad, rad/s]."""
 
@@ -159,114 +157,66 @@ def _limit_terms(x: ca.SX, p: _Params, n: int) -> tuple[ca.SX, ca.SX, ca.SX]:
     return value, grad, 2 * p.w_lim * active
 
 
-def _stage_derivatives(
-    x: ca.SX, u: ca.SX, xr: ca.SX, tr: ca.SX, p: _Params, n: int
-) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX, ca.SX]:
-    """Stage cost and its derivatives: (l, lx, lxx diag, lu, luu diag)."""
-    ex, eu = x - xr, u - tr
-    lim, lim_grad, lim_hess = _limit_terms(x, p, n)
-    value = ca.dot(p.wx, ex * ex) + ca.dot(p.wu, eu * eu) + lim
-    return value, 2 * p.wx * ex + lim_grad, 2 * p.wx + lim_hess, 2 * p.wu * eu, 2 * p.wu
+def torque_effort(n: int) -> ca.Function:
+    """``ddp_effort`` of the torque effort ``|u - tau_r|^2_Wu`` (see `metric_effort`)."""
+    q, u, tr, wu = (ca.SX.sym(name, n) for name in ("q", "u", "tr", "wu"))
+    e = u - tr
+    outs = [ca.dot(wu, e * e), ca.SX(n, 1), 2 * wu * e, ca.diag(2 * wu), ca.SX(n, n), ca.SX(n, n)]
+    return ca.Function("ddp_effort", [q, u, tr, wu], outs, _EFFORT_IO[0], _EFFORT_IO[1])
 
 
-def _cholesky(H: ca.SX) -> ca.SX:
-    """Lower Cholesky factor of a symmetric positive-definite SX matrix (unrolled)."""
-    n = H.shape[0]
-    L = ca.SX.zeros(n, n)
-    for j in range(n):
-        s = H[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        L[j, j] = ca.sqrt(s)
-        for i in range(j + 1, n):
-            s = H[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / L[j, j]
-    return L
+def metric_effort(robot: Robot) -> ca.Function:
+    """``ddp_effort: (q, u, tau_r, w_u) -> (l, l_q, l_u, l_uu, l_uq, l_qq)`` of the metric
+    effort ``w (u - g(q))^T M(q)^-1 (u - g(q))`` (``w = w_u[0]``; the robot's kinetic
+    energy metric, gravity on; `geosyn.controllers.mpc.costs.MetricEffort`).
 
-
-def _cholesky_solve(L: ca.SX, b: ca.SX) -> ca.SX:
-    """``(L L^T)^{-1} b`` for an (n, m) right-hand side, by two triangular sweeps."""
-    n = L.shape[0]
-    y = ca.SX.zeros(b.shape)
-    for i in range(n):
-        s = b[i, :]
-        for k in range(i):
-            s -= L[i, k] * y[k, :]
-        y[i, :] = s / L[i, i]
-    z = ca.SX.zeros(b.shape)
-    for i in reversed(range(n)):
-        s = y[i, :]
-        for k in range(i + 1, n):
-            s -= L[k, i] * z[k, :]
-        z[i, :] = s / L[i, i]
-    return z
-
-
-def spd_solve(H: _Sym, b: _Sym) -> _Sym:
-    """``H^{-1} b`` for a symmetric positive-definite ``H``: an unrolled Cholesky
-    factorisation in SX (small, fastest), CasADi's LDL^T solver in MX (compact code for
-    many joints)."""
-    if isinstance(H, ca.MX):
-        return ca.solve(H, b, "ldl")
-    return _cholesky_solve(_cholesky(H), b)
-
-
-def _free_mask(k: _Sym, grad: _Sym, lo: _Sym, hi: _Sym) -> _Sym:
-    """1 for a free control, 0 for one at a bound with the gradient pushing outwards."""
-    clamped = ca.logic_or(ca.logic_and(k <= lo, grad > 0), ca.logic_and(k >= hi, grad < 0))
-    return 1 - clamped
-
-
-def _masked(H: _Sym, free: _Sym) -> _Sym:
-    """The Hessian of the free controls, with the identity on the clamped ones."""
-    return H * (free @ free.T) + ca.diag(1 - free)
-
-
-def box_qp(H: _Sym, g: _Sym, lo: _Sym, hi: _Sym, iterations: int) -> tuple[_Sym, _Sym, _Sym]:
-    """``min 0.5 k^T H k + g^T k`` s.t. ``lo <= k <= hi``: projected Newton, unrolled.
-
-    Starts from the clipped unconstrained minimiser; each step solves the free block
-    and keeps the best of four projected step lengths (never worse than the current k).
-
-    Returns:
-        ``(k, free, H_free)``: the solution (n,), the free-control mask (n,) and the
-        Hessian of the free controls (identity on the clamped ones).
+    ``l``, ``l_q``, ``l_u``, ``l_uu = 2 w M^-1`` and ``l_uq`` are exact; ``l_qq`` is the
+    positive semi-definite completion ``l_uq^T l_uu^-1 l_uq`` (the effort's exact
+    curvature in q is dropped, Gauss-Newton style): a DDP fixed point is still the
+    OCP's optimum, the gradient being exact.
     """
-
-    def clip(z: ca.SX) -> ca.SX:
-        return ca.fmin(ca.fmax(z, lo), hi)
-
-    def value(z: ca.SX) -> ca.SX:
-        return ca.dot(z, 0.5 * (H @ z) + g)
-
-    k = clip(-spd_solve(H, g))
-    for _ in range(iterations):
-        grad = g + H @ k
-        free = _free_mask(k, grad, lo, hi)
-        d = -spd_solve(_masked(H, free), free * grad)
-        best, best_value = k, value(k)
-        # Projected Newton steps, and a projected gradient step of length 1 / trace(H)
-        # (<= 1 / lambda_max: it never increases the value), so a bent Newton
-        # direction cannot stall the iteration.
-        candidates = [clip(k + step * d) for step in (1.0, 0.5, 0.25, 0.1)]
-        candidates.append(clip(k - grad / ca.trace(H)))
-        for cand in candidates:
-            cand_value = value(cand)
-            better = cand_value < best_value
-            best = ca.if_else(better, cand, best)
-            best_value = ca.if_else(better, cand_value, best_value)
-        k = best
-    free = _free_mask(k, g + H @ k, lo, hi)
-    return k, free, _masked(H, free)
+    n, model = robot.nv, robot.model
+    g = np.asarray(robot.gravity, dtype=np.float64)
+    q, u, tr, wu = (ca.SX.sym(name, n) for name in ("q", "u", "tr", "wu"))
+    zeros = np.zeros(n)
+    w = wu[0]
+    r = u - symbolic.rnea(model, q, zeros, zeros, g)
+    minv_r = symbolic.aba(model, q, zeros, u, g)  # M^-1 (u - g(q)), one recursion
+    value = w * ca.dot(r, minv_r)
+    lu = 2 * w * minv_r
+    M = symbolic.crba(model, q)
+    luu = 2 * w * spd_solve(M, ca.SX.eye(n))
+    luq = ca.jacobian(lu, q)
+    lqq = luq.T @ (M @ luq) / (2 * w)
+    outs = [value, ca.gradient(value, q), lu, luu, luq, lqq]
+    return ca.Function(
+        "ddp_effort", [q, u, tr, wu], outs, _EFFORT_IO[0], _EFFORT_IO[1], {"cse": True}
+    )
 
 
-def riccati_step(n: int, sym: Any = None) -> ca.Function:
+_EFFORT_IO = (["q", "u", "tr", "wu"], ["l", "l_q", "l_u", "l_uu", "l_uq", "l_qq"])
+
+
+def _stage_derivatives(
+    x: Any, u: Any, xr: Any, tr: Any, p: _Params, n: int, effort: ca.Function
+) -> tuple[Any, Any, Any, Any, Any, Any]:
+    """Stage cost and its derivatives: (l, lx (2n,), lxx (2n, 2n), lu, luu, lux (n, 2n))."""
+    ex = x - xr
+    lim, lim_grad, lim_hess = _limit_terms(x, p, n)
+    le, le_q, le_u, le_uu, le_uq, le_qq = effort(x[:n], u, tr, p.wu)
+    zero = ca.DM(n, n)  # structurally zero
+    value = ca.dot(p.wx, ex * ex) + le + lim
+    lx = 2 * p.wx * ex + lim_grad + ca.vertcat(le_q, ca.DM(n, 1))
+    lxx = ca.diag(2 * p.wx + lim_hess) + ca.blockcat([[le_qq, zero], [zero, zero]])
+    return value, lx, lxx, le_u, le_uu, ca.horzcat(le_uq, zero)
+
+
+def riccati_step(n: int, sym: Any = None, effort: ca.Function | None = None) -> ca.Function:
     """The Riccati step ``ddp_riccati`` for ``n`` joints (see `DDPParts`): ``sym`` SX
     (straight-line code) or MX (loops and an LDL^T solver); None: SX up to
     `SX_RICCATI_MAX_JOINTS` joints, MX beyond (the SX form grows as n^3: 60 MB of C at
-    32 joints)."""
+    32 joints). ``effort``: `torque_effort` (None) or `metric_effort`."""
+    effort = torque_effort(n) if effort is None else effort
     nx = 2 * n
     if sym is None:
         sym = ca.SX if n <= SX_RICCATI_MAX_JOINTS else ca.MX
@@ -275,12 +225,12 @@ def riccati_step(n: int, sym: Any = None) -> ca.Function:
     x, u, xr, tr = sym.sym("x", nx), sym.sym("u", n), sym.sym("xr", nx), sym.sym("tr", n)
     P = sym.sym("P", n_parameters(n))
     p = _split(P, n)
-    _, lx, lxx, lu, luu = _stage_derivatives(x, u, xr, tr, p, n)
+    _, lx, lxx, lu, luu, lux = _stage_derivatives(x, u, xr, tr, p, n, effort)
     VA, VB = Vxx @ A, Vxx @ B
     Qx, Qu = lx + A.T @ Vx, lu + B.T @ Vx
-    Qxx = ca.diag(lxx) + A.T @ VA
-    Qux = B.T @ VA
-    Quu = ca.diag(luu + p.reg) + B.T @ VB
+    Qxx = lxx + A.T @ VA
+    Qux = lux + B.T @ VA
+    Quu = luu + ca.diag(p.reg * ca.DM.ones(n, 1)) + B.T @ VB
     Quu = 0.5 * (Quu + Quu.T)
     k, free, H_free = box_qp(Quu, Qu, -p.tau_max - u, p.tau_max - u, BOX_ITERATIONS)
     K = -spd_solve(H_free, (free @ ca.DM.ones(1, nx)) * Qux)
@@ -317,22 +267,22 @@ def _terminal(n: int) -> ca.Function:
     )
 
 
-def _stage_cost(n: int) -> ca.Function:
+def _stage_cost(n: int, effort: ca.Function) -> ca.Function:
     nx = 2 * n
     x, u, xr, tr = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
     P = ca.SX.sym("P", n_parameters(n))
-    cost = _stage_derivatives(x, u, xr, tr, _split(P, n), n)[0]
+    cost = _stage_derivatives(x, u, xr, tr, _split(P, n), n, effort)[0]
     return ca.Function("ddp_cost", [x, u, xr, tr, P], [cost], {"cse": True})
 
 
-def _forward(n: int, F: ca.Function) -> ca.Function:
+def _forward(n: int, F: ca.Function, effort: ca.Function) -> ca.Function:
     nx = 2 * n
     x, xb, ub = ca.MX.sym("x", nx), ca.MX.sym("xb", nx), ca.MX.sym("ub", n)
     k, K, alpha = ca.MX.sym("k", n), ca.MX.sym("K", n, nx), ca.MX.sym("alpha")
     xr, tr, P = ca.MX.sym("xr", nx), ca.MX.sym("tr", n), ca.MX.sym("P", n_parameters(n))
     tau_max = P[8 * n : 9 * n]  # the layout of _split
     u = ca.fmin(ca.fmax(ub + alpha * k + K @ (x - xb), -tau_max), tau_max)
-    cost = _stage_cost(n)(x, u, xr, tr, P)
+    cost = _stage_cost(n, effort)(x, u, xr, tr, P)
     return ca.Function(
         "ddp_forward",
         [x, xb, ub, k, K, alpha, xr, tr, P],
@@ -387,26 +337,37 @@ def rk4_linearisation(robot: Robot, dt: float, rk4_steps: int) -> ca.Function:
     return ca.Function("ddp_lin", [x, u], [ca.densify(Dx), ca.densify(Du)], ["x", "u"], ["A", "B"])
 
 
-def make_functions(robot: Robot, dt: float, rk4_steps: int) -> list[ca.Function]:
-    """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation)."""
+def make_functions(robot: Robot, dt: float, rk4_steps: int, effort: str) -> list[ca.Function]:
+    """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation).
+
+    ``effort``: ``"torque"`` or ``"metric"`` (see `torque_effort`, `metric_effort`)."""
     F = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[0]
     n = robot.nv
-    return [rk4_linearisation(robot, dt, rk4_steps), riccati_step(n), _forward(n, F), _terminal(n)]
+    eff = torque_effort(n) if effort == "torque" else metric_effort(robot)
+    return [
+        rk4_linearisation(robot, dt, rk4_steps),
+        riccati_step(n, effort=eff),
+        _forward(n, F, eff),
+        _terminal(n),
+    ]
 
 
 _NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")
 
 
-def _recipe(robot: Robot, dt: float, rk4_steps: int) -> str:
-    digest = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+def _recipe(robot: Robot, dt: float, rk4_steps: int, effort: str) -> str:
+    digest = hashlib.sha256()
+    for path in (Path(__file__), Path(box_qp_module.__file__)):
+        digest.update(path.read_bytes())
     stage = gauss_newton.stage_recipe(robot, dt, "torque", rk4_steps, True)
-    return "\0".join(["geosyn-mpc-ddp-v1", digest, BOX_ITERATIONS.__repr__(), stage])
+    return "\0".join(["geosyn-mpc-ddp-v2", digest.hexdigest(), effort, stage])
 
 
 def ddp_parts(
     robot: Robot,
     dt: float,
     rk4_steps: int,
+    effort: str = "torque",
     *,
     compiled: bool = True,
     progress: Callable[[str], None] | None = None,
@@ -420,6 +381,7 @@ def ddp_parts(
         robot: the robot (its model, with gravity).
         dt: stage length [s].
         rk4_steps: RK4 steps per stage.
+        effort: ``"torque"`` or ``"metric"`` (the robot's kinetic-energy metric).
         compiled: False: the same functions on CasADi's virtual machine (no compiler).
         progress: receives progress lines of a first build.
 
@@ -427,12 +389,12 @@ def ddp_parts(
         CodegenError: no compiler, or compiling/loading failed (only when ``compiled``).
     """
     if not compiled:
-        return DDPParts(*make_functions(robot, dt, rk4_steps))
-    name = re.sub(r"\W", "_", f"geosyn_ddp_{robot.name}")
+        return DDPParts(*make_functions(robot, dt, rk4_steps, effort))
+    name = re.sub(r"\W", "_", f"geosyn_ddp_{robot.name}_{effort}")
     lib = compile_recipe(
         name,
-        _recipe(robot, dt, rk4_steps),
-        lambda: make_functions(robot, dt, rk4_steps),
+        _recipe(robot, dt, rk4_steps, effort),
+        lambda: make_functions(robot, dt, rk4_steps, effort),
         load=list(_NAMES),
         progress=progress,
     )

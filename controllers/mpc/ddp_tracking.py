@@ -1,7 +1,8 @@
 """The tracking OCP solved by box-DDP (``GeodesicMPC(solver="ddp")``): options, warm
 starts and plans.
 
-``solver="ddp"`` needs ``control="torque"`` and ``effort="torque"``. What it solves is
+``solver="ddp"`` needs ``control="torque"`` and ``effort="torque"`` or ``"metric"`` (the
+robot's own kinetic-energy metric). What it solves is
 the OCP of `GeodesicMPC` with two differences, both stated in its docstring: the position
 and velocity limits are stiff penalties (``limit_weight``, zero inside the limits)
 instead of hard bounds, and a warm solve is a fixed number of full DDP steps
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from geosyn.controllers.mpc.costs import is_robot_kinetic_metric
 from geosyn.controllers.mpc.ddp import ddp_parts, parameter_vector
 from geosyn.controllers.mpc.plan import MPCPlan, ReferenceSamples
 from geosyn.controllers.mpc.riccati import RiccatiSolver
@@ -26,6 +28,7 @@ from geosyn.controllers.mpc.settings import OCPSettings, SolverSettings
 from geosyn.core.calls import numpy_function
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_int, check_positive
+from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
 __all__ = ["DDP_OPTIONS", "DDPTracking", "check_ddp_settings", "ddp_options"]
@@ -65,17 +68,25 @@ def ddp_options(options: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def check_ddp_settings(settings: OCPSettings, hessian: str) -> None:
+def check_ddp_settings(settings: OCPSettings, hessian: str, metric: Metric, robot: Robot) -> None:
     """Refuse what ``solver="ddp"`` cannot solve (the message names the argument).
 
     Raises:
-        InvalidArgument: control or effort other than ``"torque"``, or ``hessian="exact"``.
+        InvalidArgument: control other than ``"torque"``, effort other than
+            ``"torque"`` or ``"metric"`` (the latter only with the robot's own
+            kinetic-energy metric), or ``hessian="exact"``.
     """
-    if settings.control != "torque" or settings.effort != "torque":
+    if settings.control != "torque" or settings.effort not in ("torque", "metric"):
         raise InvalidArgument(
-            "solver='ddp' solves the torque-level OCP with the torque effort: it needs "
-            f"control='torque' and effort='torque', got control={settings.control!r}, "
-            f"effort={settings.effort!r}; use solver 'fatrop' or 'ipopt' otherwise"
+            "solver='ddp' solves the torque-level OCP with the torque or metric effort: it "
+            f"needs control='torque' and effort='torque' or 'metric', got "
+            f"control={settings.control!r}, effort={settings.effort!r}; use solver 'fatrop' "
+            "or 'ipopt' otherwise"
+        )
+    if settings.effort == "metric" and not is_robot_kinetic_metric(metric, robot):
+        raise InvalidArgument(
+            "effort='metric' with solver='ddp' needs the robot's own KineticEnergyMetric, "
+            f"got {type(metric).__name__}; use solver 'fatrop' or 'ipopt' for other metrics"
         )
     if hessian != "gauss-newton":
         raise InvalidArgument(
@@ -122,7 +133,7 @@ class DDPTracking:
             robot.q_max, robot.v_max, self.tau_max, self.options["limit_weight"],
             self.options["regularisation"],
         )  # fmt: skip
-        parts = ddp_parts(robot, s.dt, s.rk4_steps, compiled=compiled, progress=progress)
+        parts = ddp_parts(robot, s.dt, s.rk4_steps, s.effort, compiled=compiled, progress=progress)
         self.solver = RiccatiSolver(
             parts, s.N, n, P, tol=solver.tol, max_iter=solver.max_iter,
             warm_iterations=self.options["warm_iterations"],
