@@ -196,8 +196,9 @@ class GeosynSetup:
     A `geosyn.metrics.planning.Planner` on the panda's `KineticEnergyMetric` (armature 0)
     with `CAPACITY` obstacle slots and the given collision spheres (the benchmark passes
     geodex's 59, so both planners avoid the same robot geometry): its collocation NLP with
-    obstacle poses as parameters, the per-node functions compiled to C (disk cache; the
-    clearances' Hessian stays in CasADi's VM, ``compile="first-order"``), and
+    obstacle poses as parameters, the per-node functions compiled to C (disk cache,
+    ``compile="all"``; the clearances' Hessian in a library of its own), the NLP that
+    constrains every checked point (the between-node refinement), and
     the free-metric shooting functions of the geodesic refinement (built by a warm-up
     query). ``build_time`` [s] is the first-use cost, reported apart.
     """
@@ -209,18 +210,21 @@ class GeosynSetup:
         *,
         margin: float = 0.005,
         nodes: int = 24,
-        compile: bool | str = "first-order",
+        compile: bool | str = "all",
+        alternatives: int = 0,
     ) -> None:
         from geosyn.metrics.planning import Planner
+        from geosyn.metrics.planning.planner import REFINEMENTS
 
         t0 = time.perf_counter()
         self.robot = robot
         self.metric = KineticEnergyMetric(robot, compile=True)
         self.planner = Planner(
             self.metric, capacity=CAPACITY, spheres=spheres, margin=margin, nodes=nodes,
-            compile=compile,
+            compile=compile, alternatives=alternatives,
         )  # fmt: skip
-        self.planner.collocation(2 * nodes)  # the NLP of the between-node refinement
+        for factor, sub in REFINEMENTS:  # the NLPs of the between-node refinement
+            self.planner.collocation(factor * nodes, sub)
         q0 = np.asarray(ps.PANDA_HOME)
         self.planner.plan(q0, q0 + 0.05, [], budget=30.0)  # builds the shooting functions
         self.build_time = time.perf_counter() - t0
@@ -327,6 +331,13 @@ def main(argv: list[str] | None = None) -> None:
     )
     p.add_argument("--margin", type=float, default=0.005, help="geosyn node clearance [m]")
     p.add_argument("--nodes", type=int, default=24, help="geosyn collocation segments")
+    p.add_argument(
+        "--alternatives",
+        type=int,
+        default=0,
+        help="geosyn: RRT-Connect seeds tried after a constrained straight-line plan "
+        "(other homotopy classes; the lowest-energy plan wins)",
+    )
     p.add_argument("--skip-geosyn", action="store_true", help="geodex only (no geosyn build)")
     p.add_argument("--out", default=str(ROOT / "runs" / "planning" / "planning.json"))
     args = p.parse_args(argv)
@@ -417,7 +428,9 @@ def main(argv: list[str] | None = None) -> None:
     build_time = None
     if not args.skip_geosyn:
         print("geosyn: building the shaped metric (first use) ...", flush=True)
-        setup = GeosynSetup(robot, gdx_spheres, margin=args.margin, nodes=args.nodes)
+        setup = GeosynSetup(
+            robot, gdx_spheres, margin=args.margin, nodes=args.nodes, alternatives=args.alternatives
+        )
         build_time = setup.build_time
         print(f"geosyn: build {build_time:.1f} s; solving ...", flush=True)
         for sc in scenes:

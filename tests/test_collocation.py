@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import Collocation, KineticEnergyMetric, exp, log_solve
 from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
 from geosyn.robots import load_robot
@@ -68,7 +69,7 @@ def test_blocked_line_gives_constrained_path_with_margin(softmin: float | None) 
     )
     res = col.solve(q0, q1)
     assert res.kind == "constrained" and res.active > 0, res.message
-    mids = 0.5 * (res.nodes[1:] + res.nodes[:-1])  # also constrained (midpoints=True)
+    mids = 0.5 * (res.nodes[1:] + res.nodes[:-1])  # also constrained (subdivisions=1)
     exact = np.array([term.clearances(q).min() for q in [*res.nodes[1:-1], *mids]])
     assert exact.min() > 0.01 - 1e-6
     if softmin is None:
@@ -79,3 +80,48 @@ def test_blocked_line_gives_constrained_path_with_margin(softmin: float | None) 
     free = Collocation(metric, nodes=24, joint_limits=False).solve(q0, q1, refine=False)
     assert res.energy > free.energy
     assert np.isnan(res.geodesic_residual)
+
+
+def _blocked_planar2() -> tuple[Collocation, Collocation, ObstacleTerm, np.ndarray, np.ndarray]:
+    """planar2, a sphere on the straight line's tip path; NLPs with 1 and 3 subdivisions."""
+    robot = load_robot("planar2")
+    metric = KineticEnergyMetric(robot)
+    q0, q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
+    mid = 0.5 * (q0 + q1)
+    tip = np.array([np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum())])
+    term = ObstacleTerm([Sphere((tip[0], tip[1], 0.0), 0.15)], capacity=2).bind(robot)
+    kw = dict(nodes=12, clearance=term, margin=0.01, joint_limits=False)
+    return (Collocation(metric, **kw), Collocation(metric, subdivisions=3, **kw),  # type: ignore[arg-type]
+            term, q0, q1)  # fmt: skip
+
+
+def test_subdivisions_keep_the_margin_at_every_quarter_point() -> None:
+    """With 3 subdivisions, the path checked 4x finer than its nodes keeps the margin
+    (exact clearance, reference `ObstacleTerm.clearances`) at every checked point."""
+    from geosyn.metrics.planning.planner import densify
+
+    _, fine, term, q0, q1 = _blocked_planar2()
+    res = fine.solve(q0, q1)
+    assert res.kind == "constrained", res.message
+    exact = np.array([term.clearances(q).min() for q in densify(res.nodes, 4)])
+    assert exact.min() > 0.01 - 1e-6
+    assert res.multipliers is not None and res.multipliers[1].size == 2 * (11 + 3 * 12)
+
+
+def test_warm_start_from_own_solution_and_from_fewer_subdivisions() -> None:
+    """A warm start from a converged result of the same NLP takes fewer iterations than the
+    cold solve and stops at the same nodes; one from the NLP with midpoints only reaches
+    the cold solution of the NLP with quarter points."""
+    coarse, fine, _, q0, q1 = _blocked_planar2()
+    first = coarse.solve(q0, q1, refine=False)
+    assert first.kind == "constrained", first.message
+    again = coarse.solve(q0, q1, warm=first, refine=False)
+    assert again.success and again.iterations < first.iterations, again.message
+    np.testing.assert_allclose(again.nodes, first.nodes, atol=1e-6)
+    cold = fine.solve(q0, q1, init=first.nodes, refine=False)
+    warm = fine.solve(q0, q1, warm=first, refine=False)
+    assert warm.kind == cold.kind == "constrained"
+    np.testing.assert_allclose(warm.nodes, cold.nodes, atol=1e-5)
+    with pytest.raises(InvalidArgument, match="warm"):
+        Collocation(KineticEnergyMetric(load_robot("planar2")), nodes=6,
+                    joint_limits=False).solve(q0, q1, warm=first)  # fmt: skip

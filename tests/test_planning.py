@@ -104,3 +104,25 @@ def test_rrt_connect_path_is_valid_and_seeded() -> None:
     np.testing.assert_array_equal(path[0], q0)
     np.testing.assert_array_equal(path[-1], q1)
     assert np.all(valid(densify(path, 20)))
+
+
+def test_alternative_seeds_find_both_sides_and_keep_the_lowest_energy() -> None:
+    """A sphere on the tip's straight-line path: RRT-Connect seeds reach the other side of
+    it too (a local minimum of higher energy); the plan kept is the lowest-energy one,
+    collision-free on an exact check 64x finer than its nodes and on the fine check."""
+    q0, q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
+    mid = 0.5 * (q0 + q1)
+    tip = (np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum()), 0.0)
+    obstacles = [Sphere(tip, 0.15)]
+    metric = KineticEnergyMetric(ROBOT)
+    single = Planner(metric, capacity=2, nodes=24, margin=0.01).plan(q0, q1, obstacles)
+    assert single.seed == "straight line" and single.result.kind == "constrained"
+    planner = Planner(metric, capacity=2, nodes=24, margin=0.01, alternatives=2)
+    plan = planner.plan(q0, q1, obstacles, budget=20.0, seed=2)
+    assert plan.attempts[-1].startswith("kept the lowest-energy of 3 plans")
+    energies = [float(e) for e in plan.attempts[-1].split("energies ")[1].rstrip(")").split(", ")]
+    assert max(energies) > 1.1 * min(energies)  # another homotopy class was found
+    assert plan.result.energy <= single.result.energy * (1 + 1e-9)
+    assert plan.fine_clearance >= 0.0
+    exact = [planner.term.min_clearance(q) for q in densify(plan.q, 64)]
+    assert min(exact) > 0.0

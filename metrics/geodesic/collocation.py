@@ -46,6 +46,7 @@ from geosyn.core.validation import (
 )
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.errors import GeodesicNotFound
+from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
 from geosyn.metrics.geodesic.collocation_parts import (
     KINDS,
     CollocationResult,
@@ -67,6 +68,18 @@ COMPILE = ("all", "first-order", "none")
 
 BATCH = 64
 """Configurations per call of the batched clearance check (`Collocation.node_clearances`)."""
+
+WARM_START = {
+    "warm_start_init_point": "yes",
+    "mu_init": 1e-3,
+    "warm_start_bound_push": 1e-9,
+    "warm_start_bound_frac": 1e-9,
+    "warm_start_slack_bound_push": 1e-9,
+    "warm_start_slack_bound_frac": 1e-9,
+    "warm_start_mult_bound_push": 1e-9,
+}
+"""IPOPT options of a warm-started solve (`Collocation.solve` with ``warm``): start from
+the given primal and dual point, barely pushed into the interior."""
 
 ACTIVE_TOL = 1e-6
 """A clearance within this of the margin [m], or a joint within it of a limit [rad], is
@@ -90,8 +103,9 @@ class Collocation:
             ``metric.robot``).
         compile: which per-node functions to compile to C (cached on disk), `COMPILE`:
             ``"all"`` (or True), ``"none"`` (or False: CasADi's VM), or
-            ``"first-order"`` (all but the clearances' Hessian, which stays in the VM:
-            with many robot spheres it is by far the costliest to compile).
+            ``"first-order"`` (all but the clearances' Hessian, which stays in the VM,
+            and with the clearances' Jacobian by automatic differentiation rather than
+            by its structure, `geosyn.metrics.geodesic.collocation_clearance`).
         tol: IPOPT's tolerance.
         hessian: what IPOPT gets as the Hessian of the Lagrangian (`HESSIANS`):
             ``"exact"`` (energy and clearances; the clearances' second derivatives are
@@ -103,8 +117,12 @@ class Collocation:
             ``log(n_spheres) / softmin`` below the exact minimum: 4 mm for 59 spheres at
             the default 1000 /m); None: one constraint per node, sphere and obstacle
             (exact, but many constraints with many spheres).
-        midpoints: also constrain the clearance at the segment midpoints (catches thin
-            obstacles that nodes would straddle).
+        subdivisions: also constrain the clearance at this many evenly spaced points
+            inside each segment, >= 0 (1: the midpoints, which catch thin obstacles that
+            nodes would straddle; 3: the quarter points, so that a path checked 4x finer
+            than its nodes keeps the margin there by construction).
+        ipopt_options: extra IPOPT options (without the ``ipopt.`` prefix), applied over
+            the defaults, e.g. ``{"print_level": 5}``.
 
     The constructor builds the NLP (allocates; with ``compile`` a C compile on the first
     use of a robot and capacity, cached on disk afterwards); `solve` only writes
@@ -127,7 +145,8 @@ class Collocation:
         tol: float = 1e-8,
         hessian: str = "exact",
         softmin: float | None = 1000.0,
-        midpoints: bool = True,
+        subdivisions: int = 1,
+        ipopt_options: dict[str, Any] | None = None,
     ) -> None:
         t0 = time.perf_counter()
         self.metric = check_metric(metric)
@@ -164,11 +183,22 @@ class Collocation:
         if self.compile != "none":
             # jac_<f> in the same library: first derivatives of f and g for CasADi's own
             # Lagrangian gradient (the hand-made derivatives above serve IPOPT).
-            todo = funcs if self.compile == "all" else funcs[:4]
             jacs = [funcs[0].jacobian(), funcs[2].jacobian()]
-            lib = compile_library("geosyn_collocation", [*todo, *jacs],
-                                  load=[f.name() for f in todo])  # fmt: skip
-            funcs = tuple(lib[f.name()] for f in todo) + funcs[len(todo) :]
+            lib = compile_library("geosyn_collocation", [*funcs[:4], *jacs],
+                                  load=[f.name() for f in funcs[:4]])  # fmt: skip
+            compiled = [lib[f.name()] for f in funcs[:4]]
+            if self.compile == "all" and len(funcs) > 4:
+                # its own library: the first-order one above stays cached without it
+                name = funcs[4].name()
+                compiled.append(compile_library("geosyn_collocation_hessian", [funcs[4]])[name])
+            funcs = tuple(compiled) + funcs[len(compiled) :]
+        if clearance is not None and self.softmin is not None and self.compile != "first-order":
+            # the clearances' Jacobian by its structure (half the graph of the automatic
+            # one, which "first-order" keeps from the library above), in a library of its own
+            jac = clearance_jacobian(clearance, self.softmin)
+            if self.compile == "all":
+                jac = compile_library("geosyn_collocation_jacobian", [jac])[jac.name()]
+            funcs = (*funcs[:3], jac, *funcs[4:])
         seg, seg_d, clr, clr_j = funcs[:4]
         self.constraints_per_node = m = clr.size1_out(0) if clearance is not None else 0
         npm = metric.symbolic_parameters().numel()
@@ -186,8 +216,9 @@ class Collocation:
         grad_f = ca.Function("nlp_grad_f", [x, p], [N * ca.sum2(E), grad], ["x", "p"],
                              ["f", "grad_f_x"])  # fmt: skip
         lam_f = ca.MX.sym("lam_f")
-        self.midpoints = bool(midpoints) and m > 0
-        rows = N - 1 + (N if self.midpoints else 0)  # constraint blocks of m rows
+        subdivisions = check_int(subdivisions, "subdivisions", low=0)
+        self.subdivisions = subdivisions if m else 0
+        rows = N - 1 + self.subdivisions * N  # constraint blocks of m rows
         lam_g = ca.MX.sym("lam_g", m * rows)
         blocks = [[ca.MX(n, n) for _ in range(N - 1)] for _ in range(N - 1)]
         for j in range(N - 1):
@@ -196,8 +227,7 @@ class Collocation:
             if j + 1 < N - 1:
                 blocks[j][j + 1] = N * lam_f * H[:n, 2 * n * (j + 1) + n : 2 * n * (j + 2)]
         if m:
-            # constraints at the interior nodes, then (midpoints) at the segment midpoints:
-            # c(m_k), m_k = (Q_k + Q_k+1) / 2, depends on X_k-1 and X_k with weight 1/2.
+            # constraints at the interior nodes, then at each subdivision of the segments
             L = ca.reshape(lam_g, m, rows)
             Cn, Jn = clr_j.map(N - 1)(X, pc)
             g_parts, c_parts = [ca.vec(clr.map(N - 1)(X, pc))], [ca.vec(Cn)]
@@ -208,25 +238,29 @@ class Collocation:
                 HN = funcs[4].map(N - 1)(X, pc, L[:, : N - 1])
                 for j in range(N - 1):
                     blocks[j][j] = blocks[j][j] + HN[:, j * n : (j + 1) * n]
-            if self.midpoints:
-                M = 0.5 * (qa + qb)
+            for i in range(self.subdivisions):
+                # c(m_k), m_k = (1 - t) Q_k + t Q_k+1, depends on X_k-1 (weight 1 - t) and
+                # X_k (weight t); Q_0 and Q_N are parameters.
+                t = (i + 1) / (self.subdivisions + 1)
+                wts = {-1: 1.0 - t, 0: t}
+                M = (1.0 - t) * qa + t * qb
                 Cm, Jm = clr_j.map(N)(M, pc)
                 g_parts.append(ca.vec(clr.map(N)(M, pc)))
                 c_parts.append(ca.vec(Cm))
+                first = N - 1 + i * N  # this subdivision's first constraint block
                 for k in range(N):
-                    half = 0.5 * Jm[:, k * n : (k + 1) * n]
-                    for j in (k - 1, k):
-                        if 0 <= j < N - 1:
-                            jrows[N - 1 + k][j] = half
+                    for dj, wj in wts.items():
+                        if 0 <= k + dj < N - 1:
+                            jrows[first + k][k + dj] = wj * Jm[:, k * n : (k + 1) * n]
                 if self.constraint_hessian:
-                    HM = 0.25 * funcs[4].map(N)(M, pc, L[:, N - 1 :])
+                    HM = funcs[4].map(N)(M, pc, L[:, first : first + N])
                     for k in range(N):
                         hk = HM[:, k * n : (k + 1) * n]
-                        for j in (k - 1, k):
-                            if 0 <= j < N - 1:
-                                blocks[j][j] = blocks[j][j] + hk
+                        for dj, wj in wts.items():
+                            if 0 <= k + dj < N - 1:
+                                blocks[k + dj][k + dj] = blocks[k + dj][k + dj] + wj * wj * hk
                         if 1 <= k < N - 1:
-                            blocks[k - 1][k] = blocks[k - 1][k] + hk
+                            blocks[k - 1][k] = blocks[k - 1][k] + t * (1.0 - t) * hk
             g = ca.vertcat(*g_parts)
             jac_g = ca.Function("nlp_jac_g", [x, p], [ca.vertcat(*c_parts), ca.blockcat(jrows)],
                                 ["x", "p"], ["g", "jac_g_x"])  # fmt: skip
@@ -245,7 +279,11 @@ class Collocation:
             "ipopt.sb": "yes",
             "ipopt.tol": self.tol,
             "ipopt.max_iter": 500,
+            # a faster monotone barrier decrease than IPOPT's 0.2: fewer iterations on
+            # benchmarks/planning.py, the worst scene's most of all (RESULTS.md)
+            "ipopt.mu_linear_decrease_factor": 0.05,
         }
+        opts.update({f"ipopt.{k}": v for k, v in (ipopt_options or {}).items()})
         if m:
             opts["jac_g"] = jac_g
         if self.hessian == "limited-memory":
@@ -254,6 +292,8 @@ class Collocation:
             opts["hess_lag"] = hess_l
         nlp: dict[str, Any] = {"x": x, "p": p, "f": f, "g": g}
         self._solver = ca.nlpsol("collocation", "ipopt", nlp, opts)
+        self._nlp, self._opts = nlp, opts
+        self._warm_solver: Any = None
         self._clearance_fn = clr if m else None
         self._clearance_batch: dict[int, ca.Function] = {}
         self.build_time = time.perf_counter() - t0
@@ -263,6 +303,31 @@ class Collocation:
             f"Collocation({self.metric!r}, nodes={self.nodes}, "
             f"constraints_per_node={self.constraints_per_node}, margin={self.margin})"
         )
+
+    def _warm(self) -> Any:
+        """The IPOPT solver with the warm-start options (built on first use)."""
+        if self._warm_solver is None:
+            opts = dict(self._opts)
+            opts.update({f"ipopt.{k}": v for k, v in WARM_START.items()})
+            self._warm_solver = ca.nlpsol("collocation_warm", "ipopt", self._nlp, opts)
+        return self._warm_solver
+
+    def _warm_multipliers(self, warm: CollocationResult) -> dict[str, np.ndarray]:
+        """lam_x0, lam_g0 from ``warm``: its constraint blocks at the same points (the
+        nodes, and subdivisions at the same segment fraction), zero elsewhere."""
+        lam_x, lam_g = warm.multipliers  # type: ignore[misc]
+        N, m, s = self.nodes, self.constraints_per_node, self.subdivisions
+        out = np.zeros(m * (N - 1 + s * N))
+        if m and lam_g.size:
+            out[: m * (N - 1)] = lam_g[: m * (N - 1)]
+            s_old = (lam_g.size // m - (N - 1)) // N
+            for i in range(s_old):
+                t = (i + 1) * (s + 1)
+                if t % (s_old + 1) == 0:  # (i + 1) / (s_old + 1) == j / (s + 1)
+                    j = t // (s_old + 1) - 1
+                    old = lam_g[m * (N - 1 + i * N) : m * (N - 1 + (i + 1) * N)]
+                    out[m * (N - 1 + j * N) : m * (N - 1 + (j + 1) * N)] = old
+        return {"lam_x0": lam_x, "lam_g0": out}
 
     def parameters(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """(2n + p,) NLP parameters: start, goal, metric and obstacle parameters."""
@@ -299,6 +364,7 @@ class Collocation:
         q1: Vector,
         *,
         init: np.ndarray | None = None,
+        warm: CollocationResult | None = None,
         budget: float = 10.0,
         refine: bool = True,
         steps: int = 100,
@@ -311,6 +377,10 @@ class Collocation:
             init: (T, n) initial path from ``q0`` to ``q1`` (T >= 2, resampled by arc
                 length to the nodes), e.g. a sampled path around obstacles; None: the
                 straight line.
+            warm: a result of a collocation with the same node count (e.g. fewer
+                subdivisions) to start from: its nodes (instead of ``init``) and its
+                multipliers (constraints at points this NLP shares with it; zero at
+                the others), with IPOPT's warm-start options (`WARM_START`).
             budget: IPOPT's wall-time limit [s], > 0 (the shooting refinement is extra,
                 bounded by its iteration budget).
             refine: when no constraint is active, refine the discrete geodesic by
@@ -330,13 +400,23 @@ class Collocation:
         q1 = check_vector(q1, n, "q1")
         budget = check_positive(budget, "budget", "s")
         steps = check_int(steps, "steps", low=1)
+        if warm is not None and (warm.multipliers is None or len(warm.nodes) != N + 1):
+            raise InvalidArgument(
+                f"warm: needs a result with multipliers of a collocation with {N} segments"
+            )
+        if warm is not None:
+            init = warm.nodes
         guess = resample_path(np.array([q0, q1]) if init is None else init, N, n)
         guess[0], guess[-1] = q0, q1
         lo = np.clip(np.minimum(self.q_min, self.q_max), -1e20, 1e20)
         hi = np.clip(self.q_max, -1e20, 1e20)
         x0 = np.clip(guess[1:-1], lo, hi).ravel()
         self._deadline.reset(budget)
-        sol = self._solver(
+        solver, extra = self._solver, {}
+        if warm is not None:
+            solver, extra = self._warm(), self._warm_multipliers(warm)
+        sol = solver(
+            **extra,
             x0=x0,
             p=self.parameters(q0, q1),
             lbx=np.tile(lo, N - 1),
@@ -344,7 +424,7 @@ class Collocation:
             lbg=self.margin,
             ubg=np.inf,
         )
-        stats = self._solver.stats()
+        stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
         iterations = int(stats.get("iter_count", 0))
         kkt = float(stats["iterations"]["inf_du"][-1]) if stats.get("iterations") else math.nan
@@ -359,8 +439,10 @@ class Collocation:
         t = np.linspace(0.0, 1.0, N + 1)
         ok = bool(stats.get("success", False))
         wall = time.perf_counter() - t0
+        mult = (np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel())
         base = dict(energy=energy, nodes=nodes, min_clearance=min_clear, active=active,
-                    kkt_residual=kkt, iterations=iterations, status=status)  # fmt: skip
+                    kkt_residual=kkt, iterations=iterations, status=status,
+                    multipliers=mult)  # fmt: skip
         if not ok:
             msg = f"IPOPT: {status} after {iterations} iterations ({wall:.2f} s of {budget:g} s)"
             return CollocationResult(t, nodes, "failed", v0=v0, geodesic_residual=math.nan,

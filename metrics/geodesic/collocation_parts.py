@@ -50,6 +50,8 @@ class CollocationResult(NamedTuple):
         status: IPOPT's return status.
         wall_time: wall-clock time of the solve [s].
         message: one line on what was done.
+        multipliers: IPOPT's final multipliers ``(lam_x (nx,), lam_g (ng,))`` of the
+            bounds and constraints, for a warm start (`Collocation.solve`'s ``warm``).
     """
 
     t: np.ndarray
@@ -66,6 +68,7 @@ class CollocationResult(NamedTuple):
     status: str
     wall_time: float
     message: str
+    multipliers: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def success(self) -> bool:
@@ -132,6 +135,10 @@ def node_functions(
     clr_j = ca.Function("colloc_clearance_j", [q, pc], [c, jc], opts)
     if not constraint_hessian:
         return seg, seg_d, clr, clr_j
+    if clearance is not None and softmin is not None:
+        from geosyn.metrics.geodesic.collocation_clearance import clearance_hessian
+
+        return seg, seg_d, clr, clr_j, clearance_hessian(clearance, softmin)
     lam = ca.SX.sym("lam", c.numel())
     hc = ca.hessian(ca.dot(lam, c), q)[0]
     clr_d = ca.Function("colloc_clearance_d", [q, pc, lam], [ca.densify(hc)], opts)

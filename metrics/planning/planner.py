@@ -7,13 +7,16 @@ One query, within a stated time budget:
    ``capacity`` obstacles (else `geosyn.metrics.shaping.CapacityExceeded`);
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line;
 3. if that fails, RRT-Connect (`geosyn.metrics.planning.rrt`) for a global seed around
-   the obstacles, then collocation from it;
-4. checks the result between the nodes (``check_factor`` times finer, linear between
-   nodes); a path that touches an obstacle there is solved again with twice the nodes.
+   the obstacles, then collocation from it; with ``alternatives`` > 0, also after a
+   constrained straight-line result, from that many RRT-Connect seeds (other homotopy
+   classes round the obstacles), keeping the lowest-energy plan;
+4. checks the result between the nodes (``check_factor`` times finer and at most
+   ``check_step`` apart, linear between nodes); a path that touches an obstacle there is
+   solved again with more constrained points (`REFINEMENTS`) until one passes.
 
 A query that cannot succeed raises `NoPathFound` once the budget is spent, listing what
-was tried. The NLP is built once per node count (its obstacle poses are parameters), so
-every scene of one robot and capacity reuses it.
+was tried. The NLPs are built once (their obstacle poses are parameters), so every scene
+of one robot and capacity reuses them.
 """
 
 from __future__ import annotations
@@ -36,7 +39,11 @@ from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world.shapes import Shape
 
-__all__ = ["Plan", "Planner"]
+__all__ = ["REFINEMENTS", "Plan", "Planner"]
+
+REFINEMENTS = ((1, 3), (2, 1), (2, 3))
+"""What a path that fails the fine check is solved again with, in turn, from the same
+seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
 
 
 class Plan(NamedTuple):
@@ -45,11 +52,13 @@ class Plan(NamedTuple):
     Attributes:
         result: the collocation result (path, kind, energy, clearance, ...).
         seed: the initial path of the final collocation: ``"straight line"`` or
-            ``"rrt-connect"``.
+            ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed).
         check_clearance: smallest clearance [m] on the path checked ``check_factor``
-            times finer than its samples (linear in between).
+            times finer than its samples (linear in between), by the constraints' smooth
+            minimum (at most ``log(n_spheres) / softmin`` below the exact one).
         wall_time: wall-clock time of the query [s].
         attempts: one line per method tried.
+        fine_clearance: the same, checked at most ``check_step`` apart in joint space.
     """
 
     result: CollocationResult
@@ -57,6 +66,7 @@ class Plan(NamedTuple):
     check_clearance: float
     wall_time: float
     attempts: tuple[str, ...]
+    fine_clearance: float = math.nan
 
     @property
     def q(self) -> np.ndarray:
@@ -82,6 +92,10 @@ class Planner:
         margin: node clearance of the collocation [m], >= 0.
         nodes: segments of the collocation, >= 2.
         check_factor: refinement of the between-node check, >= 1.
+        check_step: largest joint-space distance (2-norm) between two checked
+            configurations [rad], > 0.
+        alternatives: RRT-Connect seeds tried after a constrained straight-line plan,
+            >= 0 (each costs a sampling and a collocation; the lowest-energy plan wins).
         compile: what to compile to C (cached on disk): see `Collocation`.
         distance: signed distance of the clearance constraints, ``"exact"`` or
             ``"smooth"`` (see `geosyn.metrics.shaping.obstacle.DISTANCES`).
@@ -99,6 +113,8 @@ class Planner:
         margin: float = 0.01,
         nodes: int = 24,
         check_factor: int = 4,
+        check_step: float = 0.005,
+        alternatives: int = 0,
         compile: bool | str = False,
         distance: str = "exact",
         hessian: str = "exact",
@@ -116,23 +132,37 @@ class Planner:
         self.margin = check_float(margin, "margin", low=0.0)
         self.nodes = check_int(nodes, "nodes", low=2)
         self.check_factor = check_int(check_factor, "check_factor", low=1)
+        self.check_step = check_positive(check_step, "check_step", "rad")
+        self.alternatives = check_int(alternatives, "alternatives", low=0)
         self.compile = compile
         self.hessian = hessian
         self.tol = check_positive(tol, "tol")
         self.softmin = softmin
-        self._collocations: dict[int, Collocation] = {}
+        self._collocations: dict[tuple[int, int], Collocation] = {}
         self.collocation(self.nodes)
         self.build_time = time.perf_counter() - t0
 
-    def collocation(self, nodes: int) -> Collocation:
-        """The collocation with ``nodes`` segments (built on first use, then kept)."""
-        if nodes not in self._collocations:
-            self._collocations[nodes] = Collocation(
+    def collocation(self, nodes: int, subdivisions: int = 1) -> Collocation:
+        """The collocation with ``nodes`` segments and ``subdivisions`` constrained points
+        inside each (built on first use, then kept)."""
+        key = (nodes, subdivisions)
+        if key not in self._collocations:
+            self._collocations[key] = Collocation(
                 self.metric, nodes=nodes, clearance=self.term, margin=self.margin,
                 compile=self.compile, hessian=self.hessian, tol=self.tol,
-                softmin=self.softmin,
+                softmin=self.softmin, subdivisions=subdivisions,
             )  # fmt: skip
-        return self._collocations[nodes]
+        return self._collocations[key]
+
+    def check(self, path: np.ndarray) -> tuple[float, float]:
+        """Smallest clearances [m] of ``path`` (T, n), linear between its samples, checked
+        ``check_factor`` times finer, and at most ``check_step`` apart (2-norm)."""
+        path = np.asarray(path, dtype=float)
+        step = float(np.linalg.norm(np.diff(path, axis=0), axis=1).max(initial=0.0))
+        factor = max(self.check_factor, math.ceil(step / self.check_step))
+        clearances = self.collocation(self.nodes).node_clearances
+        coarse = float(clearances(densify(path, self.check_factor)).min())
+        return coarse, float(clearances(densify(path, factor)).min())
 
     def valid(self, Q: np.ndarray) -> np.ndarray:
         """(K,) True where the configurations ``Q`` (K, n) keep clearance >= margin / 2."""
@@ -205,52 +235,86 @@ class Planner:
         def left() -> float:
             return budget - (time.perf_counter() - t0)
 
-        def finish(res: CollocationResult, seed_name: str, share: float) -> Plan | None:
-            """The plan if ``res`` is clear between its nodes, else refined (within the
-            first ``share`` of the budget) while that halves the penetration."""
-            nodes, previous = self.nodes, -math.inf
-            while True:
-                check = float(self.collocation(nodes).node_clearances(
-                    densify(res.q, self.check_factor)).min())  # fmt: skip
+        def finish(
+            res: CollocationResult, init: np.ndarray | None, seed_name: str, share: float
+        ) -> Plan | None:
+            """The plan if ``res`` passes the fine check, else solved again from the same
+            seed ``init`` along `REFINEMENTS` (within the first ``share`` of the budget)
+            until one does. Not from ``res``: where a thin obstacle lies between two
+            constrained points, a finer NLP started there keeps the crossing (measured)."""
+            previous = -math.inf
+            for level, (_, sub) in enumerate(((1, 1), *REFINEMENTS)):
+                coarse, fine = self.check(res.q)
+                check = min(coarse, fine)
                 if check >= 0.0:
-                    return Plan(res, seed_name, check, time.perf_counter() - t0, tuple(attempts))
+                    wall = time.perf_counter() - t0
+                    return Plan(res, seed_name, coarse, wall, tuple(attempts), fine)
                 attempts.append(
-                    f"{res.kind} path with {nodes} segments crosses an obstacle between nodes "
+                    f"{res.kind} path ({len(res.nodes) - 1} segments, {sub} constrained "
+                    f"point(s) inside each) crosses an obstacle on the fine check "
                     f"(clearance {check:.4f} m)"
                 )
-                if check <= 0.5 * previous:  # refining does not help: it tunnels through
+                if level == len(REFINEMENTS):
                     return None
-                previous, nodes = check, 2 * nodes
-                if nodes > 8 * self.nodes:
+                if level >= 2 and check <= 0.5 * previous:  # after more nodes, too
+                    attempts.append("refining does not help: the path tunnels through")
                     return None
-                col = self.collocation(nodes)  # built once, kept for later queries
+                previous = max(previous, check)
                 if left() - (1.0 - share) * budget <= 0:
-                    attempts.append(f"no time left for collocation with {nodes} segments")
+                    attempts.append("no time left to refine it")
                     return None
-                res = col.solve(q0, q1, init=res.q, budget=left() - (1.0 - share) * budget)
+                nodes, sub = self.nodes * REFINEMENTS[level][0], REFINEMENTS[level][1]
+                res = self.collocation(nodes, sub).solve(
+                    q0, q1, init=init, budget=left() - (1.0 - share) * budget
+                )
                 if not res.success:
-                    attempts.append(f"collocation ({nodes} segments): {res.message}")
+                    attempts.append(f"collocation ({nodes} segments, {sub} constrained "
+                                    f"point(s) inside each): {res.message}")  # fmt: skip
                     return None
+            return None
 
-        res = self.collocation(self.nodes).solve(q0, q1, budget=0.5 * budget)
-        attempts.append(f"collocation from the straight line: {res.message}")
-        if res.success and (plan := finish(res, "straight line", 0.75)) is not None:
-            return plan
-        if left() > 0:
+        def from_rrt(index: int) -> Plan | None:
+            """Collocation from an RRT-Connect seed (``seed + index``), or None."""
+            name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
             # the sampling box: the limits, or within pi of start and goal where infinite
             lo = np.maximum(self.robot.q_min, np.minimum(q0, q1) - np.pi)
             hi = np.minimum(self.robot.q_max, np.maximum(q0, q1) + np.pi)
-            path, grown = rrt_connect(self.valid, q0, q1, lo, hi, budget=0.6 * left(), seed=seed)
+            path, grown = rrt_connect(self.valid, q0, q1, lo, hi, budget=0.6 * left(),
+                                      seed=seed + index)  # fmt: skip
             if path is None:
-                attempts.append(f"RRT-Connect: no connection after {grown} nodes")
-            else:
-                path = shortcut(self.valid, path, budget=0.05 * left(), seed=seed)
-                attempts.append(f"RRT-Connect: path of {len(path)} vertices ({grown} nodes)")
-                if left() > 0:
-                    res = self.collocation(self.nodes).solve(q0, q1, init=path, budget=left())
-                    attempts.append(f"collocation from the RRT-Connect path: {res.message}")
-                    if res.success and (plan := finish(res, "rrt-connect", 1.0)) is not None:
-                        return plan
+                attempts.append(f"{name}: no connection after {grown} nodes")
+                return None
+            if len(path) == 2:  # the straight line is free: collocation already had it
+                attempts.append(f"{name}: the straight line is collision-free")
+                return None
+            path = shortcut(self.valid, path, budget=0.05 * left(), seed=seed + index)
+            attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
+            if left() <= 0:
+                return None
+            res = self.collocation(self.nodes).solve(q0, q1, init=path, budget=left())
+            attempts.append(f"collocation from the {name} path: {res.message}")
+            return finish(res, path, name.lower(), 1.0) if res.success else None
+
+        res = self.collocation(self.nodes).solve(q0, q1, budget=0.5 * budget)
+        attempts.append(f"collocation from the straight line: {res.message}")
+        plans = []
+        if res.success and (plan := finish(res, None, "straight line", 0.75)) is not None:
+            plans.append(plan)
+        constrained = bool(plans) and plans[0].result.kind == "constrained"
+        tries = (self.alternatives if constrained else 0) if plans else 1
+        for index in range(tries):
+            if left() <= 0:
+                attempts.append(f"no time left for RRT-Connect seed {index}")
+                break
+            if (plan := from_rrt(index)) is not None:
+                plans.append(plan)
+        if plans:
+            lowest = min(p.result.energy for p in plans)  # ties (1e-9) go to the earlier
+            best = next(p for p in plans if p.result.energy <= lowest + 1e-9 * abs(lowest))
+            if len(plans) > 1:
+                attempts.append(f"kept the lowest-energy of {len(plans)} plans: {best.seed} "
+                                f"(energies {', '.join(f'{p.result.energy:.4f}' for p in plans)})")  # fmt: skip
+            return best._replace(wall_time=time.perf_counter() - t0, attempts=tuple(attempts))
         elapsed = time.perf_counter() - t0
         raise NoPathFound(
             f"no collision-free path from the start to the goal within the {budget:g} s "
