@@ -236,3 +236,57 @@ def test_metric_effort_needs_the_robots_kinetic_metric() -> None:
             get_robot("panda"), other, horizon=5, control="torque", solver="ddp",
             effort="metric",
         )  # fmt: skip
+
+
+def test_clearance_margin_keeps_the_shaped_metrics_obstacle_away() -> None:
+    """A reference sweeping the panda's base joint passes 5 mm from a ball: the DDP MPC
+    with ``clearance_margin=0.03`` keeps 3 cm to within 5 mm in closed loop (Pinocchio
+    plant, 1 kHz), without fallbacks, and tracks the reference again afterwards; the
+    same MPC without it comes within 5 mm (clearances by the term's exact distance)."""
+    from geosyn.controllers import JointTrajectoryReference
+    from geosyn.controllers.plant import PinocchioPlant
+    from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
+    from geosyn.world import Sphere
+
+    robot, K = get_robot("panda"), get_metric("panda")
+    qa = np.array([-0.6, -0.3, 0.0, -2.2, 0.0, 1.9, 0.785])
+    qb = qa.copy()
+    qb[0] = 0.6
+    t = np.linspace(0.0, 1.5, 31)
+    s = np.clip(t / 1.2, 0.0, 1.0)
+    ref = JointTrajectoryReference(t, qa + np.outer(10 * s**3 - 15 * s**4 + 6 * s**5, qb - qa))
+    model, data = robot.model, robot.model.createData()
+    pin.forwardKinematics(model, data, ref.sample(0.6).q)
+    hand = robot.collision_spheres()[-1]
+    c = data.oMi[model.getJointId(hand.joint)].act(np.array(hand.center))
+    radial = np.array([c[0], c[1], 0.0]) / np.linalg.norm(c[:2])
+    term = ObstacleTerm([Sphere(tuple(c + 0.095 * radial), 0.03)], capacity=1)
+    shaped = ShapedMetric(K, [term])
+    assert (
+        0.004 < min(term.min_clearance(ref.sample(x).q) for x in np.linspace(0, 1.5, 151)) < 0.006
+    )
+    runs = {}
+    for label, metric, kw in (("plain", K, {}), ("guarded", shaped, {"clearance_margin": 0.03})):
+        mpc = GeodesicMPC(
+            robot, metric, horizon=10, dt=0.02, control="torque", solver="ddp",
+            reference=ref, **kw,
+        )  # fmt: skip
+        mpc.reset(qa, np.zeros(7))
+        plant = PinocchioPlant(robot, dt=1e-3)
+        plant.reset(qa, np.zeros(7))
+        clearance = []
+        for _ in range(1500):
+            plant.step(mpc.compute(plant.t, plant.q, plant.v))
+            clearance.append(term.min_clearance(plant.q))
+        error = np.abs(plant.q - ref.sample(plant.t).q).max()
+        runs[label] = (min(clearance), mpc.diagnostics.fallback_count, error)
+    assert runs["plain"][0] < 0.006
+    assert runs["guarded"][0] > 0.025, runs
+    assert runs["guarded"][1] == 0 and runs["guarded"][2] < 1e-3, runs
+
+
+def test_clearance_margin_needs_ddp_and_obstacle_terms() -> None:
+    with pytest.raises(InvalidArgument, match="clearance_margin needs solver='ddp'"):
+        GeodesicMPC(get_robot("panda"), get_metric("panda"), horizon=5, clearance_margin=0.02)
+    with pytest.raises(InvalidArgument, match="ObstacleTerm"):
+        _mpc(clearance_margin=0.02)  # the plain kinetic-energy metric has no obstacles

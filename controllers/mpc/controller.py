@@ -139,6 +139,10 @@ class GeodesicMPC(Controller):
             `geosyn.controllers.mpc.settings.STATE_MARGIN` outside the position or
             velocity limits is not solved at all (status ``"skipped: ..."``): the OCP
             is infeasible there, and fatrop's restoration phase need not return.
+        clearance_margin: obstacle clearance [m] kept by a stiff penalty on every
+            stage, from the obstacle terms of a shaped ``metric`` (their obstacles are
+            read at every solve), or None (no clearance cost). ``solver="ddp"`` only;
+            see `geosyn.controllers.mpc.ddp_clearance`.
         reference: optional reference.
 
     Attributes:
@@ -181,6 +185,7 @@ class GeodesicMPC(Controller):
         plan_tolerance: float = 0.05,
         solver_options: dict | None = None,
         max_solve_time: float = 1.0,
+        clearance_margin: float | None = None,
         reference: Reference | None = None,
     ) -> None:
         super().__init__(robot, None)
@@ -191,13 +196,20 @@ class GeodesicMPC(Controller):
             )
         self.metric = metric
         weights = (q_weight, v_weight, tau_weight, terminal_weight)
-        self.settings = ocp_settings(n, horizon, dt, control, effort, rk4_steps, *weights)
+        self.settings = ocp_settings(
+            n, horizon, dt, control, effort, rk4_steps, *weights, clearance_margin
+        )
         self.solver_settings = solver_settings(
             solver, tol, max_iter, mu_init, mu_warm, solver_options, max_solve_time
         )
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         if self.solver_settings.name == "ddp":
             check_ddp_settings(self.settings, self.hessian, metric, robot)
+        elif self.settings.clearance_margin is not None:
+            raise InvalidArgument(
+                f"clearance_margin needs solver='ddp' (a stiff clearance penalty), got "
+                f"solver={solver!r}"
+            )
         self.kp = check_gain(kp, n, "kp")
         self.kd = check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
@@ -243,13 +255,15 @@ class GeodesicMPC(Controller):
         s = self.settings
         try:
             return DDPTracking(
-                self.robot, s, self.solver_settings, self.kp, self.kd, progress=_report_progress
-            )
+                self.robot, s, self.solver_settings, self.kp, self.kd, self.metric,
+                progress=_report_progress,
+            )  # fmt: skip
         except CodegenError as err:
             self._note("compiled", f"DDP stage functions on CasADi's VM: not compiled ({err})")
             return DDPTracking(
-                self.robot, s, self.solver_settings, self.kp, self.kd, compiled=False
-            )
+                self.robot, s, self.solver_settings, self.kp, self.kd, self.metric,
+                compiled=False,
+            )  # fmt: skip
 
     # -- controller hooks ------------------------------------------------------------
     def _on_reset(self, q: Vector, v: Vector, t: float) -> None:

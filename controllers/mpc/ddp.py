@@ -38,6 +38,7 @@ import numpy as np
 from geosyn.controllers.mpc import box_qp as box_qp_module
 from geosyn.controllers.mpc import gauss_newton
 from geosyn.controllers.mpc.box_qp import BOX_ITERATIONS, box_qp, spd_solve
+from geosyn.controllers.mpc.ddp_clearance import clearance_digest
 from geosyn.core.codegen import compile_recipe
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
@@ -49,6 +50,7 @@ __all__ = [
     "ddp_parts",
     "parameter_vector",
     "metric_effort",
+    "n_parameters",
     "riccati_step",
     "rk4_linearisation",
     "torque_effort",
@@ -139,9 +141,11 @@ def _split(P: ca.SX, n: int) -> _Params:
     return _Params(*parts)
 
 
-def n_parameters(n: int) -> int:
-    """Length of ``P`` for ``n`` joints."""
-    return 9 * n + 2
+def n_parameters(n: int, clearance: ca.Function | None = None) -> int:
+    """Length of ``P`` for ``n`` joints: ``9 n + 2``, plus ``2 + m_p`` with a clearance
+    function (margin [m], weight [1/m^2], the obstacle terms' ``m_p`` parameters)."""
+    base = 9 * n + 2
+    return base if clearance is None else base + 2 + clearance.size1_in(1)
 
 
 def _limit_terms(x: ca.SX, p: _Params, n: int) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -197,25 +201,53 @@ def metric_effort(robot: Robot) -> ca.Function:
 _EFFORT_IO = (["q", "u", "tr", "wu"], ["l", "l_q", "l_u", "l_uu", "l_uq", "l_qq"])
 
 
+def _clearance_terms(q: Any, P: Any, n: int, clearance: ca.Function | None) -> tuple[Any, Any, Any]:
+    """The clearance penalty (`geosyn.controllers.mpc.ddp_clearance`): value, gradient
+    (n,) and Gauss-Newton Hessian (n, n) in q; zero without ``clearance``."""
+    if clearance is None:
+        return 0, ca.DM(n, 1), ca.DM(n, n)
+    base = n_parameters(n)
+    margin, weight = P[base], P[base + 1]
+    c, J = clearance(q, P[base + 2 :])
+    viol = ca.fmax(margin - c, 0)
+    active = (viol > 0) @ ca.DM.ones(1, n)
+    return weight * ca.sumsqr(viol), -2 * weight * (J.T @ viol), 2 * weight * (J.T @ (active * J))
+
+
 def _stage_derivatives(
-    x: Any, u: Any, xr: Any, tr: Any, p: _Params, n: int, effort: ca.Function
+    x: Any,
+    u: Any,
+    xr: Any,
+    tr: Any,
+    P: Any,
+    n: int,
+    effort: ca.Function,
+    clearance: ca.Function | None = None,
 ) -> tuple[Any, Any, Any, Any, Any, Any]:
     """Stage cost and its derivatives: (l, lx (2n,), lxx (2n, 2n), lu, luu, lux (n, 2n))."""
+    p = _split(P, n)
     ex = x - xr
     lim, lim_grad, lim_hess = _limit_terms(x, p, n)
     le, le_q, le_u, le_uu, le_uq, le_qq = effort(x[:n], u, tr, p.wu)
+    lc, lc_q, lc_qq = _clearance_terms(x[:n], P, n, clearance)
     zero = ca.DM(n, n)  # structurally zero
-    value = ca.dot(p.wx, ex * ex) + le + lim
-    lx = 2 * p.wx * ex + lim_grad + ca.vertcat(le_q, ca.DM(n, 1))
-    lxx = ca.diag(2 * p.wx + lim_hess) + ca.blockcat([[le_qq, zero], [zero, zero]])
+    value = ca.dot(p.wx, ex * ex) + le + lim + lc
+    lx = 2 * p.wx * ex + lim_grad + ca.vertcat(le_q + lc_q, ca.DM(n, 1))
+    lxx = ca.diag(2 * p.wx + lim_hess) + ca.blockcat([[le_qq + lc_qq, zero], [zero, zero]])
     return value, lx, lxx, le_u, le_uu, ca.horzcat(le_uq, zero)
 
 
-def riccati_step(n: int, sym: Any = None, effort: ca.Function | None = None) -> ca.Function:
+def riccati_step(
+    n: int,
+    sym: Any = None,
+    effort: ca.Function | None = None,
+    clearance: ca.Function | None = None,
+) -> ca.Function:
     """The Riccati step ``ddp_riccati`` for ``n`` joints (see `DDPParts`): ``sym`` SX
     (straight-line code) or MX (loops and an LDL^T solver); None: SX up to
     `SX_RICCATI_MAX_JOINTS` joints, MX beyond (the SX form grows as n^3: 60 MB of C at
-    32 joints). ``effort``: `torque_effort` (None) or `metric_effort`."""
+    32 joints). ``effort``: `torque_effort` (None) or `metric_effort`; ``clearance``:
+    the optional `geosyn.controllers.mpc.ddp_clearance.clearance_function`."""
     effort = torque_effort(n) if effort is None else effort
     nx = 2 * n
     if sym is None:
@@ -223,9 +255,9 @@ def riccati_step(n: int, sym: Any = None, effort: ca.Function | None = None) -> 
     Vx, Vxx = sym.sym("Vx", nx), sym.sym("Vxx", nx, nx)
     A, B = sym.sym("A", nx, nx), sym.sym("B", nx, n)
     x, u, xr, tr = sym.sym("x", nx), sym.sym("u", n), sym.sym("xr", nx), sym.sym("tr", n)
-    P = sym.sym("P", n_parameters(n))
+    P = sym.sym("P", n_parameters(n, clearance))
     p = _split(P, n)
-    _, lx, lxx, lu, luu, lux = _stage_derivatives(x, u, xr, tr, p, n, effort)
+    _, lx, lxx, lu, luu, lux = _stage_derivatives(x, u, xr, tr, P, n, effort, clearance)
     VA, VB = Vxx @ A, Vxx @ B
     Qx, Qu = lx + A.T @ Vx, lu + B.T @ Vx
     Qxx = lxx + A.T @ VA
@@ -250,39 +282,47 @@ def riccati_step(n: int, sym: Any = None, effort: ca.Function | None = None) -> 
     )
 
 
-def _terminal(n: int) -> ca.Function:
+def _terminal(n: int, clearance: ca.Function | None = None) -> ca.Function:
     nx = 2 * n
-    x, xr, P = ca.SX.sym("x", nx), ca.SX.sym("xr", nx), ca.SX.sym("P", n_parameters(n))
+    x, xr = ca.SX.sym("x", nx), ca.SX.sym("xr", nx)
+    P = ca.SX.sym("P", n_parameters(n, clearance))
     p = _split(P, n)
     e = x - xr
     lim, lim_grad, lim_hess = _limit_terms(x, p, n)
-    cost = ca.dot(p.wN, e * e) + lim
+    lc, lc_q, lc_qq = _clearance_terms(x[:n], P, n, clearance)
+    zero = ca.DM(n, n)
+    cost = ca.dot(p.wN, e * e) + lim + lc
+    grad = 2 * p.wN * e + lim_grad + ca.vertcat(lc_q, ca.DM(n, 1))
+    hess = ca.diag(2 * p.wN + lim_hess) + ca.blockcat([[lc_qq, zero], [zero, zero]])
     return ca.Function(
         "ddp_terminal",
         [x, xr, P],
-        [cost, 2 * p.wN * e + lim_grad, ca.densify(ca.diag(2 * p.wN + lim_hess))],
+        [cost, grad, ca.densify(hess)],
         ["x", "xr", "P"],
         ["cost", "Vx", "Vxx"],
         {"cse": True},
     )
 
 
-def _stage_cost(n: int, effort: ca.Function) -> ca.Function:
+def _stage_cost(n: int, effort: ca.Function, clearance: ca.Function | None) -> ca.Function:
     nx = 2 * n
     x, u, xr, tr = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
-    P = ca.SX.sym("P", n_parameters(n))
-    cost = _stage_derivatives(x, u, xr, tr, _split(P, n), n, effort)[0]
+    P = ca.SX.sym("P", n_parameters(n, clearance))
+    cost = _stage_derivatives(x, u, xr, tr, P, n, effort, clearance)[0]
     return ca.Function("ddp_cost", [x, u, xr, tr, P], [cost], {"cse": True})
 
 
-def _forward(n: int, F: ca.Function, effort: ca.Function) -> ca.Function:
+def _forward(
+    n: int, F: ca.Function, effort: ca.Function, clearance: ca.Function | None = None
+) -> ca.Function:
     nx = 2 * n
     x, xb, ub = ca.MX.sym("x", nx), ca.MX.sym("xb", nx), ca.MX.sym("ub", n)
     k, K, alpha = ca.MX.sym("k", n), ca.MX.sym("K", n, nx), ca.MX.sym("alpha")
-    xr, tr, P = ca.MX.sym("xr", nx), ca.MX.sym("tr", n), ca.MX.sym("P", n_parameters(n))
+    xr, tr = ca.MX.sym("xr", nx), ca.MX.sym("tr", n)
+    P = ca.MX.sym("P", n_parameters(n, clearance))
     tau_max = P[8 * n : 9 * n]  # the layout of _split
     u = ca.fmin(ca.fmax(ub + alpha * k + K @ (x - xb), -tau_max), tau_max)
-    cost = _stage_cost(n, effort)(x, u, xr, tr, P)
+    cost = _stage_cost(n, effort, clearance)(x, u, xr, tr, P)
     return ca.Function(
         "ddp_forward",
         [x, xb, ub, k, K, alpha, xr, tr, P],
@@ -337,30 +377,33 @@ def rk4_linearisation(robot: Robot, dt: float, rk4_steps: int) -> ca.Function:
     return ca.Function("ddp_lin", [x, u], [ca.densify(Dx), ca.densify(Du)], ["x", "u"], ["A", "B"])
 
 
-def make_functions(robot: Robot, dt: float, rk4_steps: int, effort: str) -> list[ca.Function]:
+def make_functions(
+    robot: Robot, dt: float, rk4_steps: int, effort: str, clearance: ca.Function | None = None
+) -> list[ca.Function]:
     """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation).
 
-    ``effort``: ``"torque"`` or ``"metric"`` (see `torque_effort`, `metric_effort`)."""
+    ``effort``: ``"torque"`` or ``"metric"`` (see `torque_effort`, `metric_effort`);
+    ``clearance``: an optional `geosyn.controllers.mpc.ddp_clearance.clearance_function`."""
     F = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[0]
     n = robot.nv
     eff = torque_effort(n) if effort == "torque" else metric_effort(robot)
     return [
         rk4_linearisation(robot, dt, rk4_steps),
-        riccati_step(n, effort=eff),
-        _forward(n, F, eff),
-        _terminal(n),
+        riccati_step(n, effort=eff, clearance=clearance),
+        _forward(n, F, eff, clearance),
+        _terminal(n, clearance),
     ]
 
 
 _NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")
 
 
-def _recipe(robot: Robot, dt: float, rk4_steps: int, effort: str) -> str:
+def _recipe(robot: Robot, dt: float, rk4_steps: int, effort: str, clearance: str) -> str:
     digest = hashlib.sha256()
     for path in (Path(__file__), Path(box_qp_module.__file__)):
         digest.update(path.read_bytes())
     stage = gauss_newton.stage_recipe(robot, dt, "torque", rk4_steps, True)
-    return "\0".join(["geosyn-mpc-ddp-v2", digest.hexdigest(), effort, stage])
+    return "\0".join(["geosyn-mpc-ddp-v2", digest.hexdigest(), effort, clearance, stage])
 
 
 def ddp_parts(
@@ -368,6 +411,7 @@ def ddp_parts(
     dt: float,
     rk4_steps: int,
     effort: str = "torque",
+    clearance: ca.Function | None = None,
     *,
     compiled: bool = True,
     progress: Callable[[str], None] | None = None,
@@ -382,6 +426,8 @@ def ddp_parts(
         dt: stage length [s].
         rk4_steps: RK4 steps per stage.
         effort: ``"torque"`` or ``"metric"`` (the robot's kinetic-energy metric).
+        clearance: optional clearance function
+            (`geosyn.controllers.mpc.ddp_clearance.clearance_function`).
         compiled: False: the same functions on CasADi's virtual machine (no compiler).
         progress: receives progress lines of a first build.
 
@@ -389,12 +435,14 @@ def ddp_parts(
         CodegenError: no compiler, or compiling/loading failed (only when ``compiled``).
     """
     if not compiled:
-        return DDPParts(*make_functions(robot, dt, rk4_steps, effort))
-    name = re.sub(r"\W", "_", f"geosyn_ddp_{robot.name}_{effort}")
+        return DDPParts(*make_functions(robot, dt, rk4_steps, effort, clearance))
+    tag = "" if clearance is None else "_clearance"
+    name = re.sub(r"\W", "_", f"geosyn_ddp_{robot.name}_{effort}{tag}")
+    digest = "" if clearance is None else clearance_digest(clearance)
     lib = compile_recipe(
         name,
-        _recipe(robot, dt, rk4_steps, effort),
-        lambda: make_functions(robot, dt, rk4_steps, effort),
+        _recipe(robot, dt, rk4_steps, effort, digest),
+        lambda: make_functions(robot, dt, rk4_steps, effort, clearance),
         load=list(_NAMES),
         progress=progress,
     )

@@ -65,6 +65,8 @@ class OCPSettings:
         v_weight: (nv,) velocity-error weight [s^2/rad^2].
         effort_weight: (nv,) effort weight ([1/(N m)^2] or [s^4/rad^2]).
         terminal_weight: (2 nv,) terminal state-error weight (q then v).
+        clearance_margin: obstacle clearance kept by a stiff penalty [m] (``solver="ddp"``
+            with a shaped metric's obstacle terms), or None.
     """
 
     N: int
@@ -76,6 +78,7 @@ class OCPSettings:
     v_weight: Vector
     effort_weight: Vector
     terminal_weight: Vector
+    clearance_margin: float | None = None
 
 
 @dataclass(frozen=True)
@@ -116,6 +119,7 @@ def ocp_settings(
     v_weight: object,
     tau_weight: object,
     terminal_weight: object,
+    clearance_margin: object = None,
 ) -> OCPSettings:
     """Validate the OCP arguments of `GeodesicMPC` (same names and meaning).
 
@@ -130,6 +134,7 @@ def ocp_settings(
         v_weight: scalar or (nv,) [s^2/rad^2].
         tau_weight: scalar or (nv,), or None for `DEFAULT_EFFORT_WEIGHT`.
         terminal_weight: scalar or (2 nv,).
+        clearance_margin: None or a margin [m] (> 0).
 
     Raises:
         InvalidArgument: a bad argument (named in the message, with what is allowed).
@@ -157,6 +162,11 @@ def ocp_settings(
             DEFAULT_EFFORT_WEIGHT[effort_] if tau_weight is None else tau_weight, nv, "tau_weight"
         ),
         terminal_weight=check_gain(terminal_weight, 2 * nv, "terminal_weight"),
+        clearance_margin=(
+            None
+            if clearance_margin is None
+            else check_positive(clearance_margin, "clearance_margin", "m")
+        ),
     )
 
 

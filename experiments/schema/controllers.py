@@ -74,7 +74,8 @@ class MPCConfig(_ControllerBase):
     """`GeodesicMPC`. ``effort``/``tau_weight`` None: chosen from ``control`` by the
     controller; ``solver_options`` are passed to the NLP solver as they are (fatrop,
     ipopt), or are the box-DDP's options (``solver: ddp``, torque control and effort:
-    ``warm_iterations``, ``limit_weight``, ``regularisation``)."""
+    ``warm_iterations``, ``limit_weight``, ``regularisation``, ``clearance_weight``);
+    ``clearance_margin`` [m] (``solver: ddp``) keeps the shaped metric's obstacles away."""
 
     builds = (GeodesicMPC,)
     type: Literal["mpc"]
@@ -98,6 +99,7 @@ class MPCConfig(_ControllerBase):
     plan_tolerance: NonNegFloat = _MPC["plan_tolerance"]
     solver_options: dict[str, bool | int | float | str] | None = _MPC["solver_options"]
     max_solve_time: PositiveFloat = _MPC["max_solve_time"]
+    clearance_margin: PositiveFloat | None = _MPC["clearance_margin"]
 
 
 ControllerConfig = Annotated[
