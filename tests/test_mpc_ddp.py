@@ -135,6 +135,7 @@ def test_reference_sampler_shifts_what_sample_reference_computes() -> None:
         ({"solver_options": {"max_iter": 3}}, "warm_iterations"),
         ({"solver_options": {"warm_iterations": 0}}, "warm_iterations"),
         ({"solver": "ddpx"}, "solver"),
+        ({"tracking": "riemann"}, "tracking"),
     ],
 )
 def test_bad_ddp_settings_are_refused_by_name(kwargs: dict, named: str) -> None:
@@ -210,13 +211,18 @@ def test_ddp_plan_obeys_the_dynamics_for_other_horizons_and_rk4_steps(
     assert np.all(np.abs(plan.u) <= robot.tau_max)
 
 
-def test_metric_effort_ddp_equals_ipopt() -> None:
-    """``effort="metric"``: the converged DDP's first torques equal IPOPT's optimum of
-    the same OCP (tol 1e-12) to 1e-6 relative, 0.05 rad off the reference at rest."""
+@pytest.mark.parametrize(
+    "costs",
+    [{"effort": "metric"}, {"tracking": "metric"}, {"effort": "metric", "tracking": "metric"}],
+)
+def test_metric_costs_ddp_equals_ipopt(costs: dict) -> None:
+    """The metric effort and tracking in the metric's norm: the converged DDP's first
+    torques equal IPOPT's optimum of the same OCP (tol 1e-12) to 1e-6 relative, 0.05 rad
+    off the reference at rest."""
     q, v = Q0 + 0.05, np.zeros(7)
     plans = []
     for kw in ({"tol": 1e-10, "max_iter": 300}, {"solver": "ipopt", "tol": 1e-12, "max_iter": 500}):
-        mpc = _mpc(effort="metric", **kw)
+        mpc = _mpc(**costs, **kw)
         mpc.reset(q, v)
         plans.append(mpc.solve(0.0, q, v))
     ddp, ipopt = plans

@@ -143,6 +143,10 @@ class GeodesicMPC(Controller):
             stage, from the obstacle terms of a shaped ``metric`` (their obstacles are
             read at every solve), or None (no clearance cost). ``solver="ddp"`` only;
             see `geosyn.controllers.mpc.ddp_clearance`.
+        tracking: ``"euclidean"`` (``|q - q_r|^2_Wq + |v - v_r|^2_Wv``) or ``"metric"``:
+            the errors in the kinetic-energy metric's norm at the reference,
+            ``|S_q (q - q_r)|^2_M(q_r) + |S_v (v - v_r)|^2_M(q_r)``, ``S = diag(sqrt(W))``
+            (the weights then carry [1/(kg m^2)] more); every solver.
         reference: optional reference.
 
     Attributes:
@@ -186,6 +190,7 @@ class GeodesicMPC(Controller):
         solver_options: dict | None = None,
         max_solve_time: float = 1.0,
         clearance_margin: float | None = None,
+        tracking: str = "euclidean",
         reference: Reference | None = None,
     ) -> None:
         super().__init__(robot, None)
@@ -197,7 +202,7 @@ class GeodesicMPC(Controller):
         self.metric = metric
         weights = (q_weight, v_weight, tau_weight, terminal_weight)
         self.settings = ocp_settings(
-            n, horizon, dt, control, effort, rk4_steps, *weights, clearance_margin
+            n, horizon, dt, control, effort, rk4_steps, *weights, clearance_margin, tracking
         )
         self.solver_settings = solver_settings(
             solver, tol, max_iter, mu_init, mu_warm, solver_options, max_solve_time

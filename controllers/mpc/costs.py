@@ -15,6 +15,7 @@ from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
+import pinocchio as pin
 
 from geosyn.core.types import Vector
 from geosyn.metrics.base import Metric, sx_cholesky_solve
@@ -67,23 +68,38 @@ class CostTerm(ABC):
         """The term's value (a scalar SX) in the stage symbols ``s``."""
 
 
+def _tracking(
+    e_q: ca.SX, e_v: ca.SX, wq: Vector, wv: Vector, q_ref: ca.SX, model: pin.Model | None
+) -> ca.SX:
+    """``|e_q|^2_Wq + |e_v|^2_Wv``, or in the norm of ``M(q_ref)`` scaled by the square
+    roots of the weights (``model`` given): ``|S_q e_q|^2_M + |S_v e_v|^2_M``."""
+    if model is None:
+        return ca.dot(wq, e_q**2) + ca.dot(wv, e_v**2)
+    M = symbolic.crba(model, q_ref)
+    a, b = np.sqrt(wq) * e_q, np.sqrt(wv) * e_v
+    return ca.dot(a, M @ a) + ca.dot(b, M @ b)
+
+
 @dataclass(frozen=True, eq=False)
 class StateTracking(CostTerm):
-    """``|q - q_ref|^2_Wq + |v - v_ref|^2_Wv``.
+    """``|q - q_ref|^2_Wq + |v - v_ref|^2_Wv``, or with ``model`` the kinetic-energy
+    metric's norm at the reference, ``|S_q (q - q_ref)|^2_M(q_ref) + |S_v (v -
+    v_ref)|^2_M(q_ref)`` with ``S = diag(sqrt(W))``.
 
     Attributes:
         q_weight: (nv,) [1/rad^2].
         v_weight: (nv,) [s^2/rad^2].
+        model: Pinocchio model whose mass matrix weighs the errors, or None (Euclidean).
     """
 
     q_weight: Vector
     v_weight: Vector
+    model: pin.Model | None = None
 
     def expression(self, s: StageSymbols) -> ca.SX:
         n = self.q_weight.size
-        return ca.dot(self.q_weight, (s.x[:n] - s.q_ref) ** 2) + ca.dot(
-            self.v_weight, (s.x[n:] - s.v_ref) ** 2
-        )
+        e_q, e_v = s.x[:n] - s.q_ref, s.x[n:] - s.v_ref
+        return _tracking(e_q, e_v, self.q_weight, self.v_weight, s.q_ref, self.model)
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,17 +176,22 @@ class MetricEffort(CostTerm):
 
 @dataclass(frozen=True, eq=False)
 class TerminalStateTracking:
-    """``|x_N - (q_ref, v_ref)|^2_W`` on the last state.
+    """``|x_N - (q_ref, v_ref)|^2_W`` on the last state (in the metric's norm with
+    ``model``, as `StateTracking`).
 
     Attributes:
         weight: (2 nv,) weight on the position then velocity error.
+        model: Pinocchio model whose mass matrix weighs the errors, or None (Euclidean).
     """
 
     weight: Vector
+    model: pin.Model | None = None
 
     def expression(self, x: ca.SX, q_ref: ca.SX, v_ref: ca.SX) -> ca.SX:
         """The term's value in the state ``x`` (2 nv,) and references ``q_ref, v_ref``."""
-        return ca.dot(self.weight, (x - ca.vertcat(q_ref, v_ref)) ** 2)
+        n = q_ref.numel()
+        w = np.asarray(self.weight)
+        return _tracking(x[:n] - q_ref, x[n:] - v_ref, w[:n], w[n:], q_ref, self.model)
 
 
 def stage_cost(terms: Sequence[CostTerm], nv: int, n_p: int) -> ca.Function:

@@ -36,30 +36,34 @@ import casadi as ca
 import numpy as np
 
 from geosyn.controllers.mpc import box_qp as box_qp_module
-from geosyn.controllers.mpc import gauss_newton
+from geosyn.controllers.mpc import ddp_costs, gauss_newton
 from geosyn.controllers.mpc.box_qp import BOX_ITERATIONS, box_qp, spd_solve
 from geosyn.controllers.mpc.ddp_clearance import clearance_digest
+from geosyn.controllers.mpc.ddp_costs import (
+    CostModel,
+    mass_matrix_function,
+    metric_effort,
+    n_parameters,
+    split_parameters,
+    stage_derivatives,
+    terminal_derivatives,
+    torque_effort,
+)
 from geosyn.core.codegen import compile_recipe
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
 
 __all__ = [
-    "BOUND_INF",
     "SX_RICCATI_MAX_JOINTS",
     "DDPParts",
     "ddp_parts",
-    "parameter_vector",
-    "metric_effort",
-    "n_parameters",
+    "make_functions",
     "riccati_step",
     "rk4_linearisation",
-    "torque_effort",
 ]
 
 SX_RICCATI_MAX_JOINTS = 12
 """Robots with more joints get the MX form of the Riccati step (see `riccati_step`)."""
-BOUND_INF = 1e10
-"""An infinite joint limit is passed as this value [rad, rad/s]."""
 
 
 class DDPParts(NamedTuple):
@@ -78,186 +82,22 @@ class DDPParts(NamedTuple):
     terminal: ca.Function
 
 
-def parameter_vector(
-    q_weight: np.ndarray,
-    v_weight: np.ndarray,
-    effort_weight: np.ndarray,
-    terminal_weight: np.ndarray,
-    q_min: np.ndarray,
-    q_max: np.ndarray,
-    v_max: np.ndarray,
-    tau_max: np.ndarray,
-    limit_weight: float,
-    regularisation: float,
-) -> np.ndarray:
-    """The parameter vector ``P`` of the stage functions (infinite limits -> `BOUND_INF`).
-
-    Args:
-        q_weight, v_weight: (n,) tracking weights [1/rad^2], [s^2/rad^2].
-        effort_weight: (n,) torque weight [1/(N m)^2].
-        terminal_weight: (2n,) terminal weight (q then v).
-        q_min, q_max: (n,) position limits [rad]; v_max: (n,) velocity limits [rad/s].
-        tau_max: (n,) torque limits [N m].
-        limit_weight: weight of the soft state limits.
-        regularisation: added to the diagonal of each stage's control Hessian.
-    """
-
-    def finite(a: np.ndarray) -> np.ndarray:
-        return np.clip(np.asarray(a, dtype=np.float64), -BOUND_INF, BOUND_INF)
-
-    return np.concatenate(
-        [
-            q_weight,
-            v_weight,
-            effort_weight,
-            terminal_weight,
-            finite(q_min),
-            finite(q_max),
-            finite(v_max),
-            finite(tau_max),
-            [limit_weight, regularisation],
-        ]
-    ).astype(np.float64)
-
-
-class _Params(NamedTuple):
-    wx: ca.SX
-    wu: ca.SX
-    wN: ca.SX
-    q_min: ca.SX
-    q_max: ca.SX
-    v_max: ca.SX
-    tau_max: ca.SX
-    w_lim: ca.SX
-    reg: ca.SX
-
-
-def _split(P: ca.SX, n: int) -> _Params:
-    sizes = (2 * n, n, 2 * n, n, n, n, n, 1, 1)
-    parts, i = [], 0
-    for s in sizes:
-        parts.append(P[i : i + s])
-        i += s
-    return _Params(*parts)
-
-
-def n_parameters(n: int, clearance: ca.Function | None = None) -> int:
-    """Length of ``P`` for ``n`` joints: ``9 n + 2``, plus ``2 + m_p`` with a clearance
-    function (margin [m], weight [1/m^2], the obstacle terms' ``m_p`` parameters)."""
-    base = 9 * n + 2
-    return base if clearance is None else base + 2 + clearance.size1_in(1)
-
-
-def _limit_terms(x: ca.SX, p: _Params, n: int) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """Soft state limits: (value, gradient (2n,), Gauss-Newton Hessian diagonal (2n,))."""
-    q, v = x[:n], x[n:]
-    hi_q, lo_q = ca.fmax(q - p.q_max, 0), ca.fmax(p.q_min - q, 0)
-    hi_v, lo_v = ca.fmax(v - p.v_max, 0), ca.fmax(-v - p.v_max, 0)
-    value = p.w_lim * (ca.sumsqr(hi_q) + ca.sumsqr(lo_q) + ca.sumsqr(hi_v) + ca.sumsqr(lo_v))
-    grad = 2 * p.w_lim * ca.vertcat(hi_q - lo_q, hi_v - lo_v)
-    active = ca.vertcat(
-        ca.logic_or(q > p.q_max, q < p.q_min), ca.logic_or(v > p.v_max, -v > p.v_max)
-    )
-    return value, grad, 2 * p.w_lim * active
-
-
-def torque_effort(n: int) -> ca.Function:
-    """``ddp_effort`` of the torque effort ``|u - tau_r|^2_Wu`` (see `metric_effort`)."""
-    q, u, tr, wu = (ca.SX.sym(name, n) for name in ("q", "u", "tr", "wu"))
-    e = u - tr
-    outs = [ca.dot(wu, e * e), ca.SX(n, 1), 2 * wu * e, ca.diag(2 * wu), ca.SX(n, n), ca.SX(n, n)]
-    return ca.Function("ddp_effort", [q, u, tr, wu], outs, _EFFORT_IO[0], _EFFORT_IO[1])
-
-
-def metric_effort(robot: Robot) -> ca.Function:
-    """``ddp_effort: (q, u, tau_r, w_u) -> (l, l_q, l_u, l_uu, l_uq, l_qq)`` of the metric
-    effort ``w (u - g(q))^T M(q)^-1 (u - g(q))`` (``w = w_u[0]``; the robot's kinetic
-    energy metric, gravity on; `geosyn.controllers.mpc.costs.MetricEffort`).
-
-    ``l``, ``l_q``, ``l_u``, ``l_uu = 2 w M^-1`` and ``l_uq`` are exact; ``l_qq`` is the
-    positive semi-definite completion ``l_uq^T l_uu^-1 l_uq`` (the effort's exact
-    curvature in q is dropped, Gauss-Newton style): a DDP fixed point is still the
-    OCP's optimum, the gradient being exact.
-    """
-    n, model = robot.nv, robot.model
-    g = np.asarray(robot.gravity, dtype=np.float64)
-    q, u, tr, wu = (ca.SX.sym(name, n) for name in ("q", "u", "tr", "wu"))
-    zeros = np.zeros(n)
-    w = wu[0]
-    r = u - symbolic.rnea(model, q, zeros, zeros, g)
-    minv_r = symbolic.aba(model, q, zeros, u, g)  # M^-1 (u - g(q)), one recursion
-    value = w * ca.dot(r, minv_r)
-    lu = 2 * w * minv_r
-    M = symbolic.crba(model, q)
-    luu = 2 * w * spd_solve(M, ca.SX.eye(n))
-    luq = ca.jacobian(lu, q)
-    lqq = luq.T @ (M @ luq) / (2 * w)
-    outs = [value, ca.gradient(value, q), lu, luu, luq, lqq]
-    return ca.Function(
-        "ddp_effort", [q, u, tr, wu], outs, _EFFORT_IO[0], _EFFORT_IO[1], {"cse": True}
-    )
-
-
-_EFFORT_IO = (["q", "u", "tr", "wu"], ["l", "l_q", "l_u", "l_uu", "l_uq", "l_qq"])
-
-
-def _clearance_terms(q: Any, P: Any, n: int, clearance: ca.Function | None) -> tuple[Any, Any, Any]:
-    """The clearance penalty (`geosyn.controllers.mpc.ddp_clearance`): value, gradient
-    (n,) and Gauss-Newton Hessian (n, n) in q; zero without ``clearance``."""
-    if clearance is None:
-        return 0, ca.DM(n, 1), ca.DM(n, n)
-    base = n_parameters(n)
-    margin, weight = P[base], P[base + 1]
-    c, J = clearance(q, P[base + 2 :])
-    viol = ca.fmax(margin - c, 0)
-    active = (viol > 0) @ ca.DM.ones(1, n)
-    return weight * ca.sumsqr(viol), -2 * weight * (J.T @ viol), 2 * weight * (J.T @ (active * J))
-
-
-def _stage_derivatives(
-    x: Any,
-    u: Any,
-    xr: Any,
-    tr: Any,
-    P: Any,
-    n: int,
-    effort: ca.Function,
-    clearance: ca.Function | None = None,
-) -> tuple[Any, Any, Any, Any, Any, Any]:
-    """Stage cost and its derivatives: (l, lx (2n,), lxx (2n, 2n), lu, luu, lux (n, 2n))."""
-    p = _split(P, n)
-    ex = x - xr
-    lim, lim_grad, lim_hess = _limit_terms(x, p, n)
-    le, le_q, le_u, le_uu, le_uq, le_qq = effort(x[:n], u, tr, p.wu)
-    lc, lc_q, lc_qq = _clearance_terms(x[:n], P, n, clearance)
-    zero = ca.DM(n, n)  # structurally zero
-    value = ca.dot(p.wx, ex * ex) + le + lim + lc
-    lx = 2 * p.wx * ex + lim_grad + ca.vertcat(le_q + lc_q, ca.DM(n, 1))
-    lxx = ca.diag(2 * p.wx + lim_hess) + ca.blockcat([[le_qq + lc_qq, zero], [zero, zero]])
-    return value, lx, lxx, le_u, le_uu, ca.horzcat(le_uq, zero)
-
-
-def riccati_step(
-    n: int,
-    sym: Any = None,
-    effort: ca.Function | None = None,
-    clearance: ca.Function | None = None,
-) -> ca.Function:
+def riccati_step(n: int, sym: Any = None, costs: CostModel | None = None) -> ca.Function:
     """The Riccati step ``ddp_riccati`` for ``n`` joints (see `DDPParts`): ``sym`` SX
     (straight-line code) or MX (loops and an LDL^T solver); None: SX up to
     `SX_RICCATI_MAX_JOINTS` joints, MX beyond (the SX form grows as n^3: 60 MB of C at
-    32 joints). ``effort``: `torque_effort` (None) or `metric_effort`; ``clearance``:
-    the optional `geosyn.controllers.mpc.ddp_clearance.clearance_function`."""
-    effort = torque_effort(n) if effort is None else effort
+    32 joints). ``costs``: the `CostModel` (None: the torque effort, Euclidean
+    tracking, no clearance)."""
+    costs = CostModel(torque_effort(n)) if costs is None else costs
     nx = 2 * n
     if sym is None:
         sym = ca.SX if n <= SX_RICCATI_MAX_JOINTS else ca.MX
     Vx, Vxx = sym.sym("Vx", nx), sym.sym("Vxx", nx, nx)
     A, B = sym.sym("A", nx, nx), sym.sym("B", nx, n)
     x, u, xr, tr = sym.sym("x", nx), sym.sym("u", n), sym.sym("xr", nx), sym.sym("tr", n)
-    P = sym.sym("P", n_parameters(n, clearance))
-    p = _split(P, n)
-    _, lx, lxx, lu, luu, lux = _stage_derivatives(x, u, xr, tr, P, n, effort, clearance)
+    P = sym.sym("P", n_parameters(n, costs.clearance))
+    p = split_parameters(P, n)
+    _, lx, lxx, lu, luu, lux = stage_derivatives(x, u, xr, tr, P, n, costs)
     VA, VB = Vxx @ A, Vxx @ B
     Qx, Qu = lx + A.T @ Vx, lu + B.T @ Vx
     Qxx = lxx + A.T @ VA
@@ -282,18 +122,11 @@ def riccati_step(
     )
 
 
-def _terminal(n: int, clearance: ca.Function | None = None) -> ca.Function:
+def _terminal(n: int, costs: CostModel) -> ca.Function:
     nx = 2 * n
     x, xr = ca.SX.sym("x", nx), ca.SX.sym("xr", nx)
-    P = ca.SX.sym("P", n_parameters(n, clearance))
-    p = _split(P, n)
-    e = x - xr
-    lim, lim_grad, lim_hess = _limit_terms(x, p, n)
-    lc, lc_q, lc_qq = _clearance_terms(x[:n], P, n, clearance)
-    zero = ca.DM(n, n)
-    cost = ca.dot(p.wN, e * e) + lim + lc
-    grad = 2 * p.wN * e + lim_grad + ca.vertcat(lc_q, ca.DM(n, 1))
-    hess = ca.diag(2 * p.wN + lim_hess) + ca.blockcat([[lc_qq, zero], [zero, zero]])
+    P = ca.SX.sym("P", n_parameters(n, costs.clearance))
+    cost, grad, hess = terminal_derivatives(x, xr, P, n, costs)
     return ca.Function(
         "ddp_terminal",
         [x, xr, P],
@@ -304,25 +137,23 @@ def _terminal(n: int, clearance: ca.Function | None = None) -> ca.Function:
     )
 
 
-def _stage_cost(n: int, effort: ca.Function, clearance: ca.Function | None) -> ca.Function:
+def _stage_cost(n: int, costs: CostModel) -> ca.Function:
     nx = 2 * n
     x, u, xr, tr = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
-    P = ca.SX.sym("P", n_parameters(n, clearance))
-    cost = _stage_derivatives(x, u, xr, tr, P, n, effort, clearance)[0]
+    P = ca.SX.sym("P", n_parameters(n, costs.clearance))
+    cost = stage_derivatives(x, u, xr, tr, P, n, costs)[0]
     return ca.Function("ddp_cost", [x, u, xr, tr, P], [cost], {"cse": True})
 
 
-def _forward(
-    n: int, F: ca.Function, effort: ca.Function, clearance: ca.Function | None = None
-) -> ca.Function:
+def _forward(n: int, F: ca.Function, costs: CostModel) -> ca.Function:
     nx = 2 * n
     x, xb, ub = ca.MX.sym("x", nx), ca.MX.sym("xb", nx), ca.MX.sym("ub", n)
     k, K, alpha = ca.MX.sym("k", n), ca.MX.sym("K", n, nx), ca.MX.sym("alpha")
     xr, tr = ca.MX.sym("xr", nx), ca.MX.sym("tr", n)
-    P = ca.MX.sym("P", n_parameters(n, clearance))
-    tau_max = P[8 * n : 9 * n]  # the layout of _split
+    P = ca.MX.sym("P", n_parameters(n, costs.clearance))
+    tau_max = split_parameters(P, n).tau_max
     u = ca.fmin(ca.fmax(ub + alpha * k + K @ (x - xb), -tau_max), tau_max)
-    cost = _stage_cost(n, effort, clearance)(x, u, xr, tr, P)
+    cost = _stage_cost(n, costs)(x, u, xr, tr, P)
     return ca.Function(
         "ddp_forward",
         [x, xb, ub, k, K, alpha, xr, tr, P],
@@ -378,32 +209,42 @@ def rk4_linearisation(robot: Robot, dt: float, rk4_steps: int) -> ca.Function:
 
 
 def make_functions(
-    robot: Robot, dt: float, rk4_steps: int, effort: str, clearance: ca.Function | None = None
+    robot: Robot,
+    dt: float,
+    rk4_steps: int,
+    effort: str,
+    clearance: ca.Function | None = None,
+    tracking: str = "euclidean",
 ) -> list[ca.Function]:
     """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation).
 
     ``effort``: ``"torque"`` or ``"metric"`` (see `torque_effort`, `metric_effort`);
-    ``clearance``: an optional `geosyn.controllers.mpc.ddp_clearance.clearance_function`."""
+    ``clearance``: an optional `geosyn.controllers.mpc.ddp_clearance.clearance_function`;
+    ``tracking``: ``"euclidean"`` or ``"metric"`` (errors in the norm of ``M(q_r)``)."""
     F = gauss_newton.rk4_parts(robot, dt, rk4_steps, gravity=True)[0]
     n = robot.nv
-    eff = torque_effort(n) if effort == "torque" else metric_effort(robot)
+    costs = CostModel(
+        torque_effort(n) if effort == "torque" else metric_effort(robot),
+        clearance,
+        mass_matrix_function(robot) if tracking == "metric" else None,
+    )
     return [
         rk4_linearisation(robot, dt, rk4_steps),
-        riccati_step(n, effort=eff, clearance=clearance),
-        _forward(n, F, eff, clearance),
-        _terminal(n, clearance),
+        riccati_step(n, costs=costs),
+        _forward(n, F, costs),
+        _terminal(n, costs),
     ]
 
 
 _NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")
 
 
-def _recipe(robot: Robot, dt: float, rk4_steps: int, effort: str, clearance: str) -> str:
+def _recipe(robot: Robot, dt: float, rk4_steps: int, *choices: str) -> str:
     digest = hashlib.sha256()
-    for path in (Path(__file__), Path(box_qp_module.__file__)):
+    for path in (Path(__file__), Path(box_qp_module.__file__), Path(ddp_costs.__file__)):
         digest.update(path.read_bytes())
     stage = gauss_newton.stage_recipe(robot, dt, "torque", rk4_steps, True)
-    return "\0".join(["geosyn-mpc-ddp-v2", digest.hexdigest(), effort, clearance, stage])
+    return "\0".join(["geosyn-mpc-ddp-v3", digest.hexdigest(), *choices, stage])
 
 
 def ddp_parts(
@@ -412,14 +253,16 @@ def ddp_parts(
     rk4_steps: int,
     effort: str = "torque",
     clearance: ca.Function | None = None,
+    tracking: str = "euclidean",
     *,
     compiled: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> DDPParts:
     """The stage functions of the DDP solver, compiled through the recipe cache.
 
-    A robot, ``dt`` and ``rk4_steps`` seen before load in milliseconds; a first build
-    generates and compiles C (seconds for 7 DoF; ``progress`` gets a line per step).
+    A robot, ``dt``, ``rk4_steps`` and cost choices seen before load in milliseconds; a
+    first build generates and compiles C (seconds for 7 DoF; ``progress`` gets a line
+    per step).
 
     Args:
         robot: the robot (its model, with gravity).
@@ -428,6 +271,7 @@ def ddp_parts(
         effort: ``"torque"`` or ``"metric"`` (the robot's kinetic-energy metric).
         clearance: optional clearance function
             (`geosyn.controllers.mpc.ddp_clearance.clearance_function`).
+        tracking: ``"euclidean"`` or ``"metric"`` (see `make_functions`).
         compiled: False: the same functions on CasADi's virtual machine (no compiler).
         progress: receives progress lines of a first build.
 
@@ -435,14 +279,15 @@ def ddp_parts(
         CodegenError: no compiler, or compiling/loading failed (only when ``compiled``).
     """
     if not compiled:
-        return DDPParts(*make_functions(robot, dt, rk4_steps, effort, clearance))
-    tag = "" if clearance is None else "_clearance"
-    name = re.sub(r"\W", "_", f"geosyn_ddp_{robot.name}_{effort}{tag}")
+        return DDPParts(*make_functions(robot, dt, rk4_steps, effort, clearance, tracking))
+    tags = [effort] + (["metric_tracking"] if tracking == "metric" else [])
+    tags += [] if clearance is None else ["clearance"]
+    name = re.sub(r"\W", "_", "_".join(["geosyn_ddp", robot.name, *tags]))
     digest = "" if clearance is None else clearance_digest(clearance)
     lib = compile_recipe(
         name,
-        _recipe(robot, dt, rk4_steps, effort, digest),
-        lambda: make_functions(robot, dt, rk4_steps, effort, clearance),
+        _recipe(robot, dt, rk4_steps, effort, tracking, digest),
+        lambda: make_functions(robot, dt, rk4_steps, effort, clearance, tracking),
         load=list(_NAMES),
         progress=progress,
     )

@@ -21,12 +21,13 @@ import numpy as np
 import pinocchio as pin
 
 from geosyn.controllers.mpc.costs import is_robot_kinetic_metric
-from geosyn.controllers.mpc.ddp import ddp_parts, parameter_vector
+from geosyn.controllers.mpc.ddp import ddp_parts
 from geosyn.controllers.mpc.ddp_clearance import (
     clearance_function,
     clearance_values,
     obstacle_terms,
 )
+from geosyn.controllers.mpc.ddp_costs import parameter_vector
 from geosyn.controllers.mpc.plan import MPCPlan, ReferenceSamples
 from geosyn.controllers.mpc.riccati import RiccatiSolver
 from geosyn.controllers.mpc.settings import OCPSettings, SolverSettings
@@ -161,8 +162,9 @@ class DDPTracking:
         n_obstacle = int(sum(t.parameter_values().size for t in self._terms))
         self._obstacles = slice(P.size - n_obstacle, P.size)
         parts = ddp_parts(
-            robot, s.dt, s.rk4_steps, s.effort, clearance, compiled=compiled, progress=progress
-        )
+            robot, s.dt, s.rk4_steps, s.effort, clearance, s.tracking,
+            compiled=compiled, progress=progress,
+        )  # fmt: skip
         self.solver = RiccatiSolver(
             parts, s.N, n, P, tol=solver.tol, max_iter=solver.max_iter,
             warm_iterations=self.options["warm_iterations"],

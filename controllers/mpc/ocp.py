@@ -90,8 +90,9 @@ class OCPBuilder:
         terms = [EFFORT_TERMS[effort](self, gravity)]
         terminal = None
         if not open_loop:
-            terms.insert(0, StateTracking(s.q_weight, s.v_weight))
-            terminal = TerminalStateTracking(s.terminal_weight)
+            model = robot.model if s.tracking == "metric" else None
+            terms.insert(0, StateTracking(s.q_weight, s.v_weight, model))
+            terminal = TerminalStateTracking(s.terminal_weight, model)
         return ShootingProblem(
             N=s.N,
             nv=n,

@@ -24,6 +24,7 @@ __all__ = [
     "HESSIANS",
     "SOLVERS",
     "STATE_MARGIN",
+    "TRACKINGS",
     "OCPSettings",
     "SolverSettings",
     "ocp_settings",
@@ -39,6 +40,8 @@ CONTROLS = ("torque", "acceleration")
 """Names accepted by ``GeodesicMPC(control=...)``."""
 HESSIANS = ("gauss-newton", "exact")
 """Names accepted by ``GeodesicMPC(hessian=...)``."""
+TRACKINGS = ("euclidean", "metric")
+"""Names accepted by ``GeodesicMPC(tracking=...)``."""
 
 STATE_MARGIN = (0.1, 1.0)
 """How far a measured state may lie outside the OCP's state bounds and still be solved:
@@ -67,6 +70,7 @@ class OCPSettings:
         terminal_weight: (2 nv,) terminal state-error weight (q then v).
         clearance_margin: obstacle clearance kept by a stiff penalty [m] (``solver="ddp"``
             with a shaped metric's obstacle terms), or None.
+        tracking: ``"euclidean"`` or ``"metric"``: the norm of the tracking errors.
     """
 
     N: int
@@ -79,6 +83,7 @@ class OCPSettings:
     effort_weight: Vector
     terminal_weight: Vector
     clearance_margin: float | None = None
+    tracking: str = "euclidean"
 
 
 @dataclass(frozen=True)
@@ -120,6 +125,7 @@ def ocp_settings(
     tau_weight: object,
     terminal_weight: object,
     clearance_margin: object = None,
+    tracking: object = "euclidean",
 ) -> OCPSettings:
     """Validate the OCP arguments of `GeodesicMPC` (same names and meaning).
 
@@ -135,6 +141,7 @@ def ocp_settings(
         tau_weight: scalar or (nv,), or None for `DEFAULT_EFFORT_WEIGHT`.
         terminal_weight: scalar or (2 nv,).
         clearance_margin: None or a margin [m] (> 0).
+        tracking: one of `TRACKINGS`.
 
     Raises:
         InvalidArgument: a bad argument (named in the message, with what is allowed).
@@ -167,6 +174,7 @@ def ocp_settings(
             if clearance_margin is None
             else check_positive(clearance_margin, "clearance_margin", "m")
         ),
+        tracking=check_choice(tracking, TRACKINGS, "tracking"),
     )
 
 

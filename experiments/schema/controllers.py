@@ -100,6 +100,7 @@ class MPCConfig(_ControllerBase):
     solver_options: dict[str, bool | int | float | str] | None = _MPC["solver_options"]
     max_solve_time: PositiveFloat = _MPC["max_solve_time"]
     clearance_margin: PositiveFloat | None = _MPC["clearance_margin"]
+    tracking: Literal["euclidean", "metric"] = _MPC["tracking"]
 
 
 ControllerConfig = Annotated[
