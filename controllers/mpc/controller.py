@@ -62,7 +62,8 @@ def _report_progress(line: str) -> None:
 
 
 class GeodesicMPC(Controller):
-    """Geodesic-tracking MPC: a multiple-shooting OCP in CasADi, solved by fatrop or IPOPT.
+    """Geodesic-tracking MPC: an OCP built in CasADi, solved by fatrop or IPOPT (multiple
+    shooting) or by box-DDP (``solver="ddp"``, torque control).
 
     The OCP over ``N = horizon`` stages of length ``dt``, solved at time ``t`` from the
     measured state ``(q_m, v_m)``, with the reference sampled at ``t_k = t + k dt``:
@@ -75,9 +76,10 @@ class GeodesicMPC(Controller):
     per stage, on ``qdd = ABA(q, v, tau)`` with gravity when ``control="torque"``; the
     exact double integrator with ``tau = RNEA(q, v, u)`` when ``control="acceleration"``),
     ``|tau_k| <= tau_max``, ``q_min <= q_k <= q_max`` and ``|v_k| <= v_max`` for k >= 1.
-    Defaults: ``control="acceleration"`` with ``effort="acceleration"``, the fastest
-    configuration (per-solve times on panda in benchmarks/RESULTS.md); torque control
-    costs more per iteration, for the Jacobian of the RK4 step on the ABA.
+    Defaults: ``control="acceleration"`` with ``effort="acceleration"`` and fatrop. At
+    the torque level, ``solver="ddp"`` is the fast choice (faster than Crocoddyl's
+    BoxFDDP on the same problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of
+    the RK4 step on the ABA over several interior-point iterations.
 
     The effort ``ell`` is
 
