@@ -43,7 +43,12 @@ DURATION = 0.2  # simulated time per run [s]
 N_RUNS = 100
 MPC_SOLVE_TIME = 0.05  # [s]
 #: The stated per-tick time budget of each controller [s] (see the module doc).
-TICK_BUDGET = {"ct": 0.05, "qp": 0.05, "mpc": MPC_SOLVE_TIME + 0.05}
+TICK_BUDGET = {
+    "ct": 0.05,
+    "qp": 0.05,
+    "mpc": MPC_SOLVE_TIME + 0.05,
+    "mpc_ddp": MPC_SOLVE_TIME + 0.05,
+}
 #: A run that is not done after this many seconds of wall time counts as a hang.
 HANG_LIMIT = 120.0
 
@@ -60,6 +65,16 @@ def _controllers(robot, metric, ref):
             horizon=5,
             dt=0.02,
             control="torque",
+            max_solve_time=MPC_SOLVE_TIME,
+            reference=ref,
+        ),
+        "mpc_ddp": GeodesicMPC(
+            robot,
+            metric,
+            horizon=5,
+            dt=0.02,
+            control="torque",
+            solver="ddp",
             max_solve_time=MPC_SOLVE_TIME,
             reference=ref,
         ),
@@ -118,9 +133,9 @@ def test_100_disturbed_runs_no_crash_no_hang_budgets_kept_failures_reported():
     try:
         for i in range(N_RUNS):
             rng = np.random.default_rng(1000 + i)
-            name = names[i % 3]
+            name = names[i % len(names)]
             disturbances = _disturbances(rng, frame)
-            if i < 3:  # the extremes, once per controller
+            if i < len(names):  # the extremes, once per controller
                 disturbances = [
                     Push(frame, [2000.0, 0.0, 0.0], start=0.05, duration=0.02),
                     PayloadChange(0.0, 5.0),
