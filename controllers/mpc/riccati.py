@@ -1,9 +1,10 @@
 """`RiccatiSolver`: box-constrained DDP (iLQR) iterations of the torque-level tracking OCP.
 
-The OCP is the one `geosyn.controllers.mpc.ocp` builds with ``control="torque"`` and
-``effort="torque"`` (RK4 on the ABA per stage, quadratic tracking and torque costs, hard
-torque limits), with the position and velocity limits as stiff penalties instead of hard
-bounds (`geosyn.controllers.mpc.ddp`). One iteration is two calls into compiled code:
+The OCP is the one `geosyn.controllers.mpc.ocp` builds with ``control="torque"`` (RK4
+on the ABA per stage, tracking and effort costs, hard torque limits), with the position
+and velocity limits as stiff penalties instead of hard bounds and an optional clearance
+penalty (`geosyn.controllers.mpc.ddp_costs`). One iteration is two calls into compiled
+code:
 
 1. backward: the stage Jacobians along the current trajectory, then the Riccati
    recursion from the terminal cost, each stage's control update a box QP (Gauss-Newton
@@ -11,8 +12,9 @@ bounds (`geosyn.controllers.mpc.ddp`). One iteration is two calls into compiled 
 2. forward: the closed-loop rollout ``u_k = clip(u_bar_k + alpha k_k + K_k (x_k - x_bar_k))``,
    ``x_{k+1} = F(x_k, u_k)`` from the measured state, with its cost.
 
-A cold solve rolls the guess out first and iterates with a backtracking line search on
-``alpha`` until the largest control update is below ``tol`` (relative to the torque
+A cold solve rolls the guess out first (with a stabilising feedback, ``K_guess``) and
+iterates with a backtracking line search on ``alpha`` and Levenberg-Marquardt
+regularisation until the largest control update is below ``tol`` (relative to the torque
 scale). A warm solve (the previous plan shifted) takes ``warm_iterations`` full steps, a
 real-time iteration like Crocoddyl's one-iteration MPC. Each iteration's two graphs are
 built once per horizon as CasADi MX functions calling the compiled stage functions, so
