@@ -106,9 +106,9 @@ class GeodesicMPC(Controller):
             and Riccati feedback between solves, the fastest torque-level solver
             (needs ``control="torque"``, ``effort`` ``"torque"`` or ``"metric"``;
             position and velocity limits become stiff penalties; a warm solve is one
-            DDP step; its
-            ``solver_options`` are `geosyn.controllers.mpc.ddp_tracking.DDP_OPTIONS`;
-            `solve_open_loop` then uses IPOPT). See `geosyn.controllers.mpc.ddp_tracking`.
+            DDP step; its ``solver_options`` are
+            `geosyn.controllers.mpc.ddp_tracking.DDP_OPTIONS`; `solve_open_loop` then
+            uses IPOPT). See `geosyn.controllers.mpc.ddp_tracking`.
         q_weight: scalar or (nv,) weight on the position error [1/rad^2].
         v_weight: scalar or (nv,) weight on the velocity error [s^2/rad^2].
         tau_weight: scalar or (nv,) effort weight: [1/(N m)^2] for the torque and metric
@@ -125,9 +125,11 @@ class GeodesicMPC(Controller):
             Hessian of an SX graph on CasADi's VM).
             Without a C compiler ``"gauss-newton"`` becomes ``"exact"``, with a
             ``RuntimeWarning`` and ``diagnostics.notes["hessian"]``.
-        kp: scalar or (nv,) plan-tracking stiffness [1/s^2].
+        kp: scalar or (nv,) plan-tracking stiffness [1/s^2] (fatrop and IPOPT plans are
+            followed with it; a DDP plan by its own Riccati gains, and ``kp``, ``kd``
+            only stabilise the first rollout of a cold DDP solve).
         kd: scalar or (nv,) plan-tracking damping [1/s].
-        max_iter: solver iteration limit per tick.
+        max_iter: solver iteration limit per tick (``"ddp"``: per cold solve).
         tol: solver tolerance.
         mu_init: initial barrier parameter of cold solves; warm solves use ``mu_warm``.
         mu_warm: initial barrier parameter of warm-started solves.
