@@ -125,3 +125,52 @@ def test_warm_start_from_own_solution_and_from_fewer_subdivisions() -> None:
     with pytest.raises(InvalidArgument, match="warm"):
         Collocation(KineticEnergyMetric(load_robot("planar2")), nodes=6,
                     joint_limits=False).solve(q0, q1, warm=first)  # fmt: skip
+
+
+def test_point_times_order_the_lower_bounds_of_the_constraints() -> None:
+    """`point_times` lists the constrained points in the order of `lower`'s rows: raising
+    the bound of one point raises the exact clearance (reference `ObstacleTerm.clearances`)
+    of the configuration at that time, linear between the nodes, to it."""
+    from geosyn.metrics.geodesic.collocation_parts import interpolate_path
+
+    _, fine, term, q0, q1 = _blocked_planar2()
+    times = fine.point_times
+    expected = [
+        *(np.arange(1, 12) / 12),
+        *((np.arange(12)[:, None] + [0.25, 0.5, 0.75]) / 12).T.ravel(),
+    ]
+    np.testing.assert_allclose(times, expected, atol=1e-15)
+    base = fine.solve(q0, q1, refine=False)
+    lower = np.full((len(times), fine.constraints_per_node), 0.01)
+    i = int(np.argmin(np.abs(times - 13 / 24)))  # a midpoint near the sphere
+    lower[i] = 0.06
+    raised = fine.solve(q0, q1, refine=False, lower=lower)
+    assert raised.kind == "constrained", raised.message
+    at = interpolate_path(raised.nodes, np.linspace(0, 1, 13), 48, 2)[26]  # t = 13 / 24
+    assert abs(times[i] - 13 / 24) < 1e-15
+    assert term.clearances(at).min() > 0.06 - 1e-6 > term.clearances(
+        interpolate_path(base.nodes, np.linspace(0, 1, 13), 48, 2)[26]).min()  # fmt: skip
+    with pytest.raises(InvalidArgument, match="lower must have shape"):
+        fine.solve(q0, q1, lower=lower[1:])
+
+
+def test_initial_path_at_times_and_small_barrier() -> None:
+    """A 6-node solution as the initial path of the 12-node NLP (`init_t`: interpolated in
+    time, so every other node starts exactly on it) solved with a small initial barrier
+    parameter: the same solution as IPOPT's default barrier from that path, in fewer
+    iterations."""
+    from geosyn.metrics.geodesic.collocation_parts import interpolate_path
+
+    _, fine, _, q0, q1 = _blocked_planar2()
+    metric, term = fine.metric, fine.clearance
+    six = Collocation(metric, nodes=6, clearance=term, margin=0.01, joint_limits=False,
+                      subdivisions=3).solve(q0, q1, refine=False)  # fmt: skip
+    t6 = np.linspace(0, 1, 7)
+    np.testing.assert_array_equal(interpolate_path(six.nodes, t6, 12, 2)[::2], six.nodes)
+    cold = fine.solve(q0, q1, init=six.nodes, init_t=t6, refine=False)
+    seeded = fine.solve(q0, q1, init=six.nodes, init_t=t6, mu_init=1e-4, refine=False)
+    assert seeded.kind == cold.kind == "constrained", seeded.message
+    np.testing.assert_allclose(seeded.nodes, cold.nodes, atol=3e-5)  # measured 6e-6
+    assert seeded.iterations < cold.iterations
+    with pytest.raises(InvalidArgument, match="init_t must be increasing"):
+        fine.solve(q0, q1, init=six.nodes, init_t=np.linspace(1, 0, 7))

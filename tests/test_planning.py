@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import (
     InCollision,
@@ -23,7 +24,7 @@ from geosyn.metrics.planning import (
 from geosyn.metrics.planning.planner import densify
 from geosyn.metrics.shaping import CapacityExceeded
 from geosyn.robots import load_robot
-from geosyn.world import Box, Sphere
+from geosyn.world import Box, HalfSpace, Sphere
 
 # planar2 with joint limits [-pi, pi]: joint 1 cannot wrap round, so a wall across
 # q1 = 0 separates q1 < 0 from q1 > 0.
@@ -126,3 +127,57 @@ def test_alternative_seeds_find_both_sides_and_keep_the_lowest_energy() -> None:
     assert plan.fine_clearance >= 0.0
     exact = [planner.term.min_clearance(q) for q in densify(plan.q, 64)]
     assert min(exact) > 0.0
+
+
+def test_coarse_to_fine_plan_equals_the_direct_one(planner: Planner) -> None:
+    """A sphere on the tip's straight-line path: the default plan comes from the coarse
+    collocation's path (its attempts say so, nothing else was tried) and is the same
+    minimum-energy path as the full collocation's from the straight line
+    (``coarse_nodes=0``), collision-free on an exact check 64x finer than its nodes."""
+    q0, q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
+    mid = 0.5 * (q0 + q1)
+    tip = (np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum()), 0.0)
+    obstacles = [Sphere(tip, 0.15)]
+    plan = planner.plan(q0, q1, obstacles, budget=20.0)
+    assert len(plan.attempts) == 2, plan.attempts
+    assert plan.attempts[0].startswith("coarse collocation (4 segments, 3 constrained")
+    assert plan.attempts[1].startswith("collocation from the coarse path: minimum-energy")
+    assert plan.seed == "straight line" and plan.result.kind == "constrained"
+    direct = Planner(KineticEnergyMetric(ROBOT), capacity=2, nodes=24, margin=0.01,
+                     coarse_nodes=0).plan(q0, q1, obstacles, budget=20.0)  # fmt: skip
+    assert direct.attempts == ("collocation from the straight line: " + direct.result.message,)
+    np.testing.assert_allclose(plan.result.nodes, direct.result.nodes, atol=1e-5)
+    assert plan.result.iterations < direct.result.iterations
+    exact = [planner.term.min_clearance(q) for q in densify(plan.q, 64)]
+    assert min(exact) > 0.0
+
+
+def test_coarse_bounds_ramp_from_the_ends_and_stop_at_fixed_spheres(planner: Planner) -> None:
+    """Coarse clearance bounds: ``coarse_margin`` mid-path, the ends' own clearance at the
+    ends (reference: `ObstacleTerm.clearances` there, smooth minimum within log(spheres) /
+    softmin below); against a floor under planar2 (every sphere keeps its height), capped
+    at the margin (lower only near the ends, by the ramp)."""
+    q0, q1 = np.array([-0.8, 0.3]), np.array([0.8, -0.3])
+    tip = np.array([np.cos(q0[0]) + np.cos(q0.sum()), np.sin(q0[0]) + np.sin(q0.sum()), 0.0])
+    ball = Sphere(tip + (0.0, -0.3, 0.0), 0.1)
+    planner.term.set_obstacles([ball])
+    gap = planner.term.clearances(q0).min() - 0.004  # move it to 4 mm from the start
+    planner.term.set_obstacles([Sphere(tip + (0.0, -0.3 + gap, 0.0), 0.1)])
+    exact = planner.term.clearances(q0).min()
+    assert abs(exact - 0.004) < 1e-9
+    col = planner.collocation(4, 3)
+    bounds = planner.coarse_bounds(q0, q1)
+    t = col.point_times
+    assert bounds.shape == (len(t), 2)
+    np.testing.assert_allclose(bounds[np.abs(t - 0.5) < 0.2, 0], planner.coarse_margin)
+    assert np.all(bounds[:, 1] == planner.coarse_margin)  # the empty slot
+    slack = np.log(len(planner.term.spheres)) / planner.softmin  # type: ignore[operator]
+    first = bounds[np.argmin(t), 0] - planner.coarse_margin * t.min() / planner.COARSE_RAMP
+    assert exact - slack - 1e-12 <= first <= exact + 1e-12
+    planner.term.set_obstacles([HalfSpace((0.0, 0.0, 1.0), -0.02)])  # 2 cm below the arm
+    floor = planner.coarse_bounds(q0, q1)[:, 0]
+    assert floor.max() == planner.margin and np.all(floor[np.abs(t - 0.5) < 0.2] == planner.margin)
+    with pytest.raises(InvalidArgument, match="coarse_nodes"):
+        Planner(KineticEnergyMetric(ROBOT), capacity=1, coarse_nodes=1)
+    with pytest.raises(InvalidArgument, match="coarse_inflation"):
+        Planner(KineticEnergyMetric(ROBOT), capacity=1, coarse_inflation=-0.01)

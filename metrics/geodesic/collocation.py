@@ -51,6 +51,7 @@ from geosyn.metrics.geodesic.collocation_parts import (
     KINDS,
     CollocationResult,
     Deadline,
+    interpolate_path,
     node_functions,
     resample_path,
 )
@@ -294,6 +295,7 @@ class Collocation:
         self._solver = ca.nlpsol("collocation", "ipopt", nlp, opts)
         self._nlp, self._opts = nlp, opts
         self._warm_solver: Any = None
+        self._variants: dict[float, Any] = {}
         self._clearance_fn = clr if m else None
         self._clearance_batch: dict[int, ca.Function] = {}
         self.build_time = time.perf_counter() - t0
@@ -311,6 +313,36 @@ class Collocation:
             opts.update({f"ipopt.{k}": v for k, v in WARM_START.items()})
             self._warm_solver = ca.nlpsol("collocation_warm", "ipopt", self._nlp, opts)
         return self._warm_solver
+
+    def solver(self, mu_init: float | None = None) -> Any:
+        """The IPOPT solver, or its variant with IPOPT's initial barrier parameter
+        ``mu_init`` (> 0; built on first use, then kept: allocates once)."""
+        if mu_init is None:
+            return self._solver
+        mu_init = check_positive(mu_init, "mu_init")
+        if mu_init not in self._variants:
+            opts = dict(self._opts)
+            opts["ipopt.mu_init"] = mu_init
+            self._variants[mu_init] = ca.nlpsol("collocation_mu", "ipopt", self._nlp, opts)
+        return self._variants[mu_init]
+
+    @property
+    def point_times(self) -> np.ndarray:
+        """(P,) path parameter on [0, 1] of each constrained point, in the order of the
+        constraint blocks: the interior nodes, then each subdivision's points."""
+        N, s = self.nodes, self.subdivisions
+        inner = [(np.arange(N) + (i + 1) / (s + 1)) / N for i in range(s)]
+        return np.concatenate([np.arange(1, N) / N, *inner])
+
+    def slot_clearances(self, q: Vector) -> np.ndarray:
+        """(m,) the constrained clearances [m] of one configuration ``q`` (n,) [rad]: one
+        per obstacle slot (the smooth minimum over the spheres; `INACTIVE_CLEARANCE` on
+        empty slots), or per sphere and slot without ``softmin``; (0,) without a term."""
+        q = check_vector(q, self.n, "q")
+        if self._clearance_fn is None:
+            return np.zeros(0)
+        pc = np.asarray(self.clearance.parameter_values(), dtype=float)  # type: ignore[union-attr]
+        return np.asarray(self._clearance_fn(q, pc)).ravel()
 
     def _warm_multipliers(self, warm: CollocationResult) -> dict[str, np.ndarray]:
         """lam_x0, lam_g0 from ``warm``: its constraint blocks at the same points (the
@@ -368,6 +400,9 @@ class Collocation:
         budget: float = 10.0,
         refine: bool = True,
         steps: int = 100,
+        init_t: np.ndarray | None = None,
+        lower: np.ndarray | None = None,
+        mu_init: float | None = None,
     ) -> CollocationResult:
         """Minimum-energy path from ``q0`` to ``q1``; see `CollocationResult` for its kind.
 
@@ -386,6 +421,15 @@ class Collocation:
             refine: when no constraint is active, refine the discrete geodesic by
                 shooting (`log_solve` from its initial velocity) to the exact geodesic.
             steps: RK4 steps of the shooting refinement, >= 1.
+            init_t: (T,) increasing path parameter on [0, 1] of ``init``'s samples: then
+                ``init`` is interpolated linearly at the node times (e.g. the nodes of a
+                coarser collocation) instead of resampled by joint-space arc length.
+            lower: (P, m) lower bounds [m] of the constrained clearances at the points
+                `point_times` (one row per point, in that order) instead of ``margin``
+                everywhere, e.g. an inflated margin for a coarse seed; None: ``margin``.
+            mu_init: IPOPT's initial barrier parameter (> 0; None: the solver's, 0.1),
+                e.g. small from an initial path that is already near a solution (a
+                ``warm`` start uses `WARM_START`'s instead).
 
         Returns:
             The path and what it is. A failed IPOPT solve is returned with kind
@@ -405,14 +449,28 @@ class Collocation:
                 f"warm: needs a result with multipliers of a collocation with {N} segments"
             )
         if warm is not None:
-            init = warm.nodes
-        guess = resample_path(np.array([q0, q1]) if init is None else init, N, n)
+            init, init_t = warm.nodes, None
+        if init is not None and init_t is not None:
+            guess = interpolate_path(init, init_t, N, n)
+        else:
+            guess = resample_path(np.array([q0, q1]) if init is None else init, N, n)
+        rows = len(self.point_times) if self.constraints_per_node else 0
+        lbg: float | np.ndarray = self.margin
+        if lower is not None:
+            lower = np.asarray(lower, dtype=np.float64)
+            bad = np.isnan(lower) | np.isposinf(lower)
+            if lower.shape != (rows, self.constraints_per_node) or bad.any():
+                raise InvalidArgument(
+                    f"lower must have shape ({rows}, {self.constraints_per_node}) (points, "
+                    f"constraints per point) without NaN or +inf, got {lower.shape}"
+                )
+            lbg = lower.ravel()
         guess[0], guess[-1] = q0, q1
         lo = np.clip(np.minimum(self.q_min, self.q_max), -1e20, 1e20)
         hi = np.clip(self.q_max, -1e20, 1e20)
         x0 = np.clip(guess[1:-1], lo, hi).ravel()
         self._deadline.reset(budget)
-        solver, extra = self._solver, {}
+        solver, extra = self.solver(mu_init), {}
         if warm is not None:
             solver, extra = self._warm(), self._warm_multipliers(warm)
         sol = solver(
@@ -421,7 +479,7 @@ class Collocation:
             p=self.parameters(q0, q1),
             lbx=np.tile(lo, N - 1),
             ubx=np.tile(hi, N - 1),
-            lbg=self.margin,
+            lbg=lbg,
             ubg=np.inf,
         )
         stats = solver.stats()
@@ -434,7 +492,7 @@ class Collocation:
         has_obstacles = self.clearance is not None and bool(self.clearance.obstacles)
         min_clear = float(g.min()) if has_obstacles else math.inf
         at_limit = int(np.sum((nodes[1:-1] - lo < ACTIVE_TOL) | (hi - nodes[1:-1] < ACTIVE_TOL)))
-        active = int(np.sum(g - self.margin < ACTIVE_TOL)) + at_limit
+        active = int(np.sum(g - lbg < ACTIVE_TOL)) + at_limit
         v0 = N * (-1.5 * nodes[0] + 2.0 * nodes[1] - 0.5 * nodes[2])
         t = np.linspace(0.0, 1.0, N + 1)
         ok = bool(stats.get("success", False))
@@ -448,8 +506,9 @@ class Collocation:
             return CollocationResult(t, nodes, "failed", v0=v0, geodesic_residual=math.nan,
                                      wall_time=wall, message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
         if active:
+            bound = f"clearance margin {self.margin:g} m" if lower is None else "clearance bounds"
             msg = (f"minimum-energy path with {active} active constraint(s) "
-                   f"(clearance margin {self.margin:g} m or joint limits): not a geodesic")  # fmt: skip
+                   f"({bound} or joint limits): not a geodesic")  # fmt: skip
             return CollocationResult(t, nodes, "constrained", v0=v0, geodesic_residual=math.nan,
                                      wall_time=wall, message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
         why = "refinement not asked (refine=False)"

@@ -166,3 +166,28 @@ def resample_path(path: np.ndarray, segments: int, n: int) -> np.ndarray:
         return np.repeat(path[:1], segments + 1, axis=0)
     u = np.linspace(0.0, s[-1], segments + 1)
     return np.column_stack([np.interp(u, s, path[:, i]) for i in range(n)])
+
+
+def interpolate_path(path: np.ndarray, times: np.ndarray, segments: int, n: int) -> np.ndarray:
+    """(segments + 1, n) points of ``path`` at ``segments + 1`` evenly spaced times on [0, 1].
+
+    Args:
+        path: (T, n) path [rad], T >= 2, linear between its samples.
+        times: (T,) increasing path parameter of the samples, spanning [0, 1].
+        segments: number of segments of the result, >= 1.
+        n: dimension.
+
+    Raises:
+        InvalidArgument: ``path`` or ``times`` has the wrong shape, or ``times`` does not
+            increase.
+    """
+    path = np.asarray(path, dtype=np.float64)
+    if path.ndim != 2 or path.shape[1] != n or path.shape[0] < 2 or not np.isfinite(path).all():
+        raise InvalidArgument(f"init must be finite with shape (T, {n}), T >= 2, got {path.shape}")
+    times = np.asarray(times, dtype=np.float64)
+    if times.shape != (len(path),) or not np.all(np.diff(times) > 0):
+        raise InvalidArgument(
+            f"init_t must be increasing with shape ({len(path)},) (one time per init sample)"
+        )
+    u = np.linspace(0.0, 1.0, segments + 1)
+    return np.column_stack([np.interp(u, times, path[:, i]) for i in range(n)])

@@ -1,8 +1,9 @@
 """Motion planning on a metric: minimum-energy, collision-free paths among obstacles.
 
 `Planner` checks the query, runs collocation of the geodesic energy with clearance
-constraints (`geosyn.metrics.geodesic.collocation`), falls back to an RRT-Connect seed
-(`rrt`) when no local solve reaches the goal, and checks the result between nodes.
+constraints (`geosyn.metrics.geodesic.collocation`; coarse to fine among obstacles),
+falls back to an RRT-Connect seed (`rrt`) when no local solve reaches the goal, and
+checks the result between nodes.
 """
 
 from geosyn.metrics.planning.errors import (

@@ -5,7 +5,14 @@ One query, within a stated time budget:
 1. checks the input: start and goal within the joint limits and collision-free (else
    `OutsideJointLimits` / `InCollision` naming the obstacle and the robot sphere), at most
    ``capacity`` obstacles (else `geosyn.metrics.shaping.CapacityExceeded`);
-2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line;
+2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
+   coarse to fine when there are obstacles: a collocation with few nodes
+   (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the
+   straight line, keeping an inflated clearance ``margin + coarse_inflation`` (so that
+   its widely spaced points do not straddle thin obstacles; lowered near start and goal
+   to their own clearances), then the full collocation from its path, interpolated, with
+   a small initial barrier parameter (``seeded_mu_init``); if the coarse-to-fine plan
+   fails, the full collocation from the straight line itself;
 3. if that fails, RRT-Connect (`geosyn.metrics.planning.rrt`) for a global seed around
    the obstacles, then collocation from it; with ``alternatives`` > 0, also after a
    constrained straight-line result, from that many RRT-Connect seeds (other homotopy
@@ -33,6 +40,7 @@ from geosyn.core.types import Vector
 from geosyn.core.validation import check_float, check_int, check_positive, check_vector
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
+from geosyn.metrics.geodesic.collocation_parts import interpolate_path
 from geosyn.metrics.planning.errors import InCollision, NoPathFound, OutsideJointLimits
 from geosyn.metrics.planning.rrt import rrt_connect, shortcut
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
@@ -51,7 +59,8 @@ class Plan(NamedTuple):
 
     Attributes:
         result: the collocation result (path, kind, energy, clearance, ...).
-        seed: the initial path of the final collocation: ``"straight line"`` or
+        seed: the global seed of the final collocation: ``"straight line"`` (directly,
+            or through a coarse collocation: ``attempts`` says which) or
             ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed).
         check_clearance: smallest clearance [m] on the path checked ``check_factor``
             times finer than its samples (linear in between), by the constraints' smooth
@@ -96,6 +105,14 @@ class Planner:
             configurations [rad], > 0.
         alternatives: RRT-Connect seeds tried after a constrained straight-line plan,
             >= 0 (each costs a sampling and a collocation; the lowest-energy plan wins).
+        coarse_nodes: segments of the coarse collocation that seeds the full one when
+            there are obstacles, >= 2; 0: none (the full collocation from the straight line).
+        coarse_subdivisions: constrained points inside each coarse segment, >= 0.
+        coarse_inflation: the coarse collocation keeps clearance ``margin`` plus this
+            [m], >= 0; the sum is the attribute ``coarse_margin``.
+        seeded_mu_init: IPOPT's initial barrier parameter of the full collocation from the
+            coarse path, > 0 (IPOPT's default 0.1 first pushes a path already near a
+            solution far from the obstacles).
         compile: what to compile to C (cached on disk): see `Collocation`.
         distance: signed distance of the clearance constraints, ``"exact"`` or
             ``"smooth"`` (see `geosyn.metrics.shaping.obstacle.DISTANCES`).
@@ -115,6 +132,10 @@ class Planner:
         check_factor: int = 4,
         check_step: float = 0.005,
         alternatives: int = 0,
+        coarse_nodes: int = 4,
+        coarse_subdivisions: int = 3,
+        coarse_inflation: float = 0.015,
+        seeded_mu_init: float = 1e-4,
         compile: bool | str = False,
         distance: str = "exact",
         hessian: str = "exact",
@@ -134,12 +155,22 @@ class Planner:
         self.check_factor = check_int(check_factor, "check_factor", low=1)
         self.check_step = check_positive(check_step, "check_step", "rad")
         self.alternatives = check_int(alternatives, "alternatives", low=0)
+        self.coarse_nodes = check_int(coarse_nodes, "coarse_nodes", low=0)
+        if self.coarse_nodes == 1:
+            raise InvalidArgument("coarse_nodes: 0 (no coarse stage) or >= 2, got 1")
+        self.coarse_subdivisions = check_int(coarse_subdivisions, "coarse_subdivisions", low=0)
+        inflation = check_float(coarse_inflation, "coarse_inflation", low=0.0)
+        self.coarse_margin = self.margin + inflation
+        self.seeded_mu_init = check_positive(seeded_mu_init, "seeded_mu_init")
         self.compile = compile
         self.hessian = hessian
         self.tol = check_positive(tol, "tol")
         self.softmin = softmin
         self._collocations: dict[tuple[int, int], Collocation] = {}
         self.collocation(self.nodes)
+        if self.coarse_nodes:
+            self.collocation(self.coarse_nodes, self.coarse_subdivisions)
+            self.collocation(self.nodes).solver(self.seeded_mu_init)
         self.build_time = time.perf_counter() - t0
 
     def collocation(self, nodes: int, subdivisions: int = 1) -> Collocation:
@@ -167,6 +198,57 @@ class Planner:
     def valid(self, Q: np.ndarray) -> np.ndarray:
         """(K,) True where the configurations ``Q`` (K, n) keep clearance >= margin / 2."""
         return self.collocation(self.nodes).node_clearances(Q) >= 0.5 * self.margin
+
+    COARSE_RAMP = 0.25
+    """Fraction of the path over which the coarse clearance bound rises from the start's
+    (goal's) own clearance to ``coarse_margin``."""
+
+    def coarse_bounds(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """(P, m) clearance bounds [m] of the coarse collocation at its points.
+
+        Per constraint, ``coarse_margin``, lowered near the ends to the start's (goal's)
+        clearance plus ``coarse_margin`` times the fraction of `COARSE_RAMP` travelled,
+        and capped (never below ``margin``) where a robot sphere keeps the same clearance
+        to an obstacle at start, goal and halfway (e.g. a base sphere above a floor: no
+        path could raise it).
+        """
+        col = self.collocation(self.coarse_nodes, self.coarse_subdivisions)
+        t = col.point_times[:, None]
+        c0, c1 = col.slot_clearances(q0)[None], col.slot_clearances(q1)[None]
+        k = self.coarse_margin / self.COARSE_RAMP
+        bounds = np.minimum(np.minimum(c0 + k * t, c1 + k * (1.0 - t)), self.coarse_margin)
+        n_obs, cap = len(self.term.obstacles), self.term.capacity
+        if n_obs:
+            C = np.stack([self.term.clearances(q) for q in (q0, q1, 0.5 * (q0 + q1))])
+            slack = 0.0 if self.softmin is None else math.log(C.shape[1]) / self.softmin
+            fixed = np.ptp(C, axis=0) < 1e-9  # (spheres, obstacles)
+            caps = np.full((C.shape[1], cap), math.inf)
+            caps[:, :n_obs] = np.where(fixed, np.maximum(self.margin, C[0] - slack), math.inf)
+            per_row = caps.min(axis=0) if self.softmin is not None else caps.ravel()
+            bounds = np.minimum(bounds, np.maximum(per_row[None], self.margin))
+        return bounds
+
+    def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
+                        attempts: list[str]) -> tuple[CollocationResult, np.ndarray]:  # fmt: skip
+        """The full collocation from the coarse one's path (see the module docstring),
+        and that path (its nodes, interpolated to the full node count)."""
+        t0 = time.perf_counter()
+        coarse = self.collocation(self.coarse_nodes, self.coarse_subdivisions)
+        seed = coarse.solve(q0, q1, budget=0.5 * budget, refine=False,
+                            lower=self.coarse_bounds(q0, q1))  # fmt: skip
+        # a failed coarse solve still leaves a path round the obstacles (its last iterate):
+        # only a seed, the full collocation and the checks decide
+        attempts.append(f"coarse collocation ({self.coarse_nodes} segments, "
+                        f"{self.coarse_subdivisions} constrained point(s) inside each, "
+                        f"clearance {self.coarse_margin:g} m) from the straight line: "
+                        f"{seed.message}")  # fmt: skip
+        times = np.linspace(0.0, 1.0, len(seed.nodes))
+        init = interpolate_path(seed.nodes, times, self.nodes, self.metric.n)
+        left = max(budget - (time.perf_counter() - t0), 1e-3)
+        res = self.collocation(self.nodes).solve(q0, q1, init=init, budget=left,
+                                                 mu_init=self.seeded_mu_init)  # fmt: skip
+        attempts.append(f"collocation from the coarse path: {res.message}")
+        return res, init
 
     def _check_end(self, q: np.ndarray, which: str) -> None:
         bad = np.flatnonzero((q < self.robot.q_min - 1e-9) | (q > self.robot.q_max + 1e-9))
@@ -295,11 +377,16 @@ class Planner:
             attempts.append(f"collocation from the {name} path: {res.message}")
             return finish(res, path, name.lower(), 1.0) if res.success else None
 
-        res = self.collocation(self.nodes).solve(q0, q1, budget=0.5 * budget)
-        attempts.append(f"collocation from the straight line: {res.message}")
         plans = []
-        if res.success and (plan := finish(res, None, "straight line", 0.75)) is not None:
-            plans.append(plan)
+        if self.coarse_nodes and self.term.obstacles:
+            res, init = self._coarse_to_fine(q0, q1, 0.4 * budget, attempts)
+            if res.success and (plan := finish(res, init, "straight line", 0.6)) is not None:
+                plans.append(plan)
+        if not plans:
+            res = self.collocation(self.nodes).solve(q0, q1, budget=max(0.5 * left(), 1e-3))
+            attempts.append(f"collocation from the straight line: {res.message}")
+            if res.success and (plan := finish(res, None, "straight line", 0.75)) is not None:
+                plans.append(plan)
         constrained = bool(plans) and plans[0].result.kind == "constrained"
         tries = (self.alternatives if constrained else 0) if plans else 1
         for index in range(tries):
