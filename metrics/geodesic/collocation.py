@@ -34,7 +34,6 @@ from typing import TYPE_CHECKING, Any
 import casadi as ca
 import numpy as np
 
-from geosyn.core.codegen import compile_library
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import (
@@ -45,14 +44,15 @@ from geosyn.core.validation import (
     check_vector,
 )
 from geosyn.metrics.base import Metric, check_metric
-from geosyn.metrics.errors import GeodesicNotFound
-from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
+from geosyn.metrics.geodesic.collocation_nlp import assemble_nlp, per_node_functions
 from geosyn.metrics.geodesic.collocation_parts import (
+    ACTIVE_TOL,
     KINDS,
+    WARM_START,
     CollocationResult,
     Deadline,
     interpolate_path,
-    node_functions,
+    refine_by_shooting,
     resample_path,
 )
 
@@ -69,22 +69,6 @@ COMPILE = ("all", "first-order", "none")
 
 BATCH = 64
 """Configurations per call of the batched clearance check (`Collocation.node_clearances`)."""
-
-WARM_START = {
-    "warm_start_init_point": "yes",
-    "mu_init": 1e-3,
-    "warm_start_bound_push": 1e-9,
-    "warm_start_bound_frac": 1e-9,
-    "warm_start_slack_bound_push": 1e-9,
-    "warm_start_slack_bound_frac": 1e-9,
-    "warm_start_mult_bound_push": 1e-9,
-}
-"""IPOPT options of a warm-started solve (`Collocation.solve` with ``warm``): start from
-the given primal and dual point, barely pushed into the interior."""
-
-ACTIVE_TOL = 1e-6
-"""A clearance within this of the margin [m], or a joint within it of a limit [rad], is
-counted as an active constraint."""
 
 
 class Collocation:
@@ -176,100 +160,24 @@ class Collocation:
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.constraint_hessian = self.hessian == "exact"
         self.softmin = None if softmin is None else check_positive(softmin, "softmin", "1/m")
-        funcs = node_functions(metric, clearance, self.constraint_hessian, self.softmin)
         mode: object = compile
         if isinstance(compile, bool):
             mode = "all" if compile else "none"
         self.compile = check_choice(mode, COMPILE, "compile")
-        if self.compile != "none":
-            # jac_<f> in the same library: first derivatives of f and g for CasADi's own
-            # Lagrangian gradient (the hand-made derivatives above serve IPOPT).
-            jacs = [funcs[0].jacobian(), funcs[2].jacobian()]
-            lib = compile_library("geosyn_collocation", [*funcs[:4], *jacs],
-                                  load=[f.name() for f in funcs[:4]])  # fmt: skip
-            compiled = [lib[f.name()] for f in funcs[:4]]
-            if self.compile == "all" and len(funcs) > 4:
-                # its own library: the first-order one above stays cached without it
-                name = funcs[4].name()
-                compiled.append(compile_library("geosyn_collocation_hessian", [funcs[4]])[name])
-            funcs = tuple(compiled) + funcs[len(compiled) :]
-        if clearance is not None and self.softmin is not None and self.compile != "first-order":
-            # the clearances' Jacobian by its structure (half the graph of the automatic
-            # one, which "first-order" keeps from the library above), in a library of its own
-            jac = clearance_jacobian(clearance, self.softmin)
-            if self.compile == "all":
-                jac = compile_library("geosyn_collocation_jacobian", [jac])[jac.name()]
-            funcs = (*funcs[:3], jac, *funcs[4:])
-        seg, seg_d, clr, clr_j = funcs[:4]
+        funcs = per_node_functions(
+            metric, clearance, self.constraint_hessian, self.softmin, self.compile
+        )
+        clr = funcs[2]
         self.constraints_per_node = m = clr.size1_out(0) if clearance is not None else 0
         npm = metric.symbolic_parameters().numel()
         npc = 0 if clearance is None else clearance.symbolic_parameters().numel()
-        x = ca.MX.sym("x", n * (N - 1))
-        p = ca.MX.sym("p", 2 * n + npm + npc)
-        X = ca.reshape(x, n, N - 1)
-        q0, q1 = p[:n], p[n : 2 * n]
-        pm, pc = p[2 * n : 2 * n + npm], p[2 * n + npm :]
-        Q = ca.horzcat(q0, X, q1)
-        qa, qb = Q[:, :-1], Q[:, 1:]
-        f = N * ca.sum2(seg.map(N)(qa, qb, pm))
-        E, GR, H = seg_d.map(N)(qa, qb, pm)
-        grad = N * ca.vec(GR[n:, : N - 1] + GR[:n, 1:])
-        grad_f = ca.Function("nlp_grad_f", [x, p], [N * ca.sum2(E), grad], ["x", "p"],
-                             ["f", "grad_f_x"])  # fmt: skip
-        lam_f = ca.MX.sym("lam_f")
         subdivisions = check_int(subdivisions, "subdivisions", low=0)
         self.subdivisions = subdivisions if m else 0
-        rows = N - 1 + self.subdivisions * N  # constraint blocks of m rows
-        lam_g = ca.MX.sym("lam_g", m * rows)
-        blocks = [[ca.MX(n, n) for _ in range(N - 1)] for _ in range(N - 1)]
-        for j in range(N - 1):
-            blocks[j][j] = N * lam_f * (H[n:, 2 * n * j + n : 2 * n * (j + 1)]
-                                        + H[:n, 2 * n * (j + 1) : 2 * n * (j + 1) + n])  # fmt: skip
-            if j + 1 < N - 1:
-                blocks[j][j + 1] = N * lam_f * H[:n, 2 * n * (j + 1) + n : 2 * n * (j + 2)]
-        if m:
-            # constraints at the interior nodes, then at each subdivision of the segments
-            L = ca.reshape(lam_g, m, rows)
-            Cn, Jn = clr_j.map(N - 1)(X, pc)
-            g_parts, c_parts = [ca.vec(clr.map(N - 1)(X, pc))], [ca.vec(Cn)]
-            jrows = [[ca.MX(m, n) for _ in range(N - 1)] for _ in range(rows)]
-            for j in range(N - 1):
-                jrows[j][j] = Jn[:, j * n : (j + 1) * n]
-            if self.constraint_hessian:
-                HN = funcs[4].map(N - 1)(X, pc, L[:, : N - 1])
-                for j in range(N - 1):
-                    blocks[j][j] = blocks[j][j] + HN[:, j * n : (j + 1) * n]
-            for i in range(self.subdivisions):
-                # c(m_k), m_k = (1 - t) Q_k + t Q_k+1, depends on X_k-1 (weight 1 - t) and
-                # X_k (weight t); Q_0 and Q_N are parameters.
-                t = (i + 1) / (self.subdivisions + 1)
-                wts = {-1: 1.0 - t, 0: t}
-                M = (1.0 - t) * qa + t * qb
-                Cm, Jm = clr_j.map(N)(M, pc)
-                g_parts.append(ca.vec(clr.map(N)(M, pc)))
-                c_parts.append(ca.vec(Cm))
-                first = N - 1 + i * N  # this subdivision's first constraint block
-                for k in range(N):
-                    for dj, wj in wts.items():
-                        if 0 <= k + dj < N - 1:
-                            jrows[first + k][k + dj] = wj * Jm[:, k * n : (k + 1) * n]
-                if self.constraint_hessian:
-                    HM = funcs[4].map(N)(M, pc, L[:, first : first + N])
-                    for k in range(N):
-                        hk = HM[:, k * n : (k + 1) * n]
-                        for dj, wj in wts.items():
-                            if 0 <= k + dj < N - 1:
-                                blocks[k + dj][k + dj] = blocks[k + dj][k + dj] + wj * wj * hk
-                        if 1 <= k < N - 1:
-                            blocks[k - 1][k] = blocks[k - 1][k] + t * (1.0 - t) * hk
-            g = ca.vertcat(*g_parts)
-            jac_g = ca.Function("nlp_jac_g", [x, p], [ca.vertcat(*c_parts), ca.blockcat(jrows)],
-                                ["x", "p"], ["g", "jac_g_x"])  # fmt: skip
-        else:
-            g = ca.MX(0, 1)
-        hess = ca.triu(ca.blockcat(blocks))
-        hess_l = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess],
-                             ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
+        nlp_parts = assemble_nlp(
+            funcs, n, N, npm, npc, m, self.subdivisions, self.constraint_hessian
+        )
+        x, p, f, g = nlp_parts.x, nlp_parts.p, nlp_parts.f, nlp_parts.g
+        grad_f, jac_g, hess_l = nlp_parts.grad_f, nlp_parts.jac_g, nlp_parts.hess_l
         self._deadline = Deadline(x.numel(), g.numel())
         opts: dict[str, Any] = {
             "iteration_callback": self._deadline,
@@ -513,30 +421,17 @@ class Collocation:
                                      wall_time=wall, message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
         why = "refinement not asked (refine=False)"
         if refine:
-            from geosyn.metrics.geodesic.exp_map import exp
-            from geosyn.metrics.geodesic.log_map import log_solve
-
-            try:
-                res = log_solve(self.metric, q0, q1, v_init=v0, steps=steps, max_iter=20,
-                                continuation=False)  # fmt: skip
-                geo = exp(self.metric, q0, res.v0, 1.0, steps)
-                clear = self.node_clearances(geo.q)
-                if (
-                    clear.min() >= 0.0
-                    and np.all(geo.q >= lo - ACTIVE_TOL)
-                    and np.all(geo.q <= hi + ACTIVE_TOL)
-                ):
-                    wall = time.perf_counter() - t0
-                    msg = (f"geodesic: collocation ({iterations} IPOPT iterations), then "
-                           f"shooting ({res.method}, residual {res.residual:.1e} rad)")  # fmt: skip
-                    base["min_clearance"] = float(clear.min()) if clear.size else math.inf
-                    return CollocationResult(geo.t, geo.q, "geodesic", v0=res.v0,
-                                             geodesic_residual=res.residual, wall_time=wall,
-                                             message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
-                why = (f"the shooting geodesic leaves the free space (clearance "
-                       f"{clear.min():.3g} m) or the joint limits")  # fmt: skip
-            except GeodesicNotFound as err:
-                why = f"shooting did not converge from it ({err.residual:.1e} rad)"
+            res, geo, clear, why = refine_by_shooting(
+                self.metric, q0, q1, v0, steps, (lo, hi), self.node_clearances
+            )
+            if res is not None and geo is not None and clear is not None:
+                wall = time.perf_counter() - t0
+                msg = (f"geodesic: collocation ({iterations} IPOPT iterations), then "
+                       f"shooting ({res.method}, residual {res.residual:.1e} rad)")  # fmt: skip
+                base["min_clearance"] = float(clear.min()) if clear.size else math.inf
+                return CollocationResult(geo.t, geo.q, "geodesic", v0=res.v0,
+                                         geodesic_residual=res.residual, wall_time=wall,
+                                         message=msg, **base)  # type: ignore[arg-type]  # fmt: skip
         wall = time.perf_counter() - t0
         msg = f"discrete geodesic of {N} segments (no constraint active); {why}"
         return CollocationResult(t, nodes, "discrete geodesic", v0=v0, geodesic_residual=math.nan,

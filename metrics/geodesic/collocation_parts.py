@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, NamedTuple
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -17,7 +17,18 @@ from geosyn.metrics.base import Metric
 if TYPE_CHECKING:
     from geosyn.metrics.shaping.obstacle import ObstacleTerm
 
-__all__ = ["KINDS", "CollocationResult", "resample_path"]
+__all__ = [
+    "ACTIVE_TOL",
+    "KINDS",
+    "WARM_START",
+    "CollocationResult",
+    "refine_by_shooting",
+    "resample_path",
+]
+
+ACTIVE_TOL = 1e-6
+"""A clearance within this of the margin [m], or a joint within it of a limit [rad], is
+counted as an active constraint."""
 
 KINDS = ("geodesic", "discrete geodesic", "constrained", "failed")
 """What a `CollocationResult` is (see `CollocationResult.kind`)."""
@@ -191,3 +202,63 @@ def interpolate_path(path: np.ndarray, times: np.ndarray, segments: int, n: int)
         )
     u = np.linspace(0.0, 1.0, segments + 1)
     return np.column_stack([np.interp(u, times, path[:, i]) for i in range(n)])
+
+
+WARM_START = {
+    "warm_start_init_point": "yes",
+    "mu_init": 1e-3,
+    "warm_start_bound_push": 1e-9,
+    "warm_start_bound_frac": 1e-9,
+    "warm_start_slack_bound_push": 1e-9,
+    "warm_start_slack_bound_frac": 1e-9,
+    "warm_start_mult_bound_push": 1e-9,
+}
+"""IPOPT options of a warm-started solve (`Collocation.solve` with ``warm``): start from
+the given primal and dual point, barely pushed into the interior."""
+
+
+def refine_by_shooting(
+    metric: Metric,
+    q0: np.ndarray,
+    q1: np.ndarray,
+    v0: np.ndarray,
+    steps: int,
+    bounds: tuple[np.ndarray, np.ndarray],
+    clearances: Callable[[np.ndarray], np.ndarray],
+) -> tuple[Any, Any, np.ndarray | None, str]:
+    """Refine a discrete geodesic by shooting: `log_solve` from its initial velocity
+    ``v0`` (n,) [rad/s], then `exp` with ``steps`` RK4 steps.
+
+    Args:
+        metric: the metric; q0, q1: (n,) ends [rad].
+        v0: (n,) initial velocity of the discrete geodesic [rad/s].
+        steps: RK4 steps.
+        bounds: (n,) lower and upper joint bounds [rad] the geodesic must keep.
+        clearances: ``(T, n) -> clearances`` of a path (negative: collision).
+
+    Returns:
+        ``(log result, geodesic, its clearances, "")`` when the geodesic stays free and
+        within the bounds, else ``(None, None, None, why not)``.
+    """
+    from geosyn.metrics.errors import GeodesicNotFound
+    from geosyn.metrics.geodesic.exp_map import exp
+    from geosyn.metrics.geodesic.log_map import log_solve
+
+    lo, hi = bounds
+    try:
+        res = log_solve(metric, q0, q1, v_init=v0, steps=steps, max_iter=20, continuation=False)
+    except GeodesicNotFound as err:
+        return None, None, None, f"shooting did not converge from it ({err.residual:.1e} rad)"
+    geo = exp(metric, q0, res.v0, 1.0, steps)
+    clear = clearances(geo.q)
+    if clear.min() >= 0.0 and np.all(geo.q >= lo - ACTIVE_TOL) and np.all(geo.q <= hi + ACTIVE_TOL):
+        return res, geo, clear, ""
+    return (
+        None,
+        None,
+        None,
+        (
+            f"the shooting geodesic leaves the free space (clearance {clear.min():.3g} m) or "
+            "the joint limits"
+        ),
+    )

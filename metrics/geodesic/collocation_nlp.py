@@ -1,0 +1,151 @@
+"""The NLP of `geosyn.metrics.geodesic.collocation.Collocation`: its per-node functions
+(compiled or not) and their assembly into IPOPT's objective, constraints and
+hand-made derivatives over the nodes.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, NamedTuple
+
+import casadi as ca
+
+from geosyn.core.codegen import compile_library
+from geosyn.metrics.base import Metric
+from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
+from geosyn.metrics.geodesic.collocation_parts import node_functions
+
+if TYPE_CHECKING:
+    from geosyn.metrics.shaping.obstacle import ObstacleTerm
+
+__all__ = ["CollocationNLP", "assemble_nlp", "per_node_functions"]
+
+
+def per_node_functions(
+    metric: Metric,
+    clearance: ObstacleTerm | None,
+    constraint_hessian: bool,
+    softmin: float | None,
+    compile_mode: str,
+) -> tuple[ca.Function, ...]:
+    """The per-node functions (`node_functions`), compiled as ``compile_mode`` says
+    (`geosyn.metrics.geodesic.collocation.COMPILE`), with the clearances' Jacobian by its
+    structure where that applies: ``(segment energy, its derivatives, clearances, their
+    Jacobian[, their multiplier-weighted Hessian])``."""
+    funcs = node_functions(metric, clearance, constraint_hessian, softmin)
+    if compile_mode != "none":
+        # jac_<f> in the same library: first derivatives of f and g for CasADi's own
+        # Lagrangian gradient (the hand-made derivatives of `assemble_nlp` serve IPOPT).
+        jacs = [funcs[0].jacobian(), funcs[2].jacobian()]
+        lib = compile_library("geosyn_collocation", [*funcs[:4], *jacs],
+                              load=[f.name() for f in funcs[:4]])  # fmt: skip
+        compiled = [lib[f.name()] for f in funcs[:4]]
+        if compile_mode == "all" and len(funcs) > 4:
+            # its own library: the first-order one above stays cached without it
+            name = funcs[4].name()
+            compiled.append(compile_library("geosyn_collocation_hessian", [funcs[4]])[name])
+        funcs = tuple(compiled) + funcs[len(compiled) :]
+    if clearance is not None and softmin is not None and compile_mode != "first-order":
+        # the clearances' Jacobian by its structure (half the graph of the automatic
+        # one, which "first-order" keeps from the library above), in a library of its own
+        jac = clearance_jacobian(clearance, softmin)
+        if compile_mode == "all":
+            jac = compile_library("geosyn_collocation_jacobian", [jac])[jac.name()]
+        funcs = (*funcs[:3], jac, *funcs[4:])
+    return funcs
+
+
+class CollocationNLP(NamedTuple):
+    """The assembled NLP: decision ``x`` ((N-1) n,), parameters ``p``
+    (``q0, q1, metric parameters, obstacle parameters``), objective ``f``, constraints
+    ``g``, and the hand-assembled derivatives IPOPT gets (``jac_g`` None without
+    constraints)."""
+
+    x: ca.MX
+    p: ca.MX
+    f: ca.MX
+    g: ca.MX
+    grad_f: ca.Function
+    jac_g: ca.Function | None
+    hess_l: ca.Function
+
+
+def assemble_nlp(
+    funcs: tuple[ca.Function, ...],
+    n: int,
+    N: int,
+    npm: int,
+    npc: int,
+    m: int,
+    subdivisions: int,
+    constraint_hessian: bool,
+) -> CollocationNLP:
+    """The collocation NLP of ``N`` segments from the per-node functions
+    (`per_node_functions`): energy by the midpoint rule, ``m`` clearance rows at each
+    interior node and at ``subdivisions`` points inside each segment, a block-tridiagonal
+    Lagrangian Hessian and a block-sparse constraint Jacobian (MX graph; allocates)."""
+    seg, seg_d, clr, clr_j = funcs[:4]
+    x = ca.MX.sym("x", n * (N - 1))
+    p = ca.MX.sym("p", 2 * n + npm + npc)
+    X = ca.reshape(x, n, N - 1)
+    q0, q1 = p[:n], p[n : 2 * n]
+    pm, pc = p[2 * n : 2 * n + npm], p[2 * n + npm :]
+    Q = ca.horzcat(q0, X, q1)
+    qa, qb = Q[:, :-1], Q[:, 1:]
+    f = N * ca.sum2(seg.map(N)(qa, qb, pm))
+    E, GR, H = seg_d.map(N)(qa, qb, pm)
+    grad = N * ca.vec(GR[n:, : N - 1] + GR[:n, 1:])
+    grad_f = ca.Function("nlp_grad_f", [x, p], [N * ca.sum2(E), grad], ["x", "p"],
+                         ["f", "grad_f_x"])  # fmt: skip
+    lam_f = ca.MX.sym("lam_f")
+    rows = N - 1 + subdivisions * N  # constraint blocks of m rows
+    lam_g = ca.MX.sym("lam_g", m * rows)
+    blocks = [[ca.MX(n, n) for _ in range(N - 1)] for _ in range(N - 1)]
+    for j in range(N - 1):
+        blocks[j][j] = N * lam_f * (H[n:, 2 * n * j + n : 2 * n * (j + 1)]
+                                    + H[:n, 2 * n * (j + 1) : 2 * n * (j + 1) + n])  # fmt: skip
+        if j + 1 < N - 1:
+            blocks[j][j + 1] = N * lam_f * H[:n, 2 * n * (j + 1) + n : 2 * n * (j + 2)]
+    if m:
+        # constraints at the interior nodes, then at each subdivision of the segments
+        L = ca.reshape(lam_g, m, rows)
+        Cn, Jn = clr_j.map(N - 1)(X, pc)
+        g_parts, c_parts = [ca.vec(clr.map(N - 1)(X, pc))], [ca.vec(Cn)]
+        jrows = [[ca.MX(m, n) for _ in range(N - 1)] for _ in range(rows)]
+        for j in range(N - 1):
+            jrows[j][j] = Jn[:, j * n : (j + 1) * n]
+        if constraint_hessian:
+            HN = funcs[4].map(N - 1)(X, pc, L[:, : N - 1])
+            for j in range(N - 1):
+                blocks[j][j] = blocks[j][j] + HN[:, j * n : (j + 1) * n]
+        for i in range(subdivisions):
+            # c(m_k), m_k = (1 - t) Q_k + t Q_k+1, depends on X_k-1 (weight 1 - t) and
+            # X_k (weight t); Q_0 and Q_N are parameters.
+            t = (i + 1) / (subdivisions + 1)
+            wts = {-1: 1.0 - t, 0: t}
+            M = (1.0 - t) * qa + t * qb
+            Cm, Jm = clr_j.map(N)(M, pc)
+            g_parts.append(ca.vec(clr.map(N)(M, pc)))
+            c_parts.append(ca.vec(Cm))
+            first = N - 1 + i * N  # this subdivision's first constraint block
+            for k in range(N):
+                for dj, wj in wts.items():
+                    if 0 <= k + dj < N - 1:
+                        jrows[first + k][k + dj] = wj * Jm[:, k * n : (k + 1) * n]
+            if constraint_hessian:
+                HM = funcs[4].map(N)(M, pc, L[:, first : first + N])
+                for k in range(N):
+                    hk = HM[:, k * n : (k + 1) * n]
+                    for dj, wj in wts.items():
+                        if 0 <= k + dj < N - 1:
+                            blocks[k + dj][k + dj] = blocks[k + dj][k + dj] + wj * wj * hk
+                    if 1 <= k < N - 1:
+                        blocks[k - 1][k] = blocks[k - 1][k] + t * (1.0 - t) * hk
+        g = ca.vertcat(*g_parts)
+        jac_g: ca.Function | None = ca.Function("nlp_jac_g", [x, p], [ca.vertcat(*c_parts), ca.blockcat(jrows)],
+                            ["x", "p"], ["g", "jac_g_x"])  # fmt: skip
+    else:
+        g, jac_g = ca.MX(0, 1), None
+    hess = ca.triu(ca.blockcat(blocks))
+    hess_l = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [hess],
+                         ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])  # fmt: skip
+    return CollocationNLP(x, p, f, g, grad_f, jac_g, hess_l)
