@@ -19,6 +19,7 @@ from geosyn.controllers import (
     QPController,
     RiemannianPD,
 )
+from geosyn.core.errors import InvalidArgument
 from geosyn.experiments import schema as S
 from geosyn.metrics import KineticEnergyMetric, Metric
 from geosyn.metrics.geodesic import Geodesic, exp, log
@@ -208,10 +209,40 @@ CONTROLLERS: dict[str, Callable[[Any, Robot, Metric, float], Controller]] = {
 
 
 def build_controller(
-    c: S.ControllerConfig, robot: Robot, metric: Metric, control_dt: float
+    c: S.ControllerConfig,
+    robot: Robot,
+    metric: Metric,
+    control_dt: float,
+    obstacles: Sequence[Shape] = (),
 ) -> Controller:
-    """A controller from its config section (``control_dt`` is the QP's period)."""
+    """A controller from its config section (``control_dt`` is the QP's period).
+
+    An MPC with ``clearance_margin`` keeps clear of the metric's obstacle terms, or, when
+    the metric has none, of ``obstacles`` (the scene's), through an `ObstacleTerm` of them.
+
+    Raises:
+        InvalidArgument: ``clearance_margin`` without obstacles in the metric or the scene.
+    """
+    if getattr(c, "clearance_margin", None) is not None:
+        metric = clearance_metric(metric, obstacles)
     return CONTROLLERS[c.type](c, robot, metric, control_dt)
+
+
+def clearance_metric(metric: Metric, obstacles: Sequence[Shape]) -> Metric:
+    """``metric`` if it has an `ObstacleTerm`, else ``metric`` shaped by one holding
+    ``obstacles`` (the MPC's ``clearance_margin`` reads its obstacles from such terms).
+
+    Raises:
+        InvalidArgument: neither the metric nor ``obstacles`` has an obstacle.
+    """
+    if isinstance(metric, ShapedMetric) and any(isinstance(t, ObstacleTerm) for t in metric.terms):
+        return metric
+    if not obstacles:
+        raise InvalidArgument(
+            "clearance_margin (mpc controller) needs obstacles: list them in scene.obstacles "
+            "or add an obstacle term to metric.terms"
+        )
+    return ShapedMetric(metric, [ObstacleTerm(list(obstacles), capacity=len(obstacles))])
 
 
 DISTURBANCES: dict[str, Callable[..., Disturbance]] = {
@@ -302,6 +333,7 @@ __all__ = [
     "build_disturbances",
     "build_metric",
     "build_obstacles",
+    "clearance_metric",
     "build_payloads",
     "build_reference",
     "build_robot",

@@ -100,8 +100,9 @@ def track_with_each_controller(
         The per-tick arrays of every run.
     """
     out: dict[str, np.ndarray] = {}
+    obstacles = B.build_obstacles(cfg)
     for label, ccfg in zip(cfg.controller_labels(), cfg.controllers, strict=True):
-        ctrl = B.build_controller(ccfg, robot, metric, cfg.simulation.control_dt)
+        ctrl = B.build_controller(ccfg, robot, metric, cfg.simulation.control_dt, obstacles)
         res = B.simulate(cfg, robot, ctrl, reference, q0, v0, duration=duration)
         out.update(B.sim_arrays(f"{prefix}{label}", res))
         if each is not None:
