@@ -19,6 +19,7 @@ from geosyn.controllers import (
     QPController,
     RiemannianPD,
 )
+from geosyn.controllers.mpc.ddp_clearance import find_obstacle_terms
 from geosyn.core.errors import InvalidArgument
 from geosyn.experiments import schema as S
 from geosyn.metrics import KineticEnergyMetric, Metric
@@ -235,7 +236,7 @@ def clearance_metric(metric: Metric, obstacles: Sequence[Shape]) -> Metric:
     Raises:
         InvalidArgument: neither the metric nor ``obstacles`` has an obstacle.
     """
-    if isinstance(metric, ShapedMetric) and any(isinstance(t, ObstacleTerm) for t in metric.terms):
+    if find_obstacle_terms(metric):
         return metric
     if not obstacles:
         raise InvalidArgument(

@@ -54,16 +54,22 @@ def test_discrete_geodesic_converges_at_second_order() -> None:
     assert 3.0 < errors[0] / errors[1] < 5.0 and 3.0 < errors[1] / errors[2] < 5.0
 
 
-@pytest.mark.parametrize("softmin", [None, 1000.0])
-def test_blocked_line_gives_constrained_path_with_margin(softmin: float | None) -> None:
-    """A sphere on the straight line: the path keeps the margin and says it is constrained
-    (per-sphere constraints, or their conservative smooth minimum per obstacle)."""
+def _sphere_on_the_line() -> tuple[KineticEnergyMetric, ObstacleTerm, np.ndarray, np.ndarray]:
+    """planar2 from q0 to q1 and a 0.15 m sphere where the straight line's tip passes at
+    mid-path: (metric, obstacle term with 2 slots, q0, q1)."""
     robot = load_robot("planar2")
-    metric = KineticEnergyMetric(robot)
     q0, q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
     mid = 0.5 * (q0 + q1)
     tip = np.array([np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum())])
     term = ObstacleTerm([Sphere((tip[0], tip[1], 0.0), 0.15)], capacity=2).bind(robot)
+    return KineticEnergyMetric(robot), term, q0, q1
+
+
+@pytest.mark.parametrize("softmin", [None, 1000.0])
+def test_blocked_line_gives_constrained_path_with_margin(softmin: float | None) -> None:
+    """A sphere on the straight line: the path keeps the margin and says it is constrained
+    (per-sphere constraints, or their conservative smooth minimum per obstacle)."""
+    metric, term, q0, q1 = _sphere_on_the_line()
     col = Collocation(
         metric, nodes=24, clearance=term, margin=0.01, joint_limits=False, softmin=softmin
     )
@@ -84,12 +90,7 @@ def test_blocked_line_gives_constrained_path_with_margin(softmin: float | None) 
 
 def _blocked_planar2() -> tuple[Collocation, Collocation, ObstacleTerm, np.ndarray, np.ndarray]:
     """planar2, a sphere on the straight line's tip path; NLPs with 1 and 3 subdivisions."""
-    robot = load_robot("planar2")
-    metric = KineticEnergyMetric(robot)
-    q0, q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
-    mid = 0.5 * (q0 + q1)
-    tip = np.array([np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum())])
-    term = ObstacleTerm([Sphere((tip[0], tip[1], 0.0), 0.15)], capacity=2).bind(robot)
+    metric, term, q0, q1 = _sphere_on_the_line()
     kw = dict(nodes=12, clearance=term, margin=0.01, joint_limits=False)
     return (Collocation(metric, **kw), Collocation(metric, subdivisions=3, **kw),  # type: ignore[arg-type]
             term, q0, q1)  # fmt: skip

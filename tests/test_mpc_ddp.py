@@ -5,7 +5,6 @@ problems, its warm step against a cold solve, the reference sampler against
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import casadi as ca
@@ -13,6 +12,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from scipy.optimize import minimize
+from test_mpc_torque import _mpc as torque_mpc
+from test_mpc_torque import reference
 
 from conftest import get_metric, get_robot
 from geosyn.controllers.mpc import GeodesicMPC
@@ -23,19 +24,10 @@ from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import GeosynError, InvalidArgument
 from geosyn.synergies.synergy import GeodesicSynergy
 
-Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])  # Panda "ready" [rad]
-V0 = np.array([0.4, 0.3, -0.3, 0.4, 0.5, -0.4, 0.6])  # [rad/s]
-
-
-@functools.cache
-def reference() -> GeodesicReference:
-    synergy = GeodesicSynergy(get_metric("panda"), Q0, V0)
-    return GeodesicReference(synergy, time_scale=1.5, duration=1.0, steps=200)
-
 
 def _mpc(**kw) -> GeodesicMPC:
-    options = {"horizon": 10, "dt": 0.02, "control": "torque", "solver": "ddp", **kw}
-    return GeodesicMPC(get_robot("panda"), get_metric("panda"), reference=reference(), **options)
+    """`test_mpc_torque`'s panda MPC (N = 10, its geodesic reference) with the DDP solver."""
+    return torque_mpc(**{"solver": "ddp", **kw})
 
 
 def test_box_qp_matches_scipy_on_seeded_problems() -> None:
@@ -215,25 +207,6 @@ def test_ddp_plan_obeys_the_dynamics_for_other_horizons_and_rk4_steps(
             x = x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
         np.testing.assert_allclose(plan.x[k + 1], x, rtol=0, atol=1e-10)
     assert np.all(np.abs(plan.u) <= robot.tau_max)
-
-
-def test_metric_costs_ddp_equals_ipopt() -> None:
-    """The metric effort and tracking in the metric's norm together (each enters the
-    cost, so an error in either shows): the converged DDP's first torques equal IPOPT's
-    optimum of the same OCP (tol 1e-12) to 1e-6 relative, 0.05 rad off the reference at
-    rest. (Each alone agreed the same way while building them, 1.7e-11 for the metric
-    effort; one combined case keeps the suite's cold-cache compile time down.)"""
-    costs = {"effort": "metric", "tracking": "metric"}
-    q, v = Q0 + 0.05, np.zeros(7)
-    plans = []
-    for kw in ({"tol": 1e-10, "max_iter": 300}, {"solver": "ipopt", "tol": 1e-12, "max_iter": 500}):
-        mpc = _mpc(**costs, **kw)
-        mpc.reset(q, v)
-        plans.append(mpc.solve(0.0, q, v))
-    ddp, ipopt = plans
-    assert ddp.success and ipopt.success, (ddp.status, ipopt.status)
-    err = np.linalg.norm(ddp.u[0] - ipopt.u[0]) / np.linalg.norm(ipopt.u[0])
-    assert err <= 1e-6, err
 
 
 def test_metric_effort_needs_the_robots_kinetic_metric() -> None:

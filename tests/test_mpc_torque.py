@@ -28,15 +28,9 @@ def reference() -> GeodesicReference:
 
 
 def _mpc(**kw) -> GeodesicMPC:
-    return GeodesicMPC(
-        get_robot("panda"),
-        get_metric("panda"),
-        horizon=10,
-        dt=0.02,
-        control="torque",
-        reference=reference(),
-        **kw,
-    )
+    """The panda's torque-level MPC, N = 10, on `reference` (``kw`` override anything)."""
+    options = {"horizon": 10, "dt": 0.02, "control": "torque", "reference": reference(), **kw}
+    return GeodesicMPC(get_robot("panda"), get_metric("panda"), **options)
 
 
 def _rk4_pinocchio(model: pin.Model, x: np.ndarray, tau: np.ndarray, h: float) -> np.ndarray:
@@ -54,13 +48,24 @@ def _rk4_pinocchio(model: pin.Model, x: np.ndarray, tau: np.ndarray, h: float) -
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("solver", ["fatrop", "ddp"])
-def test_first_torques_equal_ipopt_and_the_plan_obeys_the_dynamics(solver: str) -> None:
+@pytest.mark.parametrize(
+    ("solver", "costs"),
+    [
+        ("fatrop", {}),
+        ("ddp", {}),
+        # the metric effort and tracking in the metric's norm together (an error in
+        # either shows; each alone agreed as well while building them)
+        ("ddp", {"effort": "metric", "tracking": "metric"}),
+    ],
+)
+def test_first_torques_equal_ipopt_and_the_plan_obeys_the_dynamics(
+    solver: str, costs: dict
+) -> None:
     robot = get_robot("panda")
     # 0.05 rad off the reference, at rest: the torques are far from the reference's.
     q, v = Q0 + 0.05, np.zeros(7)
-    fast = _mpc(solver=solver, tol=1e-10, max_iter=200)
-    tight = _mpc(solver="ipopt", tol=1e-12, max_iter=500)
+    fast = _mpc(solver=solver, tol=1e-10, max_iter=300, **costs)
+    tight = _mpc(solver="ipopt", tol=1e-12, max_iter=500, **costs)
     plans = []
     for mpc in (fast, tight):
         mpc.reset(q, v)

@@ -29,17 +29,28 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.base import Metric
 from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
 
-__all__ = ["clearance_digest", "clearance_function", "clearance_values", "obstacle_terms"]
+__all__ = [
+    "clearance_digest",
+    "clearance_function",
+    "clearance_values",
+    "find_obstacle_terms",
+    "obstacle_terms",
+]
+
+
+def find_obstacle_terms(metric: Metric) -> tuple[ObstacleTerm, ...]:
+    """The `ObstacleTerm` s of a `ShapedMetric`, in term order (empty for other metrics)."""
+    terms = metric.terms if isinstance(metric, ShapedMetric) else ()
+    return tuple(t for t in terms if isinstance(t, ObstacleTerm))
 
 
 def obstacle_terms(metric: Metric) -> tuple[ObstacleTerm, ...]:
-    """The `ObstacleTerm` s of a `ShapedMetric`, in term order.
+    """`find_obstacle_terms`, refusing a metric without any.
 
     Raises:
         InvalidArgument: ``metric`` is not a `ShapedMetric` with an `ObstacleTerm`.
     """
-    terms = metric.terms if isinstance(metric, ShapedMetric) else ()
-    found = tuple(t for t in terms if isinstance(t, ObstacleTerm))
+    found = find_obstacle_terms(metric)
     if not found:
         raise InvalidArgument(
             "clearance_margin needs a ShapedMetric with an ObstacleTerm (its obstacles are "

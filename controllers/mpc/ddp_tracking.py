@@ -145,10 +145,9 @@ class DDPTracking:
         self.options = ddp_options(solver.options)
         s, n = settings, robot.nv
         self.N, self.n, self.dt = s.N, n, s.dt
-        self.tau_max = np.asarray(robot.tau_max, dtype=np.float64)
         P = parameter_vector(
             s.q_weight, s.v_weight, s.effort_weight, s.terminal_weight, robot.q_min,
-            robot.q_max, robot.v_max, self.tau_max, self.options["limit_weight"],
+            robot.q_max, robot.v_max, robot.tau_max, self.options["limit_weight"],
             self.options["regularisation"],
         )  # fmt: skip
         self._terms: tuple[ObstacleTerm, ...] = ()
@@ -173,7 +172,6 @@ class DDPTracking:
         self._pd = np.hstack([np.diag(kp), np.diag(kd)])  # (n, 2n)
         self._step = numpy_function(parts.forward)
         self._zero_K = np.zeros((n, 2 * n))
-        self._P = P
 
     def forget(self) -> None:
         """Nothing to drop: a DDP warm start is the previous plan itself (with its
@@ -222,6 +220,8 @@ class DDPTracking:
         u[: N - j] = plan.u[j:]
         for k in range(N - j, N):
             u[k] = plan.u[-1]
-            step = self._step(x[k], x[k], u[k], u[k], self._zero_K, 0.0, x_r[k], tau_r[k], self._P)
+            step = self._step(
+                x[k], x[k], u[k], u[k], self._zero_K, 0.0, x_r[k], tau_r[k], self.solver.P
+            )
             x[k + 1] = step[1]
         return x, u

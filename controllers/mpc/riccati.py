@@ -122,40 +122,56 @@ class RiccatiSolver:
                 stabilising feedback keeps the first guess near ``x_bar`` when the open
                 loop would drift far (and the Gauss-Newton model with it).
         """
-        XR, TR, P = x_r.T, tau_r.T, self.P  # the graphs' buffers copy them in
-        if warm and self.warm_iterations == 1:  # the real-time iteration, lean
-            k, K, _ = self._backward(x_bar.T, u_bar.T, XR, TR, P)
-            X, U, c = self._forward(x0, x_bar.T, u_bar.T, k, K, 1.0, XR, TR, P)
-            if not np.isfinite(c[0]):
-                return self._failed(x_bar.T, u_bar.T, 1, "non-finite warm step")
-            return self._result(X, U, K, float(c[0]), 1, "warm step", True)
-        P = P.copy()
-        base_reg = float(P[-1])
-        scale = 1.0 + float(np.max(np.abs(u_bar))) if u_bar.size else 1.0
+        XR, TR = x_r.T, tau_r.T  # the graphs' buffers copy them in
         if warm:
-            Xb, Ub, cost = x_bar.T, u_bar.T, np.inf
-            iterations = self.warm_iterations
-        else:
-            K0 = self._zero_K if K_guess is None else _stack_gains(K_guess)
-            X, U, c = self._forward(x0, x_bar.T, u_bar.T, self._zero_k, K0, 0.0, XR, TR, P)
-            Xb, Ub, cost = X.copy(), U.copy(), float(c[0])
-            iterations = self.max_iter
+            return self._warm_steps(x0, x_bar.T, u_bar.T, XR, TR)
+        return self._cold_solve(x0, x_bar.T, u_bar.T, XR, TR, K_guess)
+
+    def _warm_steps(
+        self, x0: np.ndarray, Xb: np.ndarray, Ub: np.ndarray, XR: np.ndarray, TR: np.ndarray
+    ) -> RiccatiResult:
+        """``warm_iterations`` full DDP steps, no line search (the real-time iteration;
+        column-major arrays as the graphs take them)."""
+        P = self.P
+        for it in range(self.warm_iterations):
+            k, K, _ = self._backward(Xb, Ub, XR, TR, P)
+            X, U, c = self._forward(x0, Xb, Ub, k, K, 1.0, XR, TR, P)
+            if not np.isfinite(c[0]):  # the cost sums every state and torque squared
+                return self._failed(Xb, Ub, it + 1, "non-finite warm step")
+            Xb, Ub = X, U  # the next call copies its inputs in before writing X, U
+        return self._result(X, U, K, float(c[0]), self.warm_iterations, "warm step", True)
+
+    def _cold_solve(
+        self,
+        x0: np.ndarray,
+        Xb: np.ndarray,
+        Ub: np.ndarray,
+        XR: np.ndarray,
+        TR: np.ndarray,
+        K_guess: np.ndarray | None,
+    ) -> RiccatiResult:
+        """Roll the guess out (with ``K_guess``), then iterate with a line search and
+        Levenberg-Marquardt regularisation until converged (see `solve`)."""
+        P = self.P.copy()
+        base_reg = float(P[-1])
+        scale = 1.0 + float(np.max(np.abs(Ub))) if Ub.size else 1.0
+        K0 = self._zero_K if K_guess is None else _stack_gains(K_guess)
+        X, U, c = self._forward(x0, Xb, Ub, self._zero_k, K0, 0.0, XR, TR, P)
+        Xb, Ub, cost = X.copy(), U.copy(), float(c[0])
         K = self._zero_K
-        status = "max_iter"
-        for it in range(iterations):
+        for it in range(self.max_iter):
             k, K, dV = (a.copy() for a in self._backward(Xb, Ub, XR, TR, P))
             if not (np.all(np.isfinite(k)) and np.all(np.isfinite(K))):
                 return self._failed(Xb, Ub, it + 1, "non-finite backward pass")
             accepted, alpha, c_new = False, 1.0, np.nan
-            for alpha in (1.0,) if warm else LINE_SEARCH_STEPS:
+            for alpha in LINE_SEARCH_STEPS:
                 X, U, c = self._forward(x0, Xb, Ub, k, K, alpha, XR, TR, P)
                 c_new = float(c[0])
-                decrease = c_new <= cost + 1e-4 * alpha * min(float(dV[0]), 0.0)
-                if np.isfinite(c_new) and (warm or decrease):
+                if np.isfinite(c_new) and c_new <= cost + 1e-4 * alpha * min(float(dV[0]), 0.0):
                     accepted = True
                     break
             if not accepted:
-                if warm or not np.isfinite(cost):
+                if not np.isfinite(cost):
                     return self._failed(Xb, Ub, it + 1, "non-finite rollout")
                 if -float(dV[0]) <= ROUNDING * max(cost, 1.0):
                     status = "converged (no decrease left above rounding)"
@@ -167,11 +183,9 @@ class RiccatiSolver:
             P[-1] = max(0.1 * P[-1], base_reg)
             step = float(np.max(np.abs(alpha * k))) if k.size else 0.0
             Xb, Ub, cost = X.copy(), U.copy(), c_new
-            if warm:
-                status = "warm step"
-            elif step <= self.tol * scale:
+            if step <= self.tol * scale:
                 return self._result(Xb, Ub, K, cost, it + 1, "converged", True)
-        return self._result(Xb, Ub, K, cost, iterations, status, warm)
+        return self._result(Xb, Ub, K, cost, self.max_iter, "max_iter", False)
 
     def _result(
         self, X: np.ndarray, U: np.ndarray, K: np.ndarray, cost: float, it: int, status: str,
