@@ -55,7 +55,8 @@ class Procedure(ABC):
         kind: the name used in configs (``kind: ...``).
         description: one line for ``geosyn list``.
         Params: pydantic model of the ``params`` section (unknown keys rejected).
-        units: unit of each summary metric, for the tables.
+        units: unit of each summary metric of its own, for the tables (the standard
+            metrics' units, `geosyn.experiments.metrics.UNITS`, apply without listing them).
     """
 
     kind: ClassVar[str]

@@ -60,7 +60,7 @@ class GeodesicVsEuclidean(PathComparison):
     )
     description = "planar2: geodesic vs straight joint line (paper Fig. 1), torque tracking effort"
     Params = GeodesicVsEuclideanParams
-    units = {"path_energy": "J s", "effort": "N^2 m^2 s", "max_torque": "N m", "rms_error": "rad"}
+    units = {"path_energy": "J s", "max_torque": "N m"}
     paths = ("geodesic", "straight")
 
     @classmethod

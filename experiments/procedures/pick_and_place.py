@@ -156,9 +156,6 @@ class PickAndPlace(Procedure):
     units = {
         "energy": "J s",
         "energy_saving": "%",
-        "effort": "N^2 m^2 s",
-        "rms_error": "rad",
-        "min_clearance": "m",
         "load_metric_error": "kg m^2",
     }
 

@@ -98,12 +98,7 @@ class PushRecovery(Procedure):
     description = "track a synergy combination under a push, a payload change and torque noise; compare controllers"
     Params = PushRecoveryParams
     units = {
-        "rms_error": "rad",
         "rms_after_window": "rad",
-        "max_error": "rad",
-        "recovery_time": "s",
-        "effort": "N^2 m^2 s",
-        "wall_time": "s",
         "push_start": "s",
         "threshold": "rad",
     }

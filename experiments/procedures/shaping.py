@@ -81,11 +81,8 @@ class _Shaping(PathComparison):
         "energy_shaped_metric": "J s",
         "energy_unshaped_metric": "J s",
         "kinetic_energy_integral": "J s",
-        "effort": "N^2 m^2 s",
-        "rms_error": "rad",
         "planned_clearance": "m",
         "executed_clearance": "m",
-        "max_contact_force": "N",
         "contact_time": "s",
     }
 

@@ -78,10 +78,7 @@ class SynergySequenceProcedure(Procedure):
         "max_velocity_jump": "rad/s",
         "max_residual": "rad",
         "max_reach_error": "m",
-        "effort": "N^2 m^2 s",
-        "rms_error": "rad",
         "final_hand_error": "m",
-        "min_clearance": "m",
     }
 
     @classmethod
