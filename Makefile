@@ -1,22 +1,36 @@
 # geosyn: `make run` (set up + flagship experiment) and `make test` (set up + test suite).
-PYTHON ?= python3
-VENV   := .venv
-PY     := $(VENV)/bin/python
-STAMP  := $(VENV)/.installed
-TSTAMP := $(VENV)/.installed-test
+# Both install the exact versions locked in uv.lock (hashes checked) with uv, itself
+# installed from requirements-uv.txt (pinned, hashed) into .venv-uv.
+PYTHON  ?= python3
+VENV    := .venv
+PY      := $(VENV)/bin/python
+UVENV   := .venv-uv
+UV      := $(UVENV)/bin/uv
+STAMP   := $(VENV)/.installed
+TSTAMP  := $(VENV)/.installed-test
+LATEST  := .venv-latest
+# the extras `make test` installs (uv.lock locks every extra)
+EXTRAS  := test dev distributed video viewer
+COMMA   := ,
+COMMA_EXTRAS := $(subst $(eval) ,$(COMMA),$(EXTRAS))
+# uv uses this machine's Python and never downloads an interpreter of its own
+export UV_PYTHON := $(PYTHON)
+export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: run test lint bench clean browser
+.PHONY: run test test-latest lint lock bench clean browser
 
-$(PY):
-	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-
-$(STAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet -e .
+$(UV): requirements-uv.txt
+	$(PYTHON) -m venv $(UVENV)
+	$(UVENV)/bin/python -m pip install --quiet --require-hashes -r requirements-uv.txt
 	touch $@
 
-$(TSTAMP): pyproject.toml | $(PY)
-	$(PY) -m pip install --quiet -e ".[test,dev,distributed,video,viewer]"
+# --locked: refuse to install if uv.lock and pyproject.toml disagree (`make lock` mends it)
+$(STAMP): pyproject.toml uv.lock $(UV)
+	$(UV) sync --locked --quiet
+	touch $@
+
+$(TSTAMP): pyproject.toml uv.lock $(UV)
+	$(UV) sync --locked --quiet $(addprefix --extra ,$(EXTRAS))
 	touch $@ $(STAMP)
 
 # Headless Chromium for tests/test_viewer.py (Debian's packages; installed once, as root).
@@ -31,6 +45,22 @@ run: $(STAMP)
 test: $(TSTAMP) browser
 	$(PY) -m pytest -q
 
+# The suite against the newest releases the registry offers (not the lock), in its own venv:
+# an upstream change is seen here before `make lock` takes it. Not run by CI.
+test-latest: $(UV) browser
+	rm -rf $(LATEST)
+	$(UV) venv --quiet $(LATEST)
+	$(UV) pip install --quiet --refresh --python $(LATEST)/bin/python -e ".[$(COMMA_EXTRAS)]"
+	@echo "newer than uv.lock:"; $(UV) pip freeze --python $(LATEST)/bin/python --exclude-editable \
+	  | sort > $(LATEST)/versions.txt; $(UV) export --frozen --all-extras --no-hashes \
+	  --no-emit-project --no-header --no-annotate | sed 's/ ;.*//' | sort \
+	  | diff - $(LATEST)/versions.txt | sed -n 's/^> /  /p' || true
+	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider
+
+# Re-resolve uv.lock to the newest releases within pyproject.toml's bounds.
+lock: $(UV)
+	$(UV) lock --upgrade
+
 lint: $(TSTAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
@@ -39,4 +69,4 @@ bench: $(STAMP)
 	for b in metric geodesics shaping controllers sim; do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) $(UVENV) $(LATEST) build *.egg-info

@@ -92,6 +92,7 @@ def _terminating(pool: ProcessPoolExecutor) -> Iterator[None]:
             proc.join(max(0.0, deadline - time.monotonic()))
             if proc.is_alive():
                 proc.kill()
+                proc.join(WORKER_GRACE)  # dead (its lock released) before the sweep goes on
         # no cancel_futures: the pool's manager thread fails the pending futures itself
         # (cancelling them as well races with it: InvalidStateError, Python 3.11)
         pool.shutdown(wait=False)

@@ -70,6 +70,46 @@ def read_text(path: Path) -> str:
     return text
 
 
+_OPENS = (yaml.BlockMappingStartToken, yaml.BlockSequenceStartToken,
+          yaml.FlowMappingStartToken, yaml.FlowSequenceStartToken)  # fmt: skip
+_CLOSES = (yaml.BlockEndToken, yaml.FlowMappingEndToken, yaml.FlowSequenceEndToken)
+
+
+def nesting_error(file: str, field: str | None = None, line: int | None = None) -> ConfigError:
+    """The error for a config nested deeper than `MAX_DEPTH`, with how to fix the file."""
+    where = f" (line {line})" if line is not None else ""
+    return ConfigError(
+        file,
+        field,
+        f"is nested deeper than {MAX_DEPTH} levels{where}; a geosyn config nests a few"
+        " levels (section, list, entry): flatten the deep lists or mappings",
+    )
+
+
+def check_nesting(text: str, file: str, field: str | None = None) -> None:
+    """Refuse YAML text nested deeper than `MAX_DEPTH`; called when a parse failed.
+
+    A parser may stop at a nesting limit of its own (libyaml's, Python's recursion) before
+    geosyn's `check_structure` sees the data; this counts the nesting in PyYAML's
+    pure-Python token stream (no depth limit, no recursion) so that the error is geosyn's,
+    whoever detected it. Other syntax errors are left to the caller.
+
+    Raises:
+        ConfigError: the nesting goes deeper than `MAX_DEPTH` levels.
+    """
+    depth = 0
+    try:
+        for token in yaml.scan(text, Loader=yaml.SafeLoader):
+            if isinstance(token, _OPENS):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise nesting_error(file, field, token.start_mark.line + 1)
+            elif isinstance(token, _CLOSES):
+                depth -= 1
+    except yaml.YAMLError:
+        return
+
+
 def check_structure(data: Any, file: str) -> None:
     """Refuse configs nested deeper than `MAX_DEPTH` or larger than `MAX_VALUES`.
 
@@ -90,7 +130,7 @@ def check_structure(data: Any, file: str) -> None:
             )
         if isinstance(node, (dict, list)):
             if depth >= MAX_DEPTH:
-                raise ConfigError(file, None, f"is nested deeper than {MAX_DEPTH} levels")
+                raise nesting_error(file)
             children = node.values() if isinstance(node, dict) else node
             stack.extend((child, depth + 1) for child in children)
 

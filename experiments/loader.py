@@ -27,9 +27,10 @@ from geosyn.core.errors import GeosynError
 from geosyn.experiments.config_errors import raise_problems, validation_errors
 from geosyn.experiments.errors import ConfigError
 from geosyn.experiments.limits import (
-    MAX_DEPTH,
     SAFE_LOADER,
+    check_nesting,
     check_structure,
+    nesting_error,
     read_text,
     resource_errors,
 )
@@ -72,13 +73,12 @@ def read_yaml(path: Path) -> dict[str, Any]:
     text = read_text(path)
     try:
         data = yaml.load(text, Loader=SAFE_LOADER)
-    except RecursionError:
-        raise ConfigError(
-            path.name, None, f"nested deeper than Python can parse; at most {MAX_DEPTH} levels"
-        ) from None
+    except RecursionError:  # PyYAML's pure-Python parser, nested below geosyn's token count
+        raise nesting_error(path.name) from None
     except (ValueError, TypeError, OverflowError) as err:  # e.g. a date 2001-13-01
         raise ConfigError(path.name, None, f"invalid YAML value: {err}") from None
     except yaml.YAMLError as err:
+        check_nesting(text, path.name)  # the parser may have met a depth limit of its own
         mark = getattr(err, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
         problem = getattr(err, "problem", None) or str(err)
@@ -107,10 +107,11 @@ def parse_override(text: str) -> tuple[str, Any]:
     try:
         parsed = yaml.load(value, Loader=SAFE_LOADER) if value.strip() else ""
     except RecursionError:
-        raise ConfigError("--set", key, f"nested deeper than {MAX_DEPTH} levels") from None
+        raise nesting_error("--set", key) from None
     except (ValueError, TypeError, OverflowError) as err:
         raise ConfigError("--set", key, f"invalid YAML value: {err}") from None
     except yaml.YAMLError:
+        check_nesting(value, "--set", key)
         parsed = value
     check_structure(parsed, f"--set {key}")
     return key, parsed

@@ -327,6 +327,12 @@ def sweep(
         raise
 
 
+def _remove_partials(run_dir: Path) -> None:
+    """Remove the temporary directories a killed writer left for ``run_dir``."""
+    for stale in run_dir.parent.glob(f".{run_dir.name}.partial-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+
+
 def _sweep_claimed(
     out: Path,
     spec: dict[str, Any],
@@ -357,8 +363,7 @@ def _sweep_claimed(
             raise RunDirectoryExists(
                 run_dir, "is still being written by another process; wait for it and re-run"
             )
-        for stale in run_dir.parent.glob(f".{run_dir.name}.partial-*"):
-            shutil.rmtree(stale, ignore_errors=True)  # left by a killed run
+        _remove_partials(run_dir)
         if not _is_complete(run_dir):
             if run_dir.exists():
                 shutil.rmtree(run_dir)
@@ -374,10 +379,19 @@ def _sweep_claimed(
 
     with _progress(progress) as factory:
         advance = factory(f"sweep {name}", len(todo))
-        if ray_address is not None:
-            run_ray(todo, ray_address, workers, advance, run_job)
-        else:
-            run_local(todo, workers, advance, _job_by_name)
+        try:
+            if ray_address is not None:
+                run_ray(todo, ray_address, workers, advance, run_job)
+            else:
+                run_local(todo, workers, advance, _job_by_name)
+        except BaseException:
+            # a stopped sweep's workers are dead by now (SIGTERM, then SIGKILL after a
+            # grace); one killed inside a native call could not remove its partial run
+            if ray_address is None:
+                for job in todo:
+                    if not rundir.is_locked(Path(job.out)):
+                        _remove_partials(Path(job.out))
+            raise
     rows = aggregate(out, points, seeds)
     _write_aggregate(out, name, rows)
     return SweepResult(out, len(todo), len(jobs_all) - len(todo), rows)

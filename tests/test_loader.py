@@ -129,3 +129,39 @@ def test_robot_file_path_is_relative_to_the_config(tmp_path, monkeypatch):
     assert cfg.robot.name == str(urdf.resolve())
     with pytest.raises(ConfigError, match=r"params\.q0: expected 6 values"):
         load_config(tmp_path / "sub" / "e.yaml", ["params.q0=[0, 0]"])
+
+
+@pytest.mark.parametrize("loader", ["SafeLoader", "CSafeLoader"])
+@pytest.mark.parametrize("kind", ["flow", "map", "block"])
+@pytest.mark.parametrize("depth", [33, 999, 1000, 5000])
+def test_nesting_limit_is_geosyn_s_whatever_parser_stops_first(
+    tmp_path, monkeypatch, loader, kind, depth
+):
+    """Too deep a config gives geosyn's own message (the limit and how to fix it) whether
+    the data reaches geosyn's check, libyaml stops at its own depth limit (PyYAML >= 6.0.4
+    at 1000 levels) or Python's recursion limit stops the pure-Python parser."""
+    import yaml
+
+    from geosyn.experiments import loader as loader_mod
+    from geosyn.experiments.errors import ConfigError
+    from geosyn.experiments.limits import MAX_DEPTH
+
+    if not hasattr(yaml, loader):
+        pytest.skip(f"PyYAML built without {loader}")
+    monkeypatch.setattr(loader_mod, "SAFE_LOADER", getattr(yaml, loader))
+    if kind == "flow":
+        text = "x: " + "[" * depth + "]" * depth + "\n"
+    elif kind == "map":
+        text = "x: " + "{a: " * depth + "1" + "}" * depth + "\n"
+    else:
+        depth = min(depth, 400)  # indented lines grow quadratically
+        text = "x:\n" + "".join("  " * (i + 1) + "a:\n" for i in range(depth))
+    path = tmp_path / "deep.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        loader_mod.read_yaml(path)
+    assert f"nested deeper than {MAX_DEPTH} levels" in str(info.value)
+    assert "flatten" in str(info.value)
+    with pytest.raises(ConfigError) as info:
+        loader_mod.parse_override("params.x=" + text[3:].strip())
+    assert f"nested deeper than {MAX_DEPTH} levels" in str(info.value)
