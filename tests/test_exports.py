@@ -38,7 +38,7 @@ def test_imports_go_left_to_right(layer: str) -> None:
     """A module never imports from a layer to its right (core -> ... -> experiments)."""
     allowed = set(LAYERS[: LAYERS.index(layer) + 1])
     offenders = []
-    for path in sorted((ROOT / layer).rglob("*.py")):
+    for path in sorted((ROOT / "geosyn" / layer).rglob("*.py")):
         tree = ast.parse(path.read_text(), filename=str(path))
         for node in ast.walk(tree):
             names = []
@@ -54,7 +54,7 @@ def test_imports_go_left_to_right(layer: str) -> None:
 
 
 def test_controllers_never_import_mujoco() -> None:
-    for path in sorted((ROOT / "controllers").rglob("*.py")):
+    for path in sorted((ROOT / "geosyn" / "controllers").rglob("*.py")):
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
             mods = (

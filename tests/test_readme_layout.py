@@ -32,7 +32,7 @@ def test_layout_table_names_every_module() -> None:
     for layer, text in _rows().items():
         named = set(re.findall(r"`([\w/]+)`", text)) | set(re.findall(r"(\w+)/", text))
         named |= {n.rstrip("/") for n in named}
-        for path in sorted((ROOT / layer).iterdir()):
+        for path in sorted((ROOT / "geosyn" / layer).iterdir()):
             if path.name.startswith(("_", ".")) or path.name == "configs":
                 continue
             if path.suffix == ".py" and path.stem not in named:
