@@ -23,7 +23,9 @@ def test_mypy_catches_a_planted_error_in_every_package(tmp_path: Path) -> None:
     """Copy the package, plant one error in every (sub)package's ``__init__.py`` (each
     layer and each room inside one, e.g. ``controllers/mpc/ddp``), run the project's mypy
     configuration: every planted error is reported, nothing else."""
-    shutil.copytree(ROOT / "geosyn", tmp_path / "geosyn", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(
+        ROOT / "geosyn", tmp_path / "geosyn", ignore=shutil.ignore_patterns("__pycache__")
+    )
     shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
     planted = []
     for target in sorted((tmp_path / "geosyn").rglob("__init__.py")):
