@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -211,11 +209,14 @@ def test_moving_and_adding_obstacles_rebuilds_nothing() -> None:
             np.testing.assert_allclose(gam, fresh.christoffel(q), atol=1e-9 * np.abs(gam).max())
     assert (shaped.build_count, term.build_count) == builds
     assert not np.array_equal(shaped.parameter_values(), params_before)
-    # A parameter write, not a rebuild: cheap enough to be called per control tick (the
-    # budget is checked in benchmarks/shaping.py, not here).
-    t0 = time.perf_counter()
+    # A parameter write, not a rebuild: cheap enough to be called per control tick (its
+    # time is measured in benchmarks/shaping.py, not here).
     term.move(0, (0.4, 0.0, 0.5))
-    assert time.perf_counter() - t0 < 1.0
+    assert (shaped.build_count, term.build_count) == builds
+    fresh = ShapedMetric(
+        get_metric("panda"), [ObstacleTerm(term.obstacles, capacity=3, gain=2e-3, cutoff=0.3)]
+    )
+    np.testing.assert_allclose(shaped.G(q), fresh.G(q), atol=1e-12 * np.abs(shaped.G(q)).max())
 
 
 def test_capacity_and_obstacle_type_errors() -> None:
