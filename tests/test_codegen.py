@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 import casadi as ca
@@ -341,3 +342,155 @@ def test_numpy_function_rejects_sparse_outputs() -> None:
 def test_all_names_resolve() -> None:
     for name in codegen.__all__:
         assert hasattr(codegen, name), name
+
+
+# -- the cache verifies what it loads: corrupt digests and indexes, swapped libraries ------
+_RECIPE_SCRIPT = """
+import json, sys, warnings
+import casadi as ca
+from geosyn.core import codegen
+
+def make(dt):
+    x = ca.SX.sym("x", 2)
+    return [ca.Function("step", [x], [x + dt * ca.sin(x)], ["x"], ["y"])]
+
+dt = float(sys.argv[2])
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    lib = codegen.compile_recipe("geosyn_test_swap", f"step dt={dt}", lambda: make(dt),
+                                 sys.argv[1], load=["step"])
+y = lib["step"]([0.3, -1.2]).full().ravel().tolist()
+print(json.dumps({"y": y, "warnings": [str(w.message) for w in caught]}))
+"""
+
+
+def _step_reference(dt: float) -> np.ndarray:
+    """The uncompiled CasADi function of the recipe ``step dt=<dt>``, evaluated."""
+    x = ca.SX.sym("x", 2)
+    fun = ca.Function("step", [x], [x + dt * ca.sin(x)])
+    return fun([0.3, -1.2]).full().ravel()
+
+
+def _recipe_run(cache: Path, dt: float) -> tuple[np.ndarray, list[str]]:
+    """compile_recipe in a fresh process (nothing dlopen-ed before): (y, warnings)."""
+    done = subprocess.run(
+        [sys.executable, "-c", _RECIPE_SCRIPT, str(cache), repr(dt)],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr  # no traceback, whatever the cache holds
+    out = __import__("json").loads(done.stdout)
+    return np.array(out["y"]), out["warnings"]
+
+
+def _recipe_files(cache: Path, dt: float) -> tuple[Path, Path]:
+    """(index, library) of the recipe ``step dt=<dt>``."""
+    for index in cache.glob("geosyn_test_swap_*.recipe"):
+        library = cache / f"{index.read_text().strip()}.so"
+        keys = codegen.library_digest.embedded_keys(library.read_bytes())[1]
+        recipe = f"step dt={dt}"
+        cc = codegen.find_compiler()
+        want = hashlib.sha256(
+            "\0".join([codegen._RECIPE_FORMAT, recipe, str(cc)]).encode()
+        ).hexdigest()
+        if keys == [want]:
+            return index, library
+    raise AssertionError(f"no library for dt={dt}")
+
+
+def test_swapped_recipe_library_is_detected_and_rebuilt(tmp_path: Path) -> None:
+    """An index naming another recipe's valid library (the MPC ran another time step's
+    dynamics) is refused: the library carries the key of the recipe it was built for."""
+    for dt in (0.01, 0.02):
+        y, warned = _recipe_run(tmp_path, dt)
+        np.testing.assert_allclose(y, _step_reference(dt), rtol=0, atol=1e-15)
+        assert warned == []
+    index_a, library_a = _recipe_files(tmp_path, 0.01)
+    _, library_b = _recipe_files(tmp_path, 0.02)
+    assert library_a != library_b
+    index_a.write_text(library_b.stem + "\n")  # the index of dt=0.01 names dt=0.02's library
+    y, warned = _recipe_run(tmp_path, 0.01)
+    np.testing.assert_allclose(y, _step_reference(0.01), rtol=0, atol=1e-15)
+    assert len(warned) == 1 and "another recipe" in warned[0]
+    assert index_a.read_text().strip() == library_a.stem  # the index is repaired
+    y, warned = _recipe_run(tmp_path, 0.01)
+    assert warned == []
+
+
+def test_library_copied_under_another_name_is_rebuilt(tmp_path: Path) -> None:
+    """A valid library with its valid digest, copied over another library's name."""
+    for dt in (0.01, 0.02):
+        _recipe_run(tmp_path, dt)
+    _, library_a = _recipe_files(tmp_path, 0.01)
+    _, library_b = _recipe_files(tmp_path, 0.02)
+    good = library_a.read_bytes()
+    _replace_bytes(library_a, library_b.read_bytes())
+    _replace_bytes(
+        codegen.library_digest.digest_path(library_a),
+        codegen.library_digest.digest_path(library_b).read_bytes(),
+    )
+    assert "another library" in str(codegen.library_digest.damage(library_a))
+    y, warned = _recipe_run(tmp_path, 0.01)
+    np.testing.assert_allclose(y, _step_reference(0.01), rtol=0, atol=1e-15)
+    assert len(warned) >= 1 and all("discarding it and recompiling" in w for w in warned)
+    assert library_a.read_bytes() == good
+
+
+def _step_in_process(cache: Path, dt: float) -> tuple[np.ndarray, list[str]]:
+    """compile_recipe of ``step dt=<dt>`` in this process: (y, warnings)."""
+
+    def make() -> list[ca.Function]:
+        x = ca.SX.sym("x", 2)
+        return [ca.Function("step", [x], [x + dt * ca.sin(x)], ["x"], ["y"])]
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        lib = codegen.compile_recipe(
+            "geosyn_test_swap", f"step dt={dt}", make, cache, load=["step"]
+        )
+    return lib["step"]([0.3, -1.2]).full().ravel(), [str(w.message) for w in caught]
+
+
+@pytest.mark.parametrize("target", [".sha256", ".recipe"])
+@pytest.mark.parametrize("bit", [0x01, 0x80])  # 0x80: invalid UTF-8 (a UnicodeDecodeError once)
+def test_flipped_bit_in_digest_or_index_is_discarded_and_rebuilt(
+    tmp_path: Path, target: str, bit: int
+) -> None:
+    _step_in_process(tmp_path, 0.01)
+    index, library = _recipe_files(tmp_path, 0.01)
+    victim = index if target == ".recipe" else codegen.library_digest.digest_path(library)
+    data = bytearray(victim.read_bytes())
+    data[len(data) // 2] ^= bit
+    victim.write_bytes(bytes(data))
+    y, warned = _step_in_process(tmp_path, 0.01)
+    np.testing.assert_allclose(y, _step_reference(0.01), rtol=0, atol=1e-15)
+    assert warned and all("damaged" in w and "recompiling" in w for w in warned), warned
+    assert codegen.library_digest.damage(library) is None  # repaired on disk
+    assert _step_in_process(tmp_path, 0.01)[1] == []
+
+
+def test_corrupt_digest_and_index_files_are_read_defensively(tmp_path: Path) -> None:
+    library = tmp_path / "f_0123456789abcdef01234567.so"
+    library.write_bytes(b"\x7fELF")
+    digest = codegen.library_digest.digest_path(library)
+    index = tmp_path / "f_0123456789abcdef01234567.recipe"
+    for garbage in (b"\xff\xfe\x00", b"", b"0" * 10_000, b"zz" * 32, b"f_abc\n"):
+        digest.write_bytes(garbage)
+        with pytest.raises(ValueError, match="corrupt"):
+            codegen.library_digest.read_digest(library)
+        index.write_bytes(garbage)
+        with pytest.raises(ValueError, match="corrupt"):
+            codegen.library_digest.read_index(index, "f")
+    index.write_text("f_0123456789abcdef01234567\n")
+    assert codegen.library_digest.read_index(index, "f") == "f_0123456789abcdef01234567"
+    assert codegen.library_digest.read_index(tmp_path / "missing.recipe", "f") is None
+
+
+def test_compiled_library_carries_its_key(tmp_path: Path) -> None:
+    compile_function(_tiny(), tmp_path)
+    (library,) = _cached(tmp_path)
+    keys, recipes = codegen.library_digest.embedded_keys(library.read_bytes())
+    assert len(keys) == 1 and keys[0].startswith(library.stem.rsplit("_", 1)[1])
+    assert recipes == []

@@ -4,7 +4,10 @@
 generator, compiles it into a shared library and loads it back with
 ``casadi.external``. Libraries are cached on disk under a name that contains the sha256
 of the generated C source (and of the compiler command), so the same function is
-compiled once per machine, whichever process asks first; files appear atomically
+compiled once per machine, whichever process asks first; each library carries that key
+(and its recipe's) compiled in, and is checked against its sha256 and its key before it is
+loaded (`geosyn.core.library_digest`), so a damaged or swapped file is rebuilt, with a
+warning, never used; files appear atomically
 (written under a temporary name, then ``os.replace``), so concurrent processes never
 load a half-written library. :func:`compile_library` compiles several functions into one
 library through the same cache (e.g. a function with hand-made derivatives).
@@ -34,6 +37,9 @@ from pathlib import Path
 import casadi as ca
 
 from geosyn.core import GeosynError, InvalidArgument, library_digest
+from geosyn.core.cache_folder import TMP_PREFIX as _TMP_PREFIX
+from geosyn.core.cache_folder import clear_cache, default_cache_dir
+from geosyn.core.cache_folder import resolve_cache_dir as _resolve_cache_dir
 
 __all__ = [
     "CodegenError",
@@ -54,13 +60,9 @@ LARGE_SOURCE_CHARS = 500_000
 """Source length [characters] from which :func:`compile_library` uses LARGE_SOURCE_FLAGS."""
 _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
-# <function name>_<24 hex digits of the key>.<so|c|recipe|so.sha256>; clear_cache deletes
-# only these.
-_CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c|recipe|so\.sha256)$")
-_TMP_PREFIX = ".tmp-geosyn-"
-# Temporary folders clear_cache removes: this module's, and those of the MPC's former
-# private copy of this cache (left behind by a compile killed midway).
-_TMP_PREFIXES = (_TMP_PREFIX, "geosyn-mpc-")
+# Salt of the recipe keys: bumped when what a recipe index or a library carries changes,
+# so older index files are never read (clear_cache removes them).
+_RECIPE_FORMAT = "geosyn-recipe-v2"
 
 
 class CodegenError(GeosynError):
@@ -85,28 +87,20 @@ class CodegenError(GeosynError):
         self.stderr = stderr
 
 
-def default_cache_dir() -> Path:
-    """The cache folder used when none is given (not created here).
-
-    Returns:
-        ``$GEOSYN_CACHE_DIR/codegen`` if the variable is set, else
-        ``$XDG_CACHE_HOME/geosyn/codegen``, else ``~/.cache/geosyn/codegen``.
-    """
-    root = os.environ.get("GEOSYN_CACHE_DIR")
-    if root:
-        return Path(root).expanduser() / "codegen"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return base / "geosyn" / "codegen"
-
-
 def find_compiler() -> str | None:
     """Path of the C compiler to use: ``gcc`` on ``PATH``, else ``cc``, else None."""
     return shutil.which("gcc") or shutil.which("cc")
 
 
-def _resolve_cache_dir(cache_dir: str | os.PathLike[str] | None) -> Path:
-    return Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+def _require_compiler(compiler: str | None) -> str:
+    """``compiler`` or :func:`find_compiler`'s, else raise `CodegenError`."""
+    cc = compiler if compiler is not None else find_compiler()
+    if cc is None:
+        raise CodegenError(
+            "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
+            f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
+        )
+    return cc
 
 
 def _generate_source(name: str, functions: Sequence[ca.Function]) -> str:
@@ -207,10 +201,18 @@ def _compile_cached(
     return _build_cached(name, source, [name], cache_dir, flags, compiler)[name]
 
 
-def _library_stem(name: str, source: str, cc: str, flags: Sequence[str]) -> str:
-    """``<name>_<24 hex>``: the cache file name (without suffix) of a compiled source."""
-    key = hashlib.sha256("\0".join([source, cc, *flags]).encode()).hexdigest()[:24]
-    return f"{name}_{key}"
+def _library_key(source: str, cc: str, flags: Sequence[str], recipe_key: str | None) -> str:
+    """64 hex digits: the key of a library (its file name holds the first 24)."""
+    parts = [source, cc, *flags] + ([recipe_key] if recipe_key is not None else [])
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()
+
+
+def _warn_rebuild(what: str, problem: str) -> None:
+    warnings.warn(
+        f"compiled-code cache: {what} is damaged ({problem}); discarding it and recompiling",
+        RuntimeWarning,
+        stacklevel=4,
+    )
 
 
 def _build_cached(
@@ -220,29 +222,27 @@ def _build_cached(
     cache_dir: Path,
     flags: tuple[str, ...],
     compiler: str | None,
+    recipe_key: str | None = None,
 ) -> dict[str, ca.Function]:
-    """Compile ``source`` into ``<name>_<key>.so`` unless cached; load the names ``load``."""
-    cc = compiler if compiler is not None else find_compiler()
-    if cc is None:
-        raise CodegenError(
-            "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
-            f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
-        )
-    stem = _library_stem(name, source, cc, flags)
+    """Compile ``source`` into ``<name>_<key>.so`` unless cached; load the names ``load``.
+
+    The library carries its key and ``recipe_key`` (`library_digest.tagged_source`); a
+    cached one is loaded only if its digest and both keys match.
+    """
+    cc = _require_compiler(compiler)
+    key = _library_key(source, cc, flags, recipe_key)
+    stem = f"{name}_{key[:24]}"
     library = cache_dir / f"{stem}.so"
     if library.is_file():
-        damage = library_digest.damage(library)
+        damage = library_digest.damage(library, key, recipe_key)
         if damage is None:
             try:
                 return {n: _load(n, library) for n in load}
             except CodegenError as err:
                 damage = str(err)
-        # A damaged file (a full disk, a killed copy, a bit flip): never dlopen it, build anew.
-        warnings.warn(
-            f"compiled-code cache: {library.name} is damaged ({damage}); recompiling it",
-            RuntimeWarning,
-            stacklevel=4,
-        )
+        # A damaged or foreign file (a full disk, a killed copy, a bit flip, a copy under
+        # another name): never dlopen it, build anew.
+        _warn_rebuild(library.name, damage)
     try:
         cache_dir.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=_TMP_PREFIX, dir=cache_dir))
@@ -250,7 +250,7 @@ def _build_cached(
         raise CodegenError(f"cannot create the codegen cache folder {cache_dir}: {err}") from err
     try:
         c_file = work / f"{stem}.c"
-        c_file.write_text(source)
+        c_file.write_text(library_digest.tagged_source(source, key, recipe_key))
         built = work / f"{stem}.so"
         _compile(cc, flags, c_file, built)
         digest = work / f"{stem}.so{library_digest.DIGEST_SUFFIX}"
@@ -373,27 +373,14 @@ def compile_recipe(
     """
     if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
         raise InvalidArgument(f"name: {name!r} is not a C identifier")
-    cc = compiler if compiler is not None else find_compiler()
-    if cc is None:
-        raise CodegenError(
-            "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
-            f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
-        )
+    cc = _require_compiler(compiler)
     folder = _resolve_cache_dir(cache_dir)
     extra = () if flags is None else tuple(flags)
-    index_key = hashlib.sha256("\0".join([recipe, cc, *extra]).encode()).hexdigest()[:24]
-    index = folder / f"{name}_{index_key}.recipe"
-    stem = index.read_text().strip() if index.is_file() else ""
-    library = folder / f"{stem}.so"
-    if (
-        re.fullmatch(rf"{re.escape(name)}_[0-9a-f]{{24}}", stem)
-        and library.is_file()
-        and library_digest.damage(library) is None  # else rebuilt below (never dlopen it)
-    ):
-        try:
-            return {n: _load(n, library) for n in load}
-        except CodegenError as err:  # damaged: rebuild below
-            warnings.warn(f"{err}; rebuilding it", RuntimeWarning, stacklevel=2)
+    recipe_key = hashlib.sha256("\0".join([_RECIPE_FORMAT, recipe, cc, *extra]).encode())
+    index = folder / f"{name}_{recipe_key.hexdigest()[:24]}.recipe"
+    hit = _recipe_hit(index, name, load, recipe_key.hexdigest())
+    if hit is not None:
+        return hit
     report = progress if progress is not None else (lambda _line: None)
     start = time.perf_counter()
     report(f"{name}: building the symbolic functions (first use; cached afterwards)")
@@ -410,12 +397,12 @@ def compile_recipe(
     unknown = sorted(set(load) - set(names))
     if unknown:
         raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
-    result = _build_cached(name, source, list(load), folder, used, cc)
+    result = _build_cached(name, source, list(load), folder, used, cc, recipe_key.hexdigest())
     try:  # the index appears atomically, after the library it names
         fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, dir=folder)
         os.chmod(tmp, 0o644)  # like the library it names (mkstemp makes it private)
         with os.fdopen(fd, "w") as fh:
-            fh.write(_library_stem(name, source, cc, used) + "\n")
+            fh.write(f"{name}_{_library_key(source, cc, used, recipe_key.hexdigest())[:24]}\n")
         os.replace(tmp, index)
     except OSError as err:
         warnings.warn(f"could not write the recipe index {index}: {err}", RuntimeWarning, 2)
@@ -423,28 +410,27 @@ def compile_recipe(
     return result
 
 
-def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:
-    """Delete the compiled libraries and sources of the codegen cache.
-
-    Only files this module writes (``<name>_<24 hex>.so`` / ``.c`` and its temporary
-    folders) are removed, so pointing ``cache_dir`` at a shared folder is safe. Libraries
-    already loaded by a running process stay usable.
-
-    Args:
-        cache_dir: the cache folder; default :func:`default_cache_dir`.
-
-    Returns:
-        Number of files and temporary folders removed.
-    """
-    folder = _resolve_cache_dir(cache_dir)
-    if not folder.is_dir():
-        return 0
-    removed = 0
-    for entry in folder.iterdir():
-        if entry.is_file() and _CACHED_FILE.match(entry.name):
-            entry.unlink(missing_ok=True)
-            removed += 1
-        elif entry.is_dir() and entry.name.startswith(_TMP_PREFIXES):
-            shutil.rmtree(entry, ignore_errors=True)
-            removed += 1
-    return removed
+def _recipe_hit(
+    index: Path, name: str, load: Sequence[str], recipe_key: str
+) -> dict[str, ca.Function] | None:
+    """The functions of the library a recipe index names, if it is intact and was built
+    for this recipe; None (after a warning, if something was wrong) to rebuild."""
+    try:
+        stem = library_digest.read_index(index, name)
+    except (OSError, ValueError) as err:
+        _warn_rebuild(f"recipe index {index.name}", str(err))
+        return None
+    if stem is None:
+        return None
+    library = index.with_name(f"{stem}.so")
+    if not library.is_file():  # removed by hand, or a flipped bit named another file
+        _warn_rebuild(f"recipe index {index.name}", f"it names a missing library {stem}.so")
+        return None
+    damage = library_digest.damage(library, recipe_key=recipe_key)
+    if damage is None:
+        try:
+            return {n: _load(n, library) for n in load}
+        except CodegenError as err:
+            damage = str(err)
+    _warn_rebuild(f"{library.name} (named by {index.name})", damage)
+    return None
