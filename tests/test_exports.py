@@ -17,9 +17,20 @@ PACKAGES = [
     "geosyn.synergies",
     "geosyn.controllers",
     "geosyn.sim",
+    "geosyn.export",
     "geosyn.experiments",
 ]
-LAYERS = ["core", "robots", "world", "metrics", "synergies", "controllers", "sim", "experiments"]
+LAYERS = [
+    "core",
+    "robots",
+    "world",
+    "metrics",
+    "synergies",
+    "controllers",
+    "sim",
+    "export",
+    "experiments",
+]
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -13,7 +13,17 @@ import pytest
 import geosyn
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ["core", "robots", "world", "metrics", "synergies", "controllers", "sim", "experiments"]
+LAYERS = [
+    "core",
+    "robots",
+    "world",
+    "metrics",
+    "synergies",
+    "controllers",
+    "sim",
+    "export",
+    "experiments",
+]
 # One module per layer and a use of a name from the layer below it, mistyped on purpose.
 PLANTED = "\n\ndef _planted() -> int:\n    return 'not an int'  # planted type error\n"
 

@@ -1,0 +1,131 @@
+"""Compiling an export with the system C compiler: shared and static library, the CMake
+package config and the build rule of the closed-loop program."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+
+from geosyn.export.errors import ExportError
+
+LIB_NAME = "geosyn_controller"
+#: Flags of every object: hidden symbols except the C API, CasADi's exports hidden too.
+BASE_FLAGS = ("-fPIC", "-fvisibility=hidden", "-DCASADI_SYMBOL_EXPORT=", "-std=c99")
+OBJECT_SOURCES = ("geosyn_law.c", "geosyn_controller.c")
+
+
+def find_c_compiler(compiler: str | None = None) -> str:
+    """The C compiler: ``compiler`` if given, else ``cc``, else ``gcc`` on ``PATH``.
+
+    Raises:
+        ExportError: none found.
+    """
+    found = shutil.which(compiler) if compiler else shutil.which("cc") or shutil.which("gcc")
+    if not found:
+        raise ExportError(
+            f"no C compiler found (asked for {compiler or 'cc or gcc'}); install one or pass"
+            " compiler="
+        )
+    return found
+
+
+def run(command: Sequence[str], cwd: Path) -> None:
+    """Run a build command in ``cwd``.
+
+    Raises:
+        ExportError: it could not start or exited non-zero (its stderr attached).
+    """
+    try:
+        done = subprocess.run(list(command), cwd=cwd, capture_output=True, text=True, check=False)
+    except OSError as err:
+        raise ExportError(f"could not run {command[0]!r}: {err}", command) from err
+    if done.returncode != 0:
+        raise ExportError(
+            f"{Path(command[0]).name} failed with exit status {done.returncode}:\n"
+            f"{done.stderr.strip()[-2000:]}",
+            command,
+            done.stderr,
+        )
+
+
+def compile_library(out_dir: Path, compiler: str, flags: Sequence[str]) -> tuple[Path, Path]:
+    """Compile the sources in ``out_dir`` into ``lib{LIB_NAME}.so`` and ``.a``.
+
+    Returns:
+        (shared library, static library).
+    """
+    objects = []
+    for source in OBJECT_SOURCES:
+        obj = Path(source).with_suffix(".o").name
+        run([compiler, *flags, *BASE_FLAGS, "-c", source, "-o", obj], out_dir)
+        objects.append(obj)
+    shared, static = out_dir / f"lib{LIB_NAME}.so", out_dir / f"lib{LIB_NAME}.a"
+    run([compiler, "-shared", "-o", shared.name, *objects, "-lm"], out_dir)
+    static.unlink(missing_ok=True)
+    run([shutil.which("ar") or "ar", "rcs", static.name, *objects], out_dir)
+    for obj in objects:
+        (out_dir / obj).unlink()
+    return shared, static
+
+
+def cmake_config() -> str:
+    """Text of ``geosyn_controllerConfig.cmake``: imported targets
+    ``geosyn_controller::shared`` and ``geosyn_controller::static`` (alias
+    ``geosyn_controller::geosyn_controller`` = shared)."""
+    return """\
+# geosyn_controllerConfig.cmake, written by geosyn.export.
+# find_package(geosyn_controller REQUIRED PATHS <export dir>)
+# target_link_libraries(app PRIVATE geosyn_controller::geosyn_controller)
+get_filename_component(_geosyn_dir "${CMAKE_CURRENT_LIST_FILE}" DIRECTORY)
+if(NOT TARGET geosyn_controller::shared)
+  add_library(geosyn_controller::shared SHARED IMPORTED)
+  set_target_properties(geosyn_controller::shared PROPERTIES
+    IMPORTED_LOCATION "${_geosyn_dir}/libgeosyn_controller.so"
+    INTERFACE_INCLUDE_DIRECTORIES "${_geosyn_dir}")
+  add_library(geosyn_controller::static STATIC IMPORTED)
+  set_target_properties(geosyn_controller::static PROPERTIES
+    IMPORTED_LOCATION "${_geosyn_dir}/libgeosyn_controller.a"
+    INTERFACE_INCLUDE_DIRECTORIES "${_geosyn_dir}"
+    INTERFACE_LINK_LIBRARIES m)
+  add_library(geosyn_controller::geosyn_controller INTERFACE IMPORTED)
+  set_target_properties(geosyn_controller::geosyn_controller PROPERTIES
+    INTERFACE_LINK_LIBRARIES geosyn_controller::shared)
+endif()
+set(geosyn_controller_INCLUDE_DIRS "${_geosyn_dir}")
+set(geosyn_controller_LIBRARIES geosyn_controller::geosyn_controller)
+set(geosyn_controller_FOUND TRUE)
+"""
+
+
+def makefile(mujoco_dir: Path | None, flags: Sequence[str]) -> str:
+    """Text of the export's ``Makefile``: ``make lib`` rebuilds the libraries, ``make
+    loop`` the closed-loop program against MuJoCo (``MUJOCO_DIR`` holds ``include/`` and
+    ``libmujoco.so*``; default: the ``mujoco`` wheel found at export time)."""
+    mj = str(mujoco_dir) if mujoco_dir else "/path/to/mujoco"
+    cflags = " ".join([*flags, *BASE_FLAGS])
+    return f"""\
+# Written by geosyn.export. make lib: the libraries; make loop: the MuJoCo closed loop.
+CC ?= cc
+CFLAGS ?= {cflags}
+MUJOCO_DIR ?= {mj}
+MUJOCO_LIB ?= $(firstword $(wildcard $(MUJOCO_DIR)/libmujoco.so*) $(wildcard $(MUJOCO_DIR)/lib/libmujoco.so*))
+
+lib: libgeosyn_controller.so libgeosyn_controller.a
+
+geosyn_law.o: geosyn_law.c geosyn_law.h
+\t$(CC) $(CFLAGS) -c geosyn_law.c -o $@
+geosyn_controller.o: geosyn_controller.c geosyn_controller.h geosyn_controller_config.h geosyn_law.h
+\t$(CC) $(CFLAGS) -c geosyn_controller.c -o $@
+libgeosyn_controller.so: geosyn_law.o geosyn_controller.o
+\t$(CC) -shared -o $@ $^ -lm
+libgeosyn_controller.a: geosyn_law.o geosyn_controller.o
+\tar rcs $@ $^
+
+loop: loop.c libgeosyn_controller.a
+\t$(CC) -O2 -std=c99 -D_POSIX_C_SOURCE=199309L -I. -I$(MUJOCO_DIR)/include loop.c \\
+\t  libgeosyn_controller.a $(MUJOCO_LIB) -Wl,-rpath,$(dir $(MUJOCO_LIB)) -lm -o $@
+
+.PHONY: lib
+"""
