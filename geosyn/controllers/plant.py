@@ -1,13 +1,17 @@
 """A Pinocchio plant: forward dynamics (``pin.aba``) integrated by RK4, for tests.
 
 Controllers are tested against it without MuJoCo. The torque is held constant over a
-step (zero-order hold, as a digital controller applies it). An optional payload
+step (zero-order hold, as a digital controller applies it). The robot file's armature
+(in the model) and viscous joint damping (``-D v``) are part of the plant, as in MuJoCo;
+its dry friction (``frictionloss``, a constraint in MuJoCo) is not modelled and is
+reported (a `RobotWarning` and `PinocchioPlant.unmodelled`). An optional payload
 (`geosyn.world.Payload`), rigidly attached to a frame of a copy of the model, gives the
 plant dynamics the controller does not know about.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -17,6 +21,7 @@ import pinocchio as pin
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_positive, check_vector
+from geosyn.robots.errors import RobotWarning
 from geosyn.robots.robot import Robot
 from geosyn.world.payload import Payload
 
@@ -41,7 +46,7 @@ class Rollout(NamedTuple):
 
 
 class PinocchioPlant:
-    """Rigid-body plant: ``qdd = aba(q, v, tau)``, RK4 with zero-order-hold torque.
+    """Rigid-body plant: ``qdd = aba(q, v, tau - D v)``, RK4 with zero-order-hold torque.
 
     Args:
         robot: the robot (its model, with armature and gravity, is the plant).
@@ -52,6 +57,9 @@ class PinocchioPlant:
 
     Attributes:
         model: the plant's Pinocchio model (a copy of ``robot.model`` with the payload).
+        damping: (nv,) the file's viscous joint damping D, applied as ``-D v`` [N m s/rad].
+        unmodelled: what the file states that this plant does not model (e.g. dry
+            friction), each also reported once as a `RobotWarning`.
         q, v, t: current state [rad], [rad/s] and time [s] (read via the properties).
 
     `step` allocates the RK4 stages (4 ``pin.aba`` calls).
@@ -68,6 +76,19 @@ class PinocchioPlant:
         self.model = pin.Model(robot.model)
         self.payload = None if payload is None else self._attach(payload)
         self.data = self.model.createData()
+        self.damping = np.asarray(robot.damping, dtype=np.float64).copy()
+        self._damped = bool(np.any(self.damping))
+        self.unmodelled: tuple[str, ...] = ()
+        if np.any(robot.frictionloss):
+            self.unmodelled = (
+                f"dry joint friction (frictionloss {robot.frictionloss.tolist()} N m)",
+            )
+            warnings.warn(
+                f"PinocchioPlant of {robot.name!r} does not model the file's"
+                f" {self.unmodelled[0]}; simulate the file in MuJoCo (plant='file') for it",
+                RobotWarning,
+                stacklevel=2,
+            )
         self._q = robot.neutral()
         self._v = np.zeros(robot.nv)
         self._t = 0.0
@@ -117,7 +138,18 @@ class PinocchioPlant:
 
     # -- dynamics ---------------------------------------------------------------------
     def acceleration(self, q: Vector, v: Vector, tau: Vector) -> Vector:
-        """Forward dynamics of the plant (payload included) [rad/s^2]."""
+        """Forward dynamics of the plant (payload and joint damping included).
+
+        Args:
+            q: (nq,) joint positions [rad].
+            v: (nv,) joint velocities [rad/s].
+            tau: (nv,) applied joint torques [N m].
+
+        Returns:
+            (nv,) joint accelerations [rad/s^2] (a new array).
+        """
+        if self._damped:
+            tau = tau - self.damping * v
         return pin.aba(self.model, self.data, q, v, tau).copy()
 
     def step(self, tau: Vector) -> tuple[Vector, Vector]:
