@@ -225,7 +225,7 @@ def test_unphysical_mjcf_inertia_is_refused_naming_the_body(tmp_path, mass, iner
 
 
 _URDF_LINK = """<?xml version="1.0"?><robot name="r"><link name="base"/>
-  <link name="arm"><inertial><mass value="{mass}"/>
+  <link name="arm"><inertial><origin xyz="0.1 0 0"/><mass value="{mass}"/>
     <inertia ixx="{i[0]}" iyy="{i[1]}" izz="{i[2]}" ixy="{i[3]}" ixz="0" iyz="0"/></inertial></link>
   <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
     <limit lower="-1" upper="1" effort="3" velocity="1"/></joint></robot>"""
@@ -248,7 +248,10 @@ def test_unphysical_urdf_inertia_is_refused_naming_the_link(tmp_path, mass, iner
     with pytest.raises(RobotFileError, match=match) as info:
         load_robot(path)
     assert "'arm'" in str(info.value)
-    if match != "non-numeric":
+    if match in ("non-numeric", "non-finite", "negative mass"):  # meaningless: never a warning
+        with pytest.raises(RobotFileError, match=match):
+            load_robot(path, inertia_check="warn")
+    else:
         with pytest.warns(UserWarning, match="arm"):
             load_robot(path, inertia_check="warn")
 
@@ -297,3 +300,109 @@ def test_geosyn_robots_lists_every_named_robot(capsys) -> None:
     assert "needs fixed_base=True" in rows["go1"]
     assert "cannot load" in rows["quadrotor_base"] and "no movable joints" in rows["quadrotor_base"]
     assert rows["panda"].split()[3] == "panda_hand_tcp"
+
+
+# -- issue 23: files that mean nothing are refused, naming the body or joint ----------------
+HARDENING = FIXTURES / "hardening"
+
+
+def _mujoco_qm(path: Path) -> np.ndarray:
+    """MuJoCo's own dense M(qpos0) of an MJCF file (the referee)."""
+    import mujoco
+
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    qm = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, qm)
+    return qm
+
+
+@pytest.mark.parametrize(
+    ("fixture", "match"),
+    [
+        ("mass_inf", "joint 'shoulder' has a non-finite mass"),
+        ("mass_1e300", "the body moved by joint 'shoulder' has an absurd mass 1e\\+300 kg"),
+        ("inertia_1e300", "joint 'shoulder' has an absurd mass 1 kg or inertia 1e\\+300"),
+        ("axis_nan", "joint 'shoulder' has axis \\[nan"),
+    ],
+)
+def test_mjcf_that_mujoco_compiles_but_means_nothing_is_refused(fixture, match) -> None:
+    path = HARDENING / f"{fixture}.xml"
+    qm = _mujoco_qm(path)  # MuJoCo compiles it: its M is inf, NaN or beyond any robot
+    assert not np.all(np.isfinite(qm)) or np.abs(qm).max() > 1e200
+    with pytest.raises(RobotFileError, match=match):
+        load_robot(path)
+
+
+@pytest.mark.parametrize(
+    ("fixture", "match"), [("axis_zero", "axis too small"), ("limits_swapped", "range")]
+)
+def test_mjcf_that_mujoco_refuses_is_refused_naming_the_joint(fixture, match) -> None:
+    with pytest.raises(RobotFileError, match=match) as info:
+        load_robot(HARDENING / f"{fixture}.xml")
+    assert "shoulder" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("fixture", "match"),
+    [
+        ("mass_inf", "link 'upper' <mass> is 'inf', non-finite"),
+        ("mass_1e300", "link 'upper' has an absurd mass"),
+        ("inertia_1e300", "link 'upper' has an absurd mass 1 kg or inertia 1e\\+300"),
+        ("axis_nan", "joint 'shoulder' <axis xyz> is 'nan 1 0', non-finite"),
+        ("axis_zero", "joint 'shoulder' has a zero axis"),
+        ("limits_swapped", "joint 'shoulder' has lower limit 3 > upper limit -3"),
+        ("massless_link", "joint 'wrist_joint' moves no inertia"),
+    ],
+)
+def test_urdf_that_means_nothing_is_refused_naming_the_link_or_joint(fixture, match) -> None:
+    path = HARDENING / f"{fixture}.urdf"
+    for check in ("error", "warn"):  # never downgraded to a warning
+        with pytest.raises(RobotFileError, match=match):
+            load_robot(path, inertia_check=check)
+
+
+def test_pinocchio_alone_accepts_the_meaningless_urdfs(capfd) -> None:
+    """The referee: what Pinocchio's parser makes of the fixtures refused above."""
+    model = pin.buildModelFromUrdf(str(HARDENING / "mass_inf.urdf"))
+    assert model.inertias[1].mass == 0.0  # the inertial silently dropped
+    model = pin.buildModelFromUrdf(str(HARDENING / "limits_swapped.urdf"))
+    assert model.lowerPositionLimit[0] == 3.0 and model.upperPositionLimit[0] == -3.0
+    for name, dof in (("axis_zero", 0), ("massless_link", 1)):
+        model = pin.buildModelFromUrdf(str(HARDENING / f"{name}.urdf"))
+        M = pin.crba(model, model.createData(), pin.neutral(model))
+        assert M[dof, dof] == 0.0  # a zero row: M(q) singular
+    capfd.readouterr()  # urdfdom's own stderr lines
+
+
+def test_valid_fixture_loads_and_equals_pinocchio() -> None:
+    robot = load_robot(HARDENING / "valid.urdf")
+    model = pin.buildModelFromUrdf(str(HARDENING / "valid.urdf"))
+    q = np.array([0.3])
+    expected = pin.crba(model, model.createData(), q)
+    np.testing.assert_allclose(
+        pin.crba(robot.model, robot.model.createData(), q), expected, rtol=1e-14, atol=0
+    )
+    assert (robot.q_min[0], robot.q_max[0]) == (-1.0, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("fixture", "match"),
+    [
+        ("include_escape", "etc/hostname"),
+        ("include_dev_zero", "/dev/zero"),
+        ("include_nested_escape", "two_fingers.xml"),
+    ],
+)
+def test_mjcf_include_outside_the_folder_is_refused(fixture, match) -> None:
+    with pytest.raises(RobotFileError, match=f"<include file=.*{match}.*not a file inside"):
+        load_robot(HARDENING / f"{fixture}.xml")
+
+
+def test_mjcf_include_inside_the_folder_loads() -> None:
+    path = HARDENING / "include_inside.xml"
+    robot = load_robot(path)
+    qm = _mujoco_qm(path)
+    M = pin.crba(robot.model, robot.model.createData(), np.zeros(1))
+    np.testing.assert_allclose(M, qm, rtol=1e-12, atol=0)

@@ -13,7 +13,7 @@ from geosyn.robots.couplings import LinearConstraint
 from geosyn.robots.errors import RobotFileError, RobotWarning
 from geosyn.robots.from_model import robot_from_model
 from geosyn.robots.robot import Robot
-from geosyn.robots.validity import check_urdf_inertials, urdf_mimics
+from geosyn.robots.validity import check_urdf_inertials, check_urdf_values, urdf_mimics
 
 ROBOT_FILE_SUFFIXES = (".urdf", ".xml", ".mjcf")
 """File suffixes `load_file` reads (case-insensitive)."""
@@ -37,7 +37,8 @@ def example_robot_data_dir() -> Path:
 
 
 def _read_urdf(path: Path, inertia_check: str) -> pin.Model:
-    """The Pinocchio model of a URDF file, its inertials checked first."""
+    """The Pinocchio model of a URDF file, its values and inertials checked first."""
+    check_urdf_values(path)  # meaningless numbers: refused, never downgraded to a warning
     try:
         check_urdf_inertials(path)
     except RobotFileError as err:

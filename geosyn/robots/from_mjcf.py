@@ -23,6 +23,7 @@ import pinocchio as pin
 from geosyn.robots.couplings import LinearConstraint
 from geosyn.robots.errors import RobotFileError, RobotWarning
 from geosyn.robots.limits import ActuatorInfo, mjcf_actuation
+from geosyn.robots.validity import check_includes
 
 NO_LIMIT = 1e10
 """The large position limit [rad or m] written for a joint without limits (Pinocchio's)."""
@@ -64,11 +65,13 @@ def _rotation(quat: np.ndarray) -> np.ndarray:
 
 
 def compile_mjcf(path: str | Path) -> mujoco.MjModel:
-    """Compile an MJCF file with MuJoCo.
+    """Compile an MJCF file with MuJoCo, its includes confined to its folder first.
 
     Raises:
-        RobotFileError: MuJoCo refuses the file (its message names the element).
+        RobotFileError: MuJoCo refuses the file (its message names the element), or an
+            ``<include>`` reaches outside the file's folder (`check_includes`).
     """
+    check_includes(path)
     try:
         return mujoco.MjModel.from_xml_path(str(path))
     except ValueError as err:

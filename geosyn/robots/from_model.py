@@ -16,6 +16,7 @@ from geosyn.robots.couplings import Coupling, LinearConstraint, linear_coupling
 from geosyn.robots.errors import RobotFileError, RobotWarning, UnknownFrame
 from geosyn.robots.limits import DEFAULT_TAU_MAX, ActuatorInfo, resolve_tau_max
 from geosyn.robots.robot import CollisionCapsule, Robot
+from geosyn.robots.validity import check_model, check_moving_mass
 
 #: Joint types geosyn accepts after loading (one coordinate each, nq == nv).
 _SCALAR_JOINTS = {
@@ -291,6 +292,7 @@ def robot_from_model(
         InvalidArgument: wrong sizes or non-finite values.
     """
     model = pin.Model(model)
+    check_model(model, source_file)  # meaningless values (any loader): refused
     if file_tau_max is None:
         file_tau_max = {}
         for jid in range(1, model.njoints):
@@ -330,6 +332,7 @@ def robot_from_model(
     if np.any(arm < 0) or not np.all(np.isfinite(arm)):
         raise InvalidArgument(f"armature must be finite and >= 0, got {armature!r}")
     model.armature = arm
+    check_moving_mass(model, source_file)  # every kept joint moves some inertia
     q_min, q_max, v_max, _ = _limits(model)
     joint_names = tuple(model.names[1:])
     robot_name = name or model.name
