@@ -157,16 +157,16 @@ def _mjcf(
     return path
 
 
-def test_floating_base_is_refused_or_welded_on_request(tmp_path) -> None:
+def test_floating_base_loads_floating_or_welded_on_request(tmp_path) -> None:
+    # issue 26: a floating base loads as it is (tests/test_floating_robots.py checks it)
     path = _mjcf(tmp_path, joint='<freejoint name="root"/>')
-    with pytest.raises(RobotFileError, match=r"joint 'root' of body 'b1' is a free joint") as info:
-        load_robot(path)
-    assert "fixed_base=True" in str(info.value) and info.value.path == str(path)
+    floating = load_robot(path)
+    assert floating.floating and (floating.nq, floating.nv) == (8, 7)
     with pytest.warns(UserWarning, match="welded"):
         robot = load_robot(path, fixed_base=True)
     assert robot.joint_names == ("j2",) and "fixed_base=True" in robot.base
-    with pytest.raises(GeosynError, match=r"'go1' .* has a floating base"):
-        load_robot("go1")
+    go1 = load_robot("go1")
+    assert go1.floating and go1.base.startswith("floating")
     with pytest.warns(UserWarning, match="floating base is fixed"):
         go1 = load_robot("go1", fixed_base=True)
     assert go1.nv == 12 and "fixed_base=True" in go1.base

@@ -7,13 +7,21 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 from geosyn.metrics import geodesic
 from geosyn.metrics.base import Metric
 from geosyn.metrics.coupled import CoupledMetric
-from geosyn.metrics.errors import GeodesicNotFound, MetricError, NoSymbolicForm
+from geosyn.metrics.errors import (
+    FloatingBaseUnsupported,
+    GeodesicNotFound,
+    MetricError,
+    NoSymbolicForm,
+)
+from geosyn.metrics.floating import FloatingKineticEnergyMetric
 from geosyn.metrics.geodesic import *  # noqa: F403  (its __all__, listed below)
 from geosyn.metrics.kinetic import KineticEnergyMetric
 
 __all__ = [
     *geodesic.__all__,
     "CoupledMetric",
+    "FloatingBaseUnsupported",
+    "FloatingKineticEnergyMetric",
     "GeodesicNotFound",
     "KineticEnergyMetric",
     "Metric",

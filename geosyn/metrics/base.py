@@ -16,6 +16,7 @@ A subclass implements `G` and usually `symbolic_G`; it may override `G`, `coriol
 from __future__ import annotations
 
 import math
+import sys
 from abc import ABC, abstractmethod
 from functools import cached_property
 
@@ -30,7 +31,7 @@ from geosyn.metrics.derived import (
     sx_cholesky_solve,
     sx_coriolis,
 )
-from geosyn.metrics.errors import NoSymbolicForm
+from geosyn.metrics.errors import FloatingBaseUnsupported, NoSymbolicForm
 from geosyn.metrics.functions import MetricFunctions
 
 __all__ = ["Metric", "check_metric", "christoffel_from_dG", "sx_cholesky_solve"]
@@ -196,11 +197,28 @@ class Metric(ABC):
 
 
 def check_metric(metric: object) -> Metric:
-    """Return ``metric`` if it is a `Metric`, else raise `InvalidArgument`.
+    """Return ``metric`` if it is a `Metric` on a vector space, else raise.
 
     Args:
         metric: candidate metric.
+
+    Raises:
+        InvalidArgument: not a `Metric`.
+        FloatingBaseUnsupported: a floating base's metric (``metric.nq != metric.n``);
+            the message names the calling function.
     """
     if not isinstance(metric, Metric):
         raise InvalidArgument(f"metric must be a geosyn Metric, got {type(metric).__name__}")
+    nq = getattr(metric, "nq", metric.n)
+    if nq != metric.n:  # a floating base: configurations on SE(3) x R^n, not vectors
+        frame = sys._getframe(1)  # the refused operation, for the message
+        caller = frame.f_code.co_name
+        if caller == "__init__" and "self" in frame.f_locals:
+            caller = type(frame.f_locals["self"]).__name__
+        raise FloatingBaseUnsupported(
+            f"{caller}: {metric!r} is a floating base's metric (nq={nq} != nv={metric.n});"
+            f" {caller} treats configurations as vectors in R^n and does not work on"
+            " SE(3) x R^n yet. Available there: exp, metric.G/inner/energy/integrate;"
+            " or load the robot with fixed_base=True"
+        )
     return metric

@@ -13,6 +13,11 @@ class NoSymbolicForm(MetricError):
     """A metric has no CasADi symbolic form, so symbolic derivatives are unavailable."""
 
 
+class FloatingBaseUnsupported(MetricError):
+    """An operation that treats configurations as vectors in R^n was given a metric on a
+    floating base's group SE(3) x R^n (nq != nv); the message names what works there."""
+
+
 class GeodesicNotFound(MetricError):
     """The log map (boundary-value problem) did not converge.
 

@@ -11,7 +11,7 @@ import pinocchio as pin
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.base import Metric
-from geosyn.metrics.errors import NonFiniteResult
+from geosyn.metrics.errors import FloatingBaseUnsupported, NonFiniteResult
 from geosyn.robots.robot import Robot
 
 # |q|^2 + |v|^2 below this keeps pin.aba finite on the fast path of geodesic_acceleration.
@@ -44,17 +44,29 @@ class KineticEnergyMetric(Metric):
       symbols, optionally compiled to C and cached on disk (``compile=True``).
 
     Args:
-        robot: the robot.
+        robot: a fixed-base robot (a floating base takes
+            `geosyn.metrics.FloatingKineticEnergyMetric`).
         compile: compile the CasADi functions to C (cached on disk by a hash of the
             generated code) on first use. Falls back to CasADi's VM, with a warning, when
             no C compiler is available.
 
     Methods `G`, `coriolis` and `geodesic_acceleration` allocate only their result.
+
+    Raises:
+        InvalidArgument: ``robot`` is not a `Robot`.
+        FloatingBaseUnsupported: a floating-base robot (the message names its metric).
     """
 
     def __init__(self, robot: Robot, *, compile: bool = False) -> None:
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
+        if robot.floating:
+            raise FloatingBaseUnsupported(
+                f"robot {robot.name!r} has a floating base (q on SE(3) x R^{robot.nv - 6},"
+                f" nq={robot.nq}, nv={robot.nv}): its kinetic-energy metric is"
+                " geosyn.metrics.FloatingKineticEnergyMetric(robot); or load it with"
+                " fixed_base=True"
+            )
         self.robot = robot
         self.n = robot.nv
         self.compile = bool(compile)

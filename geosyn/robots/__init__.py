@@ -8,6 +8,7 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 from geosyn.robots.builtins import BUILTINS
 from geosyn.robots.couplings import Coupling
 from geosyn.robots.errors import (
+    FloatingBaseError,
     RobotError,
     RobotFileError,
     RobotWarning,
@@ -25,6 +26,7 @@ __all__ = [
     "Coupling",
     "CollisionCapsule",
     "CollisionSphere",
+    "FloatingBaseError",
     "Robot",
     "RobotError",
     "RobotFileError",

@@ -4,8 +4,10 @@ A name is the file's stem in lower case (``-`` becomes ``_``); stems found in tw
 are prefixed with their folder (``anymal_b_simple_anymal``). The robot is the file as it
 is: its joints, its effort limits, no added armature (the curated built-ins ``panda``,
 ``talos_arm`` and ``ur5`` add theirs). Robots that walk, fly or roll (a floating base in
-the real world) load only with ``fixed_base=True``, recorded in ``Robot.base``; files
-with slightly unphysical inertias load with a `RobotWarning` naming the link.
+the real world) load with a free-flyer root joint (configuration on SE(3) x R^n,
+`geosyn.robots.floating`), or welded at their root link with ``fixed_base=True``,
+recorded in ``Robot.base``; files with slightly unphysical inertias load with a
+`RobotWarning` naming the link.
 """
 
 from __future__ import annotations
@@ -16,12 +18,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from geosyn.robots.errors import RobotError, RobotFileError, RobotWarning
+from geosyn.robots.errors import RobotFileError, RobotWarning
 from geosyn.robots.files import example_robot_data_dir, load_file
 from geosyn.robots.robot import Robot
 
 #: example-robot-data folders whose robots have a floating base (legged, humanoid,
-#: flying or mobile robots); loading one needs ``fixed_base=True``.
+#: flying or mobile robots); they load floating unless ``fixed_base=True``.
 FLOATING_FOLDERS = frozenset(
     {
         "a1_description",
@@ -90,19 +92,17 @@ def load_catalog_robot(entry: CatalogEntry, **options: object) -> Robot:
 
     Args:
         entry: the catalog entry.
-        **options: ``fixed_base`` (required True for a floating robot) and anything
-            `geosyn.robots.files.load_file` accepts.
+        **options: ``fixed_base`` (welds a floating robot's root link to the world) and
+            anything `geosyn.robots.files.load_file` accepts.
 
     Raises:
-        RobotError: a floating-base robot without ``fixed_base=True``.
+        FloatingBaseError: a floating-base robot with joint couplings (load it with
+            ``fixed_base=True``).
     """
     fixed_base = bool(options.pop("fixed_base", False))
     if entry.floating and not fixed_base:
-        raise RobotError(
-            f"{entry.name!r} ({entry.relative_path}) has a floating base; geosyn models"
-            " fixed-base robots: pass fixed_base=True to fix its root link to the world"
-        )
-    if entry.floating:
+        options["floating_base"] = True
+    elif entry.floating:
         options.setdefault("base", "floating base fixed at its root link (fixed_base=True)")
         warnings.warn(
             f"{entry.name!r}: its floating base is fixed at the root link (fixed_base=True)",

@@ -23,6 +23,12 @@ class RobotFileError(RobotError):
         self.path = None if path is None else str(path)
 
 
+class FloatingBaseError(RobotError):
+    """A floating-base robot (configuration on SE(3) x R^n) where geosyn supports only a
+    fixed base, or a floating-base configuration that is not on the group (a quaternion
+    that is not unit); the message names the robot and what to do instead."""
+
+
 class RobotWarning(UserWarning):
     """A robot file was loaded with something assumed or changed (a default torque limit,
     a welded floating base, an ignored property); the message says what."""
@@ -54,6 +60,7 @@ class UnknownFrame(_UnknownName):
 
 
 __all__ = [
+    "FloatingBaseError",
     "InvalidArgument",
     "RobotError",
     "RobotFileError",

@@ -11,6 +11,7 @@ import pinocchio as pin
 from geosyn.core.validation import check_choice
 from geosyn.robots.couplings import LinearConstraint
 from geosyn.robots.errors import RobotFileError, RobotWarning
+from geosyn.robots.free_flyer import floating_robot, free_joint_pose
 from geosyn.robots.from_model import robot_from_model
 from geosyn.robots.robot import Robot
 from geosyn.robots.validity import check_urdf_inertials, check_urdf_values, urdf_mimics
@@ -62,19 +63,24 @@ def load_file(path: str | Path, **options: Any) -> Robot:
     Args:
         path: file path.
         **options: ``fixed_base`` (bool, default False) welds an MJCF free joint at its
-            initial pose instead of refusing the file (recorded in ``Robot.base`` and
-            warned about); ``inertia_check`` (``error``, the default, refuses a URDF link
-            whose inertial is not physical; ``warn`` reports it and loads the file, as some
-            published files have slightly invalid inertias). The rest is forwarded to
+            initial pose (recorded in ``Robot.base`` and warned about); without it an
+            MJCF free joint loads as a floating base (`geosyn.robots.floating`).
+            ``floating_base`` (bool, default False) gives a URDF's root link a free
+            flyer (a URDF does not say whether its root is fixed). ``inertia_check``
+            (``error``, the default, refuses a URDF link whose inertial is not physical;
+            ``warn`` reports it and loads the file, as some published files have slightly
+            invalid inertias). The rest is forwarded to
             `robot_from_model` (``keep_joints``, ``lock_q``, ``ee_frame``, ``armature``,
             ``gravity``, ``tau_max``, ``damping``, ...).
 
     Raises:
-        RobotFileError: missing, unreadable, malformed or unsupported file (a floating
-            base without ``fixed_base``, a closed loop, no joints, unphysical inertia); the
+        RobotFileError: missing, unreadable, malformed or unsupported file (a closed
+            loop, no joints, unphysical inertia, a free joint that is not the root); the
             message names the part of the file.
+        FloatingBaseError: a floating base with joint couplings.
     """
     fixed_base = bool(options.pop("fixed_base", False))
+    floating_base = bool(options.pop("floating_base", False))
     inertia_check = options.pop("inertia_check", "error")
     check_choice(inertia_check, ("error", "warn"), "inertia_check")
     p = Path(path)
@@ -92,13 +98,15 @@ def load_file(path: str | Path, **options: Any) -> Robot:
             for m in urdf_mimics(p)
         ]
         options.setdefault("couplings", mimics)
-        return robot_from_model(model, **options)
+        robot = robot_from_model(model, **options)
+        return floating_robot(robot, how="URDF root link") if floating_base else robot
     if suffix in (".xml", ".mjcf"):
         # MuJoCo is imported only for MJCF files (the robot and controller layers stay
         # importable without it)
         from geosyn.robots.from_mjcf import compile_mjcf, pinocchio_from_mjmodel
 
-        read = pinocchio_from_mjmodel(compile_mjcf(p), fixed_base=fixed_base, path=p)
+        m = compile_mjcf(p)
+        read = pinocchio_from_mjmodel(m, fixed_base=fixed_base, path=p)
         from_file = {
             "file_tau_max": read.tau_max,
             "damping": read.damping,
@@ -107,7 +115,15 @@ def load_file(path: str | Path, **options: Any) -> Robot:
             "base": read.base,
             "couplings": read.couplings,
         }
-        return robot_from_model(read.model, **{**from_file, **options})  # options override
+        robot = robot_from_model(read.model, **{**from_file, **options})  # options override
+        free = (
+            None
+            if fixed_base
+            else free_joint_pose(m.jnt_type, m.jnt_bodyid, (m.body_pos, m.body_quat))
+        )
+        if free is None:
+            return robot
+        return floating_robot(robot, free[1], how=read.base)
     raise RobotFileError(
         f"robot file {str(p)!r} has suffix {suffix!r}; allowed: {', '.join(ROBOT_FILE_SUFFIXES)}",
         p,

@@ -87,12 +87,16 @@ def _check_supported(
         body = _name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.jnt_bodyid[j]), "body")
         if m.jnt_type[j] == _FREE:
             if not fixed_base:
-                raise RobotFileError(
-                    f"joint {joint_names[j]!r} of body {body!r} is a free joint (a floating"
-                    " base); geosyn models fixed-base robots: pass fixed_base=True to weld"
-                    " it at its initial pose",
-                    path,
-                )
+                if j != 0 or m.body_parentid[m.jnt_bodyid[j]] != 0:
+                    raise RobotFileError(
+                        f"joint {joint_names[j]!r} of body {body!r} is a free joint that is"
+                        " not the robot's root (the first joint, on a child of the world);"
+                        " geosyn models one kinematic tree with at most one floating base:"
+                        " pass fixed_base=True to weld every free joint at its initial pose",
+                        path,
+                    )
+                base = f"MJCF free joint {joint_names[j]!r} of body {body!r}"
+                continue
             base = f"free joint {joint_names[j]!r} welded at its initial pose (fixed_base=True)"
             warnings.warn(f"{path}: {base}", RobotWarning, stacklevel=4)
         elif m.jnt_type[j] == _BALL:
@@ -214,14 +218,18 @@ def pinocchio_from_mjmodel(
 
     Args:
         m: compiled MuJoCo model.
-        fixed_base: weld a free joint at its initial pose instead of refusing it.
+        fixed_base: weld free joints at their initial pose. Without it a free joint on
+            the root body (the first joint) is left out of the model, welded at its
+            initial pose with the root body's inertia on the world, for
+            `geosyn.robots.free_flyer.floating_robot` to free; ``base`` names it.
         path: the file, for messages.
 
     Returns:
         The model and the per-joint properties read from the file.
 
     Raises:
-        RobotFileError: a free joint (without ``fixed_base``), a ball joint, an equality
+        RobotFileError: a free joint other than the root's (without ``fixed_base``), a
+            ball joint, an equality
             constraint that is not a linear joint coupling, or no joints; the message
             names the joint or constraint.
     """
@@ -234,6 +242,7 @@ def pinocchio_from_mjmodel(
     disabled = m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
     gravity = np.zeros(3) if disabled else np.array(m.opt.gravity, dtype=np.float64)
     model.gravity = pin.Motion(gravity, np.zeros(3))
+    floating_body = int(m.jnt_bodyid[0]) if m.njnt and m.jnt_type[0] == _FREE else -1
     owner = [0] * m.nbody  # Pinocchio joint carrying each body
     X_owner = [pin.SE3.Identity()] * m.nbody  # owner joint frame -> body frame
     joint_frame = {0: 0}
@@ -281,7 +290,9 @@ def pinocchio_from_mjmodel(
             friction[name] = float(m.dof_frictionloss[dof])
             X = pin.SE3(np.eye(3), -anchor)
         owner[b], X_owner[b] = parent, X
-        if parent != 0 and m.body_mass[b] > 0:
+        # A floating root body's inertia is kept on the world (the free flyer takes it,
+        # `geosyn.robots.free_flyer`); a welded one's is dropped (it never moves).
+        if (parent != 0 or (b == floating_body and not fixed_base)) and m.body_mass[b] > 0:
             R = _rotation(m.body_iquat[b])
             inertia = pin.Inertia(
                 float(m.body_mass[b]),

@@ -16,7 +16,8 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_int, check_vector
 from geosyn.robots.couplings import Coupling
-from geosyn.robots.errors import UnknownFrame
+from geosyn.robots.errors import FloatingBaseError, UnknownFrame
+from geosyn.robots.floating import check_floating_q, is_floating, neutral_base, random_base
 from geosyn.robots.limits import ActuatorInfo
 
 if TYPE_CHECKING:
@@ -57,16 +58,22 @@ class CollisionSphere:
 
 @dataclass(frozen=True)
 class Robot:
-    """A fixed-base robot: Pinocchio model, limits and simple collision geometry.
+    """A robot: Pinocchio model, limits and simple collision geometry.
 
-    Invariant: ``nq == nv`` (continuous joints are loaded as plain revolute joints), and
-    ``model.armature`` holds the reflected rotor inertia added to the mass matrix on both
-    the Pinocchio and the MuJoCo side.
+    Fixed base: ``nq == nv`` (continuous joints are loaded as plain revolute joints).
+    Floating base (`floating`): joint 1 is a free flyer and the configuration lives on
+    SE(3) x R^n, ``nq = n + 7``, ``nv = n + 6`` (Pinocchio's conventions, see
+    `geosyn.robots.floating`); per-coordinate arrays cover the base too (``q_min``,
+    ``q_max`` (nq,) infinite on the base; ``v_max``, ``tau_max`` (nv,), ``tau_max`` 0 on
+    the unactuated base) while ``joint_names`` lists the n joints. ``model.armature``
+    holds the reflected rotor inertia added to the mass matrix on both the Pinocchio and
+    the MuJoCo side.
 
     Attributes:
         name: robot name.
-        model: Pinocchio model (fixed base). Treat as read-only.
-        joint_names: (nv,) names of the actuated joints, in configuration order.
+        model: Pinocchio model. Treat as read-only.
+        joint_names: names of the actuated joints, in configuration order: (nv,) for a
+            fixed base, (nv - 6,) for a floating one.
         q_min: (nq,) lower position limits [rad or m]; ``-inf`` where unlimited.
         q_max: (nq,) upper position limits [rad or m]; ``+inf`` where unlimited.
         v_max: (nv,) velocity limits [rad/s or m/s].
@@ -80,7 +87,8 @@ class Robot:
         tau_max_source: (nv,) where each torque limit came from (``file: ...``, ``user``,
             ``default ...``, ``built-in``).
         actuators: the actuators the file declares (geosyn commands joint torques instead).
-        base: ``fixed``, or how a floating base was fixed (``fixed_base=True``).
+        base: ``fixed``, how a floating base was fixed (``fixed_base=True``), or
+            ``floating: ...`` for a free-flyer base.
         source_file: the robot file loaded, or None for a robot built in code.
         coupling: linear joint couplings of the file (``q = S z + c``), or None; the
             model itself is the uncoupled tree.
@@ -131,8 +139,26 @@ class Robot:
 
     @property
     def nv(self) -> int:
-        """Number of velocity coordinates (equal to ``nq``)."""
+        """Number of velocity coordinates (``nq`` for a fixed base, ``nq - 1`` floating)."""
         return int(self.model.nv)
+
+    @property
+    def floating(self) -> bool:
+        """Whether the base is floating (a free-flyer joint 1; q on SE(3) x R^n)."""
+        return is_floating(self.model)
+
+    def require_fixed_base(self, what: str) -> None:
+        """Raise `FloatingBaseError` if the base is floating.
+
+        Args:
+            what: the feature that needs a fixed base, for the message.
+        """
+        if self.floating:
+            raise FloatingBaseError(
+                f"{what} needs a fixed-base robot; {self.name!r} has a floating base (q on"
+                f" SE(3) x R^{self.nv - 6}, nq={self.nq}, nv={self.nv}): load it with"
+                " fixed_base=True to weld its root body to the world"
+            )
 
     @property
     def armature(self) -> Vector:
@@ -215,13 +241,20 @@ class Robot:
         Args:
             q: candidate joint positions, shape (nq,) [rad or m].
             name: argument name used in the error message.
+
+        Raises:
+            InvalidArgument: wrong shape or non-finite values.
+            FloatingBaseError: a floating base's quaternion ``q[3:7]`` is not unit.
         """
+        if self.floating:
+            return check_floating_q(q, self.nq, name, self.name)
         return check_vector(q, self.nq, name)
 
     def random_q(self, rng: np.random.Generator, margin: float = 0.0) -> Vector:
         """A uniformly random configuration inside the position limits.
 
-        Unlimited joints are drawn in [-pi, pi].
+        Unlimited joints are drawn in [-pi, pi]; a floating base's position uniformly in
+        [-1, 1]^3 m and its orientation uniformly on SO(3).
 
         Args:
             rng: seeded random generator.
@@ -230,22 +263,35 @@ class Robot:
         Returns:
             (nq,) joint positions.
         """
-        lo = np.where(np.isfinite(self.q_min), self.q_min + margin, -np.pi)
-        hi = np.where(np.isfinite(self.q_max), self.q_max - margin, np.pi)
-        return rng.uniform(lo, hi)
+        k = 7 if self.floating else 0
+        base = random_base(rng) if self.floating else np.zeros(0)
+        lo = np.where(np.isfinite(self.q_min[k:]), self.q_min[k:] + margin, -np.pi)
+        hi = np.where(np.isfinite(self.q_max[k:]), self.q_max[k:] - margin, np.pi)
+        return np.concatenate([base, rng.uniform(lo, hi)])
 
     def neutral(self) -> Vector:
-        """(nq,) a configuration inside the limits: zero, clipped to the limits' middle."""
-        bounded = np.isfinite(self.q_min) & np.isfinite(self.q_max)
-        mid = np.zeros(self.nq)
-        mid[bounded] = 0.5 * (self.q_min[bounded] + self.q_max[bounded])
-        q = np.zeros(self.nq)
-        outside = (q < self.q_min) | (q > self.q_max)
-        return np.where(outside, mid, q)
+        """(nq,) a configuration inside the limits: zero, clipped to the limits' middle.
+
+        A floating base is at the world origin, not rotated.
+        """
+        k = 7 if self.floating else 0
+        q_min, q_max = self.q_min[k:], self.q_max[k:]
+        bounded = np.isfinite(q_min) & np.isfinite(q_max)
+        mid = np.zeros(q_min.shape)
+        mid[bounded] = 0.5 * (q_min[bounded] + q_max[bounded])
+        q = np.zeros(q_min.shape)
+        outside = (q < q_min) | (q > q_max)
+        base = neutral_base() if self.floating else np.zeros(0)
+        return np.concatenate([base, np.where(outside, mid, q)])
 
     # -- MuJoCo -----------------------------------------------------------------------
     def mjcf(self, **options: object) -> str:
-        """MJCF text of a MuJoCo model with the same dynamics; see `geosyn.robots.mjcf`."""
+        """MJCF text of a MuJoCo model with the same dynamics; see `geosyn.robots.mjcf`.
+
+        Raises:
+            FloatingBaseError: a floating base (the MuJoCo twin is fixed-base).
+        """
+        self.require_fixed_base("the MuJoCo twin (Robot.mjcf, Robot.mj_model)")
         from geosyn.robots.mjcf import robot_to_mjcf
 
         return robot_to_mjcf(self, **options)  # type: ignore[arg-type]

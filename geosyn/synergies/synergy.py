@@ -62,6 +62,13 @@ def check_metric(metric: object) -> Metric:
         raise InvalidSynergyInput(
             f"metric must be a geosyn Metric, got {type(metric).__name__}", "metric"
         )
+    if getattr(metric, "nq", metric.n) != metric.n:  # configurations on SE(3) x R^n
+        raise InvalidSynergyInput(
+            f"{metric!r} is a floating base's metric: synergies and PGA need log and"
+            " parallel transport, which geosyn has on fixed-base robots only yet; load the"
+            " robot with fixed_base=True",
+            "metric",
+        )
     return metric
 
 

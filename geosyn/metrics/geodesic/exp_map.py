@@ -30,6 +30,8 @@ from geosyn.core.types import Vector
 from geosyn.core.validation import check_choice, check_int, check_positive, check_vector
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.errors import GeodesicNotFound, NonFiniteResult, NoSymbolicForm
+from geosyn.metrics.floating import FloatingKineticEnergyMetric
+from geosyn.metrics.geodesic.group_rk4 import group_geodesic
 
 __all__ = [
     "MAX_STEPS",
@@ -212,6 +214,10 @@ def exp(
     Returns:
         The sampled geodesic; ``q[-1]`` is exp_q0(duration * v0).
 
+    A floating-base metric (`geosyn.metrics.floating.FloatingKineticEnergyMetric`) takes
+    ``q0`` (nq,) on SE(3) x R^n and ``v0`` (nv,); its geodesic is integrated on the group
+    (`geosyn.metrics.geodesic.group_rk4`, ``method="rk4"`` only) and ``q`` is (T, nq).
+
     The first call for a metric builds (and compiles, cached on disk) the RK4 step;
     later calls allocate only the result.
 
@@ -221,14 +227,18 @@ def exp(
         NonFiniteResult: the integration overflowed (e.g. a huge ``v0``).
         GeodesicNotFound: DOP853 failed.
     """
-    metric = check_metric(metric)
+    # a floating base: configurations on SE(3) x R^n, integrated on the group
+    floating = metric if isinstance(metric, FloatingKineticEnergyMetric) else None
+    metric = check_metric(metric) if floating is None else floating
     n = metric.n
-    q0 = check_vector(q0, n, "q0")
+    q0 = check_vector(q0, n, "q0") if floating is None else floating.robot.check_q(q0, "q0")
     v0 = check_vector(v0, n, "v0")
     duration = check_positive(duration, "duration")
     steps = check_int(steps, "steps", low=1, high=MAX_STEPS)
     method = check_choice(method, METHODS, "method")
     t = np.linspace(0.0, duration, steps + 1)
+    if floating is not None:
+        return Geodesic(t, *group_geodesic(floating, q0, v0, duration, steps, method))
     if method == "rk4":
         X = _rk4_states(metric, q0, v0, duration, steps)
     else:
