@@ -13,8 +13,9 @@ import pinocchio as pin
 import pytest
 from floating_cases import CATALOG_FLOATING, FLOATER, floater_file, load_quietly
 
+from geosyn.controllers import ComputedTorque, PinocchioPlant
 from geosyn.core import GeosynError
-from geosyn.robots import FloatingBaseError, RobotFileError, load_robot
+from geosyn.robots import FloatingBaseError, RobotFileError, load_robot, robot_to_mjcf, symbolic
 from geosyn.robots.catalog import catalog
 from geosyn.robots.files import example_robot_data_dir
 from geosyn.robots.floating import QUATERNION_TOL, from_mujoco, to_mujoco
@@ -135,9 +136,16 @@ def test_mjcf_refusals_and_the_welded_option(tmp_path) -> None:
         load_robot(two)
 
 
-def test_floating_robots_refuse_the_fixed_base_twin() -> None:
+def test_fixed_base_consumers_refuse_a_floating_robot_by_name() -> None:
     robot = load_quietly("solo12")
-    with pytest.raises(FloatingBaseError, match="'solo12' has a floating base"):
-        robot.mj_model()
-    with pytest.raises(GeosynError, match="fixed_base=True"):
-        robot.require_fixed_base("a test")
+    refused = {
+        "the MuJoCo twin": robot.mj_model,
+        "robot_to_mjcf": lambda: robot_to_mjcf(robot),
+        "PinocchioPlant": lambda: PinocchioPlant(robot),
+        "ComputedTorque": lambda: ComputedTorque(robot, kp=1.0, kd=1.0),
+    }
+    for what, call in refused.items():
+        with pytest.raises(FloatingBaseError, match=f"{what}.*'solo12' has a floating base"):
+            call()
+    with pytest.raises(GeosynError, match=r"floating base: its free flyer"):
+        symbolic.crba(robot.model, np.zeros(robot.nq))

@@ -113,6 +113,7 @@ class Controller(ABC):
     ) -> None:
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
+        robot.require_fixed_base(f"{type(self).__name__} (joint torques, q + v dt references)")
         self.robot = robot
         self.nv = robot.nv
         if metric is not None and getattr(metric, "n", None) != self.nv:

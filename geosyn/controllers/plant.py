@@ -70,6 +70,7 @@ class PinocchioPlant:
     ) -> None:
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
+        robot.require_fixed_base("PinocchioPlant (its RK4 integrates q + v dt)")
         dt = check_positive(dt, "dt", "s")
         self.robot = robot
         self.dt = dt

@@ -86,6 +86,7 @@ def robot_to_mjcf(
         InvalidArgument: bad ``gravity``, ``timestep`` or ``integrator``, or
             ``body_extra`` naming an unknown joint.
     """
+    robot.require_fixed_base("robot_to_mjcf (the MuJoCo twin)")
     model = robot.model
     g = check_vector(robot.gravity if gravity is None else gravity, 3, "gravity")
     timestep = check_positive(timestep, "timestep", unit="s")

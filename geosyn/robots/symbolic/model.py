@@ -14,6 +14,7 @@ import pinocchio as pin
 
 from geosyn.core import InvalidArgument
 from geosyn.core.validation import check_int
+from geosyn.robots.floating import is_floating
 from geosyn.robots.symbolic.algebra import (
     _IDENTITY,
     _SE3,
@@ -106,8 +107,9 @@ def _parse_model(model: pin.Model) -> _Model:
     if not isinstance(model, pin.Model):
         raise InvalidArgument(f"model: expected a pinocchio.Model, got {type(model).__name__}")
     if model.nq != model.nv:
+        floating = " (a floating base: its free flyer lives on SE(3))" if is_floating(model) else ""
         raise InvalidArgument(
-            f"model: nq ({model.nq}) != nv ({model.nv}); only fixed-base models with "
+            f"model: nq ({model.nq}) != nv ({model.nv}){floating}; only fixed-base models with "
             f"one-dof joints of types {', '.join(SUPPORTED_JOINT_TYPES)} are supported"
         )
     armature = np.asarray(model.armature, dtype=float).reshape(-1)
