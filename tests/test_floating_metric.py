@@ -22,6 +22,7 @@ from geosyn.metrics import (
     path_energy,
 )
 from geosyn.metrics.planning import Planner
+from geosyn.metrics.shaping import ShapedMetric
 from geosyn.robots import FloatingBaseError
 from geosyn.robots.catalog import catalog
 from geosyn.robots.files import example_robot_data_dir
@@ -118,6 +119,7 @@ def test_vector_space_operations_refuse_clearly() -> None:
         "path_energy": lambda: path_energy(metric, geo.t, geo.q),
         "distance": lambda: distance(metric, q, q),
         "Planner": lambda: Planner(metric),
+        "ShapedMetric": lambda: ShapedMetric(metric),
         "christoffel": lambda: metric.christoffel(q),
         "symbolic_G": lambda: metric.symbolic_G(None),
     }

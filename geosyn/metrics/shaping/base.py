@@ -34,7 +34,7 @@ from geosyn.core.codegen import compile_function
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
 from geosyn.core.validation import check_vector
-from geosyn.metrics.base import Metric
+from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.derived import sx_cholesky_solve, sx_coriolis
 from geosyn.metrics.shaping.errors import (
     InvalidTermArgument,
@@ -236,6 +236,7 @@ class ShapedMetric(Metric):
     ) -> None:
         if not isinstance(base, Metric):
             raise InvalidTermArgument(f"base must be a geosyn Metric, got {type(base).__name__}")
+        check_metric(base)  # refuses a floating base's metric (configurations on SE(3))
         robot = getattr(base, "robot", None)
         if not isinstance(robot, Robot):
             raise InvalidTermArgument(
