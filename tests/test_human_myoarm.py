@@ -114,3 +114,11 @@ def test_scaling_sets_segment_lengths(arm) -> None:
     for seg, f in factors.items():
         assert got[seg] == pytest.approx(f * base[seg], rel=1e-9)
     assert scaled.robot.model.inertias[5].mass == pytest.approx(arm.robot.model.inertias[5].mass)
+
+
+def test_with_fingers_27_independent_coordinates(arm) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        hand = load_myoarm(fingers=True)
+    assert (hand.robot.nq, hand.robot.coupling.nz) == (38, 27)
+    assert len(hand.robot.coupling.constraints) == 11

@@ -107,7 +107,7 @@ class MuscleInfo(NamedTuple):
 class HumanArm(NamedTuple):
     """The MyoArm as a geosyn robot, with what was left out stated."""
 
-    robot: Robot  # arm joints (girdle + 7 coordinates); fingers locked at the file's qpos0
+    robot: Robot  # girdle + 7 arm coordinates, fingers locked at qpos0 (or all 38 joints)
     muscles: tuple[MuscleInfo, ...]  # (63,)
     scale: dict[str, float]  # segment -> length factor applied (1.0 unscaled)
     modelling: str  # what geosyn models and what it does not
@@ -223,11 +223,15 @@ def _scale_compiled(m: mujoco.MjModel, scale: dict[str, float]) -> None:
         m.site_pos[s] *= factor[m.site_bodyid[s]]
 
 
-def load_myoarm(cache: Path | None = None, scale: dict[str, float] | None = None) -> HumanArm:
+def load_myoarm(
+    cache: Path | None = None, scale: dict[str, float] | None = None, *, fingers: bool = False
+) -> HumanArm:
     """The MyoArm as a `Robot` of its arm joints (fingers locked at the file's qpos0).
 
     Args:
         cache: data cache folder.
+        fingers: keep all 38 joints (27 independent coordinates, the 20 hand joints
+            included) instead of locking the fingers (18 joints, 7 coordinates).
         scale: ``{segment: length factor}`` for segments of `SEGMENTS` (``None``: the
             published 50th-percentile model). Positions inside a segment scale by its
             factor, masses stay, inertias scale by its square.
@@ -242,7 +246,8 @@ def load_myoarm(cache: Path | None = None, scale: dict[str, float] | None = None
     for mus in muscles:
         for joint, r in mus.moment_arms.items():
             capacity[joint] = capacity.get(joint, 0.0) + abs(r) * mus.f_max
-    keep = [*GIRDLE_JOINTS, *ARM_COORDINATES]
+    names = [mujoco.mj_id2name(full, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(full.njnt)]
+    keep = [str(n) for n in names] if fingers else [*GIRDLE_JOINTS, *ARM_COORDINATES]
     tau = {j: capacity[j] for j in keep if capacity.get(j, 0.0) > 0}
     source = "muscles: sum |moment arm| x F_max at qpos0 (upper bound; muscles not modelled)"
     factors = {s: float((scale or {}).get(s, 1.0)) for s in SEGMENTS}
