@@ -211,3 +211,26 @@ def test_parameters_change_geodesics_without_rebuild() -> None:
     np.testing.assert_allclose(v_back, v0, atol=1e-8)
     u = parallel_transport(metric, curved.t, curved.q, v0, qdot=curved.v)
     np.testing.assert_allclose(u, curved.v[-1], atol=1e-8)
+
+
+@pytest.mark.parametrize("speed", [1e5, 1e8])
+def test_dop853_with_a_huge_velocity_is_bounded(monkeypatch, speed):
+    """Issue 23: |v0| = 1e5 took 206 s and 1e8 never returned; now at most
+    MAX_DOP853_EVALUATIONS evaluations (lowered here to keep the test short), then
+    GeodesicNotFound."""
+    from geosyn.metrics.errors import GeodesicNotFound
+    from geosyn.metrics.geodesic import exp_map
+
+    metric = get_metric("planar2")
+    calls = []
+    real = metric.geodesic_acceleration
+    monkeypatch.setattr(metric, "geodesic_acceleration", lambda q, v: calls.append(1) or real(q, v))
+    monkeypatch.setattr(exp_map, "MAX_DOP853_EVALUATIONS", 5_000)
+    with pytest.raises(GeodesicNotFound, match="MAX_DOP853_EVALUATIONS = 5000"):
+        exp(metric, np.array([0.2, 0.3]), np.array([speed, -speed]), method="dop853")
+    assert len(calls) == 5_000
+    # a moderate velocity within the budget matches the compiled RK4 (1000 steps)
+    v0 = np.array([1.0, -0.5])
+    a = exp(metric, np.array([0.2, 0.3]), v0, method="dop853")
+    b = exp(metric, np.array([0.2, 0.3]), v0, steps=1000)
+    np.testing.assert_allclose(a.q[-1], b.q[-1], atol=1e-10)

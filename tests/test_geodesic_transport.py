@@ -54,3 +54,27 @@ def test_bad_input_raises_clear_errors():
         parallel_transport(metric, t, q, np.zeros(2), substeps=0)
     with pytest.raises(InvalidArgument, match="qdot must be finite"):
         parallel_transport(metric, t, q, np.zeros(2), qdot=np.zeros((4, 2)))
+
+
+def test_reversed_time_axis_and_wrong_types_are_refused():
+    """Issue 23: a time axis reversed without its samples made the given qdot point the
+    other way (the Hermite curve then left the path): refused; booleans and complex
+    values are refused instead of cast."""
+    metric = get_metric("planar2")
+    geo = exp(metric, np.array([0.2, 0.3]), np.array([0.8, -0.5]), 1.0, 50)
+    u = np.array([1.0, 0.5])
+    with pytest.raises(InvalidArgument, match="qdot is not the derivative of q along t"):
+        parallel_transport(metric, geo.t[::-1], geo.q, u, qdot=geo.v)
+    # the consistent reversal (t, q and qdot together) is a transport back: allowed
+    w = parallel_transport(metric, geo.t, geo.q, u, qdot=geo.v)
+    back = parallel_transport(metric, geo.t[::-1], geo.q[::-1], w, qdot=geo.v[::-1])
+    np.testing.assert_allclose(back, u, atol=1e-8)
+    for kwargs, match in (
+        ({"v": np.array([True, False])}, "v must be a float array, got booleans"),
+        ({"v": u + 1j}, "v must be a real"),
+        ({"qdot": geo.v.astype(complex)}, "qdot must be a real"),
+        ({"t": geo.t > 0.5}, "t must be a float array, got booleans"),
+    ):
+        args = {"t": geo.t, "q": geo.q, "v": u, "qdot": geo.v} | kwargs
+        with pytest.raises(InvalidArgument, match=match):
+            parallel_transport(metric, **args)

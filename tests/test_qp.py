@@ -192,11 +192,22 @@ def test_solver_failure_triggers_fallback():
     [
         ({"kp": np.ones(5)}, r"kp must be a scalar or an array of shape \(7,\)"),
         ({"kd": -1.0}, "kd must be finite and >= 0"),
-        ({"dt": 0.0}, "dt must be a finite number > 0"),
+        ({"dt": 0.0}, r"dt must be a finite number in \(0, 1\] \[s\], got 0.0"),
         ({"eps": -1e-3}, "eps"),
         ({"position_horizon": 1e-4}, "position_horizon must be >= dt"),
         ({"braking_acceleration": 0.0}, "braking_acceleration must be > 0"),
         ({"max_iter": 0}, "max_iter"),
+        # issue 23: nothing accepted that means nothing
+        ({"dt": 1e300}, r"dt must be a finite number in \(0, 1\] \[s\], got 1e\+300"),
+        ({"dt": True}, "dt must be a finite number"),
+        ({"kp": 900.0 + 1j}, "kp must be a real"),
+        ({"kp": np.full(7, 900.0 + 0j)}, "kp must be a real"),
+        ({"kd": np.ones(7, dtype=bool)}, "kd must be a float array, got booleans"),
+        ({"kp": "900"}, "kp must be a real"),
+        ({"eps_abs": 1e-300}, r"eps_abs must be a finite number in \[1e-15, 1\]"),
+        ({"max_iter": 10**9}, r"max_iter must be an integer in \[1, 10000\]"),
+        ({"max_iter": 10_000, "max_inner_iter": 30}, "max_iter \\* max_inner_iter must be <="),
+        ({"position_horizon": 1e300}, "position_horizon must be a finite number in"),
     ],
 )
 def test_rejects_bad_input(kwargs, match):

@@ -21,7 +21,7 @@ from geosyn.controllers.errors import ControllerError, NoReference
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_float, check_vector
+from geosyn.core.validation import check_float, check_scalar_or_vector, check_vector
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
@@ -71,23 +71,10 @@ def check_gain(x: object, n: int, name: str) -> Vector:
         (n,) gain (a scalar is broadcast).
 
     Raises:
-        InvalidArgument: wrong shape, non-finite or negative entries.
+        InvalidArgument: wrong shape, non-finite or negative entries, complex or boolean
+            values (never cast: an imaginary part would be dropped).
     """
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(
-            f"{name} must be a scalar or an array of shape ({n},), got {x!r}"
-        ) from err
-    if arr.ndim == 0:
-        arr = np.full(n, float(arr))
-    if arr.shape != (n,):
-        raise InvalidArgument(
-            f"{name} must be a scalar or an array of shape ({n},), got shape {arr.shape}"
-        )
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
-        raise InvalidArgument(f"{name} must be finite and >= 0, got {arr}")
-    return arr.copy()
+    return check_scalar_or_vector(x, n, name, low=0.0)
 
 
 class Controller(ABC):

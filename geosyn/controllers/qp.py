@@ -13,7 +13,7 @@ from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_int, check_positive
+from geosyn.core.validation import check_float, check_int
 from geosyn.robots.robot import Robot
 
 if TYPE_CHECKING:
@@ -30,6 +30,22 @@ _STATUS = {
 
 #: Magnitude standing in for "no bound" on the accelerations [rad/s^2].
 _BIG = 1e6
+
+
+MAX_DT = 1.0
+"""Longest control period [s] the QP accepts (its constraints look one period ahead)."""
+MAX_HORIZON = 10.0
+"""Longest ``position_horizon`` [s]."""
+MAX_EPS = 1e6
+"""Largest torque regularisation weight ``eps``."""
+MIN_EPS_ABS = 1e-15
+"""Smallest proxsuite tolerance ``eps_abs`` (below float64 resolution of the torques)."""
+MAX_ITER = 10_000
+"""Largest ``max_iter`` and ``max_inner_iter``."""
+MAX_INNER_ITERATIONS = 30_000
+"""Largest ``max_iter * max_inner_iter``: proxsuite has no wall-time limit, and about a
+million inner iterations took 8 s; 30,000 (ten times the default 100 * 30) keeps one tick
+well under a second."""
 
 
 class QPController(ComputedTorque):
@@ -74,13 +90,16 @@ class QPController(ComputedTorque):
         robot: the robot (dynamics, limits ``q_min, q_max, v_max, tau_max``).
         kp: position gain, scalar or (nv,) [1/s^2], >= 0.
         kd: velocity gain, scalar or (nv,) [1/s], >= 0.
-        dt: control period [s], > 0.
-        eps: torque regularisation weight [(rad/s^2)^2 / (N m)^2], > 0.
-        position_horizon: look-ahead of the position constraint [s], >= dt; None for dt.
+        dt: control period [s], in (0, `MAX_DT`].
+        eps: torque regularisation weight [(rad/s^2)^2 / (N m)^2], in (0, `MAX_EPS`].
+        position_horizon: look-ahead of the position constraint [s], in [dt,
+            `MAX_HORIZON`]; None for dt.
         braking_acceleration: optional scalar or (nv,) deceleration [rad/s^2] of the
             braking-curve constraint; None disables it.
-        eps_abs: proxsuite absolute tolerance (primal and dual residuals).
-        max_iter: proxsuite outer-iteration limit per tick.
+        eps_abs: proxsuite absolute tolerance (primal and dual residuals), in
+            [`MIN_EPS_ABS`, 1].
+        max_iter: proxsuite outer-iteration limit per tick, in [1, `MAX_ITER`]; with
+            ``max_inner_iter``, ``max_iter * max_inner_iter <= MAX_INNER_ITERATIONS``.
         max_inner_iter: proxsuite inner-iteration limit per outer iteration
             (``max_iter_in``). Together they bound one tick's solve to ``max_iter *
             max_inner_iter`` inner iterations: proxsuite has no wall-time limit, and with
@@ -126,12 +145,14 @@ class QPController(ComputedTorque):
             friction_velocity=friction_velocity,
         )
         n = self.nv
-        self.dt = check_positive(dt, "dt")
-        self.eps = check_positive(eps, "eps")
+        self.dt = check_float(dt, "dt", low=0.0, high=MAX_DT, low_open=True, unit="s")
+        self.eps = check_float(eps, "eps", low=0.0, high=MAX_EPS, low_open=True)
         horizon = (
             self.dt
             if position_horizon is None
-            else check_positive(position_horizon, "position_horizon")
+            else check_float(
+                position_horizon, "position_horizon", low=0.0, high=MAX_HORIZON, low_open=True
+            )
         )
         if horizon < self.dt:
             raise InvalidArgument(f"position_horizon must be >= dt={self.dt} [s], got {horizon}")
@@ -143,9 +164,15 @@ class QPController(ComputedTorque):
             if np.any(b <= 0.0):
                 raise InvalidArgument(f"braking_acceleration must be > 0, got {b}")
             self.braking_acceleration = b
-        self.eps_abs = check_positive(eps_abs, "eps_abs")
-        self.max_iter = check_int(max_iter, "max_iter", low=1)
-        self.max_inner_iter = check_int(max_inner_iter, "max_inner_iter", low=1)
+        self.eps_abs = check_float(eps_abs, "eps_abs", low=MIN_EPS_ABS, high=1.0)
+        self.max_iter = check_int(max_iter, "max_iter", low=1, high=MAX_ITER)
+        self.max_inner_iter = check_int(max_inner_iter, "max_inner_iter", low=1, high=MAX_ITER)
+        if self.max_iter * self.max_inner_iter > MAX_INNER_ITERATIONS:
+            raise InvalidArgument(
+                f"max_iter * max_inner_iter must be <= {MAX_INNER_ITERATIONS} (one tick's"
+                f" bound on proxsuite's inner iterations), got {self.max_iter} *"
+                f" {self.max_inner_iter} = {self.max_iter * self.max_inner_iter}"
+            )
         # Bounds are computed for both sides at once on stacked (2 nv,) arrays: the upper
         # limit as is, the lower one mirrored (distance q - q_min, velocity -v).
         self._lim = np.concatenate([robot.q_max, -np.asarray(robot.q_min)]).astype(np.float64)

@@ -3,7 +3,10 @@
 Each check returns the value in its canonical type or raises `geosyn.core.InvalidArgument`
 with a message naming the argument, the value given and what is allowed. Every layer
 (robots, world, metrics, controllers, sim, experiments) uses these instead of writing its
-own, so one kind of value is always checked, and reported, the same way.
+own, so one kind of value is always checked, and reported, the same way: complex numbers,
+booleans, text and objects are refused (never cast: ``np.asarray(x, float)`` would drop an
+imaginary part or read a mask as 0/1), and a vector must be finite with a finite squared
+norm (entries below about 1e154), so the arithmetic that follows cannot overflow.
 """
 
 from __future__ import annotations
@@ -36,11 +39,42 @@ def _is_bool(x: object) -> bool:
     return False
 
 
+def _describe(x: object) -> str:
+    """A short repr of a value for a message (a huge array is not printed whole)."""
+    text = repr(x)
+    return text if len(text) <= 200 else text[:200] + "..."
+
+
+def check_real_array(x: object, name: str) -> np.ndarray:
+    """Return ``x`` as a float64 array (any shape), refusing what is not real numbers.
+
+    Complex values, booleans (a mask is not a vector), text, bytes and objects raise;
+    finiteness and shape are the caller's to check.
+
+    Args:
+        x: candidate array or scalar.
+        name: argument name for the error message.
+    """
+    if isinstance(x, (str, bytes)) or _is_complex(x):
+        raise InvalidArgument(f"{name} must be a real (float) array, got {_describe(x)}")
+    if _is_bool(x):
+        raise InvalidArgument(f"{name} must be a float array, got booleans {_describe(x)}")
+    try:
+        arr = np.asarray(x)
+        if arr.dtype.kind not in "iuf":  # objects, text, nested ragged lists
+            raise TypeError(f"dtype {arr.dtype}")
+        return arr.astype(np.float64, copy=False)
+    except (TypeError, ValueError, OverflowError) as err:
+        raise InvalidArgument(f"{name} must be a real (float) array, got {_describe(x)}") from err
+
+
 def check_vector(x: object, n: int, name: str) -> Vector:
     """Return ``x`` as a finite float64 (n,) array, or raise `InvalidArgument`.
 
     A finite float64 (n,) ndarray is returned as is (no copy, O(n)); anything else is
-    converted and checked. Complex and boolean input is refused, not cast.
+    converted and checked. Complex and boolean input is refused, not cast. The squared
+    norm must be finite too (every entry below about 1e154): such a vector's products
+    overflow (an ``OverflowError`` or inf downstream), so it is refused here, once.
 
     Args:
         x: candidate vector.
@@ -55,18 +89,52 @@ def check_vector(x: object, n: int, name: str) -> Vector:
     ):
         return x
     if _is_complex(x):
-        raise InvalidArgument(f"{name} must be real (float), got complex values {x!r}")
+        raise InvalidArgument(f"{name} must be real (float), got complex values {_describe(x)}")
     if _is_bool(x):
-        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got booleans {x!r}")
+        raise InvalidArgument(
+            f"{name} must be a float array of shape ({n},), got booleans {_describe(x)}"
+        )
     try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a float array of shape ({n},), got {x!r}") from err
+        arr = check_real_array(x, name)
+    except InvalidArgument as err:
+        raise InvalidArgument(
+            f"{name} must be a float array of shape ({n},), got {_describe(x)}"
+        ) from err
     if arr.shape != (n,):
         raise InvalidArgument(f"{name} must have shape ({n},), got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise InvalidArgument(f"{name} must be finite, got {arr}")
+        raise InvalidArgument(f"{name} must be finite, got {_describe(arr)}")
+    with np.errstate(over="ignore"):
+        squared = float(arr @ arr)
+    if not math.isfinite(squared):
+        raise InvalidArgument(
+            f"{name} is too large to compute with: max |{name}_i| = {np.abs(arr).max():.3g};"
+            f" allowed: a squared norm within float64 (entries below about 1e154)"
+        )
     return arr
+
+
+def check_scalar_or_vector(x: object, n: int, name: str, *, low: float = -math.inf) -> Vector:
+    """Return a scalar (broadcast) or (n,) ``x`` as a new finite float64 (n,) array >= low.
+
+    Complex, boolean and text values are refused, not cast (e.g. a gain ``900 + 1j``).
+
+    Args:
+        x: scalar or (n,) array.
+        n: length.
+        name: argument name for the error message.
+        low: smallest allowed entry.
+    """
+    arr = check_real_array(x, name)
+    if arr.ndim == 0:
+        arr = np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise InvalidArgument(
+            f"{name} must be a scalar or an array of shape ({n},), got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)) or np.any(arr < low):
+        raise InvalidArgument(f"{name} must be finite and >= {low:g}, got {_describe(arr)}")
+    return arr.copy()
 
 
 def check_vec3(x: object, name: str) -> tuple[float, float, float]:

@@ -34,6 +34,7 @@ from geosyn.metrics.floating import FloatingKineticEnergyMetric
 from geosyn.metrics.geodesic.group_rk4 import group_geodesic
 
 __all__ = [
+    "MAX_DOP853_EVALUATIONS",
     "MAX_STEPS",
     "METHODS",
     "Geodesic",
@@ -49,6 +50,11 @@ METHODS = ("rk4", "dop853", "adaptive")
 MAX_STEPS = 1_000_000
 """Largest number of integration steps of `exp` (the result holds steps + 1 samples)."""
 _DOP853_TOL = 1e-12
+MAX_DOP853_EVALUATIONS = 200_000
+"""Most evaluations of the geodesic acceleration by one ``exp(..., method="dop853")``
+(about 1.5 s at 7 us each): at rtol = 1e-12 DOP853 needs about 400 per radian travelled,
+so |v0| * duration up to about 500 rad; beyond, `GeodesicNotFound` (|v0| = 1e5 once took
+206 s, 1e8 never returned)."""
 
 
 class Geodesic(NamedTuple):
@@ -190,6 +196,44 @@ def _rk4_states(metric: Metric, q0: Vector, v0: Vector, duration: float, steps: 
     return X
 
 
+class _OverBudget(Exception):
+    """Raised inside DOP853's right-hand side when the evaluation budget is spent."""
+
+
+def _dop853_states(metric: Metric, q0: Vector, v0: Vector, t: np.ndarray) -> np.ndarray:
+    """(T, 2n) states from SciPy's DOP853 sampled at ``t``, at most
+    `MAX_DOP853_EVALUATIONS` evaluations of the geodesic acceleration."""
+    from scipy.integrate import solve_ivp
+
+    n = metric.n
+    acc = metric.geodesic_acceleration
+    calls = [0]
+
+    def rhs(_t: float, x: np.ndarray) -> np.ndarray:
+        calls[0] += 1
+        if calls[0] > MAX_DOP853_EVALUATIONS:
+            raise _OverBudget
+        return np.concatenate([x[n:], acc(x[:n], x[n:])])
+
+    x0 = np.concatenate([q0, v0])
+    try:
+        sol = solve_ivp(
+            rhs, (0.0, t[-1]), x0, method="DOP853", t_eval=t, rtol=_DOP853_TOL, atol=_DOP853_TOL
+        )
+    except _OverBudget:
+        raise GeodesicNotFound(
+            f"exp: DOP853 needed more than MAX_DOP853_EVALUATIONS = {MAX_DOP853_EVALUATIONS}"
+            f" evaluations for |v0| = {np.linalg.norm(v0):.3g} rad/s over {t[-1]:.3g} s"
+            " (about 400 per radian travelled); reduce |v0| or the duration, or use"
+            " method='rk4' with more steps",
+            residual=float("nan"),
+            v0=v0,
+        ) from None
+    if not sol.success:
+        raise GeodesicNotFound(f"exp: DOP853 failed: {sol.message}", residual=float("nan"), v0=v0)
+    return np.asarray(sol.y.T)
+
+
 def exp(
     metric: Metric,
     q0: Vector,
@@ -225,7 +269,8 @@ def exp(
         InvalidArgument: bad shapes, non-finite values, steps outside [1, MAX_STEPS],
             duration <= 0, or an unknown method.
         NonFiniteResult: the integration overflowed (e.g. a huge ``v0``).
-        GeodesicNotFound: DOP853 failed.
+        GeodesicNotFound: DOP853 failed, or needed more than `MAX_DOP853_EVALUATIONS`
+            evaluations (a bounded call whatever |v0|).
     """
     # a floating base: configurations on SE(3) x R^n, integrated on the group
     floating = metric if isinstance(metric, FloatingKineticEnergyMetric) else None
@@ -242,27 +287,7 @@ def exp(
     if method == "rk4":
         X = _rk4_states(metric, q0, v0, duration, steps)
     else:
-        from scipy.integrate import solve_ivp
-
-        acc = metric.geodesic_acceleration
-
-        def rhs(_t: float, x: np.ndarray) -> np.ndarray:
-            return np.concatenate([x[n:], acc(x[:n], x[n:])])
-
-        sol = solve_ivp(
-            rhs,
-            (0.0, duration),
-            np.concatenate([q0, v0]),
-            method="DOP853",
-            t_eval=t,
-            rtol=_DOP853_TOL,
-            atol=_DOP853_TOL,
-        )
-        if not sol.success:
-            raise GeodesicNotFound(
-                f"exp: DOP853 failed: {sol.message}", residual=float("nan"), v0=v0
-            )
-        X = sol.y.T
+        X = _dop853_states(metric, q0, v0, t)
     if not np.isfinite(X).all():  # blew up (|v0| far beyond what the metric's scale allows)
         k = int(np.argmin(np.isfinite(X).all(axis=1)))
         raise NonFiniteResult(

@@ -16,7 +16,7 @@ import numpy as np
 from geosyn.core.codegen import compile_function
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.interpolation import hermite_point
-from geosyn.core.validation import check_int
+from geosyn.core.validation import check_int, check_real_array
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.derived import (
     christoffel_from_dG,
@@ -74,6 +74,25 @@ def _transport_matrices(metric: Metric, pos: np.ndarray, der: np.ndarray) -> np.
     return np.asarray(mapped(pos.T, der.T, params)).reshape(n, npts, n).transpose(1, 0, 2)
 
 
+def _check_velocity_matches(t: np.ndarray, q: np.ndarray, qd: np.ndarray) -> None:
+    """Refuse ``qd`` that is not dq/dt of the samples (a reversed time axis flips it).
+
+    The trapezoid rule ``h (qd_k + qd_k+1) / 2`` predicts each step ``q_k+1 - q_k`` to
+    O(h^3); a mismatch above half the path's length is not rounding but a velocity of the
+    other direction (or of another curve). O(T n).
+    """
+    dq = np.diff(q, axis=0)
+    predicted = np.diff(t)[:, None] * 0.5 * (qd[:-1] + qd[1:])
+    length = float(np.sum(np.linalg.norm(dq, axis=1)))
+    mismatch = float(np.sum(np.linalg.norm(dq - predicted, axis=1)))
+    if length > 0.0 and mismatch > 0.5 * length:
+        raise InvalidArgument(
+            f"qdot is not the derivative of q along t: integrating it over t misses the"
+            f" samples by {mismatch:.3g} rad on a path of {length:.3g} rad (a reversed"
+            " time axis? to transport back, reverse t, q and qdot together)"
+        )
+
+
 def parallel_transport(
     metric: Metric,
     t: np.ndarray,
@@ -109,10 +128,15 @@ def parallel_transport(
         The transported vector(s) at q[-1], with the shape of ``v``.
 
     Raises:
-        InvalidArgument: bad shapes, non-finite values or substeps < 1.
+        InvalidArgument: bad shapes, non-finite, complex or boolean values, substeps < 1,
+            or ``qdot`` that is not the derivative of ``q`` along ``t`` (e.g. a reversed
+            time axis with the samples in their original order).
     """
     metric = check_metric(metric)
     n = metric.n
+    for value, name in ((t, "t"), (q, "q"), (v, "v"), (qdot, "qdot")):
+        if value is not None:
+            check_real_array(value, name)  # booleans and complex refused, not cast
     t, q = check_path(t, q, n)
     substeps = check_int(substeps, "substeps", low=1)
     if (t.shape[0] - 1) * substeps > MAX_STEPS:  # the evaluation points are allocated at once
@@ -133,6 +157,7 @@ def parallel_transport(
             raise InvalidArgument(
                 f"qdot must be finite with shape {q.shape} (like q), got shape {qd.shape}"
             )
+        _check_velocity_matches(t, q, qd)
     # Evaluation points: for each RK4 (sub)step its start, midpoint and end; the end of
     # one is the start of the next, so 2 * K + 1 points for K substeps in total.
     K = (t.shape[0] - 1) * substeps
