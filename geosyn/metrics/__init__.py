@@ -12,10 +12,12 @@ from geosyn.metrics.errors import (
     GeodesicNotFound,
     MetricError,
     NoSymbolicForm,
+    StanceError,
 )
 from geosyn.metrics.floating import FloatingKineticEnergyMetric
 from geosyn.metrics.geodesic import *  # noqa: F403  (its __all__, listed below)
 from geosyn.metrics.kinetic import KineticEnergyMetric
+from geosyn.metrics.stance import Stance
 
 __all__ = [
     *geodesic.__all__,
@@ -27,4 +29,6 @@ __all__ = [
     "Metric",
     "MetricError",
     "NoSymbolicForm",
+    "Stance",
+    "StanceError",
 ]

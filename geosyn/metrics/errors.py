@@ -18,6 +18,11 @@ class FloatingBaseUnsupported(MetricError):
     floating base's group SE(3) x R^n (nq != nv); the message names what works there."""
 
 
+class StanceError(MetricError):
+    """A stance (contact frames held fixed) that cannot be used: no frames, one that
+    over-constrains the robot, or a start off the stance; the message gives the values."""
+
+
 class GeodesicNotFound(MetricError):
     """The log map (boundary-value problem) did not converge.
 

@@ -20,6 +20,7 @@ error O(dt^4)); every configuration stays on the group (unit quaternion) to roun
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pinocchio as pin
@@ -54,7 +55,13 @@ def dexpinv(xi: Vector, v: Vector) -> Vector:
 
 
 def group_rk4(
-    metric: FloatingKineticEnergyMetric, q0: Vector, v0: Vector, dt: float, steps: int
+    metric: FloatingKineticEnergyMetric,
+    q0: Vector,
+    v0: Vector,
+    dt: float,
+    steps: int,
+    acceleration: Callable[[Vector, Vector], Vector] | None = None,
+    project: Callable[[Vector, Vector], tuple[Vector, Vector]] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``steps`` RKMK4 steps of the geodesic from ``(q0, v0)`` (see the module docstring).
 
@@ -64,12 +71,18 @@ def group_rk4(
         v0: (nv,) initial velocity.
         dt: time step [s].
         steps: number of steps.
+        acceleration: ``(q, v) -> (nv,)`` the velocity coordinates' time derivative;
+            None: the metric's geodesic acceleration (a stance passes its constrained one).
+        project: ``(q, v) -> (q, v)`` applied after each step (a stance's return to its
+            submanifold); None: nothing.
 
     Returns:
         ``(Q, V)``: (steps + 1, nq) configurations and (steps + 1, nv) velocities; NaN
         from the first non-finite state on.
     """
     acc, integrate = metric.unchecked()
+    if acceleration is not None:
+        acc = acceleration
     Q = np.empty((steps + 1, metric.nq))
     V = np.empty((steps + 1, metric.n))
     Q[0], V[0] = q0, v0
@@ -88,6 +101,8 @@ def group_rk4(
         k4x, k4v = dexpinv(x4, v4), acc(integrate(q, x4), v4)
         v = v + dt / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
         q = integrate(q, dt / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x))
+        if project is not None and math.isfinite(v.dot(v)):
+            q, v = project(q, v)
         Q[k + 1], V[k + 1] = q, v
     if not math.isfinite(V[-1].dot(V[-1])):
         Q[-1], V[-1] = np.nan, np.nan
