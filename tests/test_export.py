@@ -15,35 +15,29 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from geosyn.controllers import (
-    ComputedTorque,
-    GeodesicReference,
-    JointTrajectoryReference,
-    RiemannianPD,
-)
+from geosyn.controllers import ComputedTorque, JointTrajectoryReference, RiemannianPD
 from geosyn.export import CController, ExportError, ExportResult, export_controller, load_library
 from geosyn.export.binding import pointer
-from geosyn.metrics import KineticEnergyMetric
 from geosyn.robots import load_robot
 from geosyn.sim import Push, Simulation
-from geosyn.synergies import GeodesicSynergy
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler")
 
 Q0 = {
     "panda": np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785]),
     "ur5": np.array([0.0, -1.2, 1.4, -1.6, -1.57, 0.0]),
+    "xarm7": np.array([0.0, 0.3, 0.0, 0.6, 0.0, 0.3, 0.0]),
 }
 GAINS = {"computed_torque": (100.0, 20.0), "riemannian_pd": (5.0, 20.0)}
 RTOL = 1e-12
 
 
 def make_controller(robot_name: str, kind: str) -> ComputedTorque | RiemannianPD:
+    """A controller tracking a smooth 1 s joint motion (a C2 spline through 21 samples)."""
     robot = load_robot(robot_name)
-    metric = KineticEnergyMetric(robot)
-    q0 = Q0[robot_name]
-    syn = GeodesicSynergy(metric, q0, np.linspace(0.2, 0.4, robot.nv))
-    ref = GeodesicReference(syn, duration=1.0, rest_to_rest=True)
+    t = np.linspace(0.0, 1.0, 21)
+    w = np.linspace(1.0, 2.5, robot.nv)
+    ref = JointTrajectoryReference(t, Q0[robot_name] + 0.3 * np.sin(np.outer(t, w)))
     cls = ComputedTorque if kind == "computed_torque" else RiemannianPD
     return cls(robot, *GAINS[kind], reference=ref)
 
@@ -114,6 +108,15 @@ def test_torques_equal_python_controller(exports, robot_name: str, kind: str) ->
     c.set_reference(t, q, v, a)
     py.set_reference(JointTrajectoryReference(t, q, v, a))
     assert_same_torques(c, py, [(float(tk) * 1.3 - 0.05, q0, v0) for tk, q0, v0 in states(res, 3)])
+
+
+def test_friction_compensation_equals_python(tmp_path: Path) -> None:
+    """The xarm7's file has joint damping and dry friction: compensated by default."""
+    ctl = make_controller("xarm7", "computed_torque")
+    assert isinstance(ctl, ComputedTorque) and ctl.compensate_friction and np.all(ctl.robot.frictionloss > 0)
+    res = export_controller("xarm7", ctl, tmp_path, sample_dt=0.02)
+    assert "| compensate_friction | True |" in res.readme.read_text()
+    assert_same_torques(CController(res.shared_library), python_twin(res), states(res, seed=4))
 
 
 def test_bad_input_gives_error_codes_and_leaves_the_controller_usable(exports) -> None:
