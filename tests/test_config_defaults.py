@@ -59,6 +59,7 @@ NOT_EXPOSED = {
     "ObstacleTerm.spheres": "the robot's own collision spheres",
     "Simulation.payloads": "scene.payloads",
     "Simulation.obstacles": "scene.obstacles",
+    "GeodesicMPC.obstacles": "scene.obstacles (with clearance_margin)",
     "Simulation.disturbances": "the disturbances section",
     "Simulation.gravity": "robot.options.gravity",
     "Simulation.plant": "robot.plant",

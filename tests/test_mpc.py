@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 
 from conftest import get_metric, get_robot
-from geosyn.controllers.mpc import GeodesicMPC
+from geosyn.controllers.mpc import GeodesicMPC, NLPOptions
 from geosyn.controllers.plant import PinocchioPlant
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core import GeosynError, InvalidArgument
@@ -23,7 +23,9 @@ SIM_TIME = 2.0  # [s]: the motion plus 0.5 s holding the goal
 
 
 @functools.cache
-def get_mpc(name: str, control: str = "torque", solver: str = "fatrop", **kw) -> GeodesicMPC:
+def get_mpc(
+    name: str, control: str = "torque", solver: str | NLPOptions = "fatrop", **kw
+) -> GeodesicMPC:
     return GeodesicMPC(
         get_robot(name),
         get_metric(name),
@@ -174,7 +176,7 @@ def test_open_loop_effort_ocp_matches_geodesic(free_v0: bool) -> None:
 # -- failures and fallbacks -------------------------------------------------------------
 def test_forced_failure_falls_back_to_computed_torque() -> None:
     robot = get_robot("planar2")
-    mpc = get_mpc("planar2", "torque", "fatrop", max_iter=1)
+    mpc = get_mpc("planar2", "torque", NLPOptions("fatrop", max_iter=1))
     ref, q0, v0 = synergy_reference("planar2")
     mpc.set_reference(ref)
     mpc.reset(q0, v0)
@@ -195,7 +197,7 @@ def test_forced_failure_falls_back_to_computed_torque() -> None:
 
 def test_failure_after_success_keeps_previous_plan() -> None:
     mpc = get_mpc("planar2")
-    failing = get_mpc("planar2", "torque", "fatrop", max_iter=1, tol=1e-12)
+    failing = get_mpc("planar2", "torque", NLPOptions("fatrop", max_iter=1, tol=1e-12))
     ref, q0, v0 = synergy_reference("planar2")
     mpc.set_reference(ref)
     mpc.reset(q0, v0)
@@ -222,7 +224,9 @@ def test_failure_after_success_keeps_previous_plan() -> None:
 
 def test_infeasible_problem_flags_fallback() -> None:
     robot = dataclasses.replace(get_robot("planar2"), tau_max=np.full(2, 1e-3))
-    mpc = GeodesicMPC(robot, get_metric("planar2"), horizon=10, dt=0.02, max_iter=30)
+    mpc = GeodesicMPC(
+        robot, get_metric("planar2"), horizon=10, dt=0.02, solver=NLPOptions(max_iter=30)
+    )
     ref, q0, _ = synergy_reference("planar2")
     mpc.set_reference(ref)
     # Twice the velocity limit and 1 mN m of torque: |v_1| <= v_max cannot be met.

@@ -8,7 +8,7 @@ import pytest
 
 from conftest import get_metric, get_robot
 from geosyn.controllers.mpc import GeodesicMPC
-from geosyn.controllers.mpc.settings import STATE_MARGIN
+from geosyn.controllers.mpc.ocp.settings import STATE_MARGIN
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core import InvalidArgument
 from geosyn.synergies.synergy import GeodesicSynergy

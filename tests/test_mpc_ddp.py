@@ -16,10 +16,10 @@ from test_mpc_torque import _mpc as torque_mpc
 from test_mpc_torque import reference
 
 from conftest import get_metric, get_robot
-from geosyn.controllers.mpc import GeodesicMPC
-from geosyn.controllers.mpc.box_qp import BOX_ITERATIONS, box_qp
-from geosyn.controllers.mpc.ddp import riccati_step
-from geosyn.controllers.mpc.plan import ReferenceSampler, sample_reference
+from geosyn.controllers.mpc import DDPOptions, GeodesicMPC
+from geosyn.controllers.mpc.ddp.box_qp import BOX_ITERATIONS, box_qp
+from geosyn.controllers.mpc.ddp.parts import riccati_step
+from geosyn.controllers.mpc.ocp.plan import ReferenceSampler, sample_reference
 from geosyn.controllers.reference import GeodesicReference
 from geosyn.core.errors import GeosynError, InvalidArgument
 from geosyn.synergies.synergy import GeodesicSynergy
@@ -66,7 +66,7 @@ def test_box_qp_matches_scipy_on_seeded_problems() -> None:
 def test_feedback_gain_is_the_sensitivity_of_the_optimal_torque() -> None:
     """At the optimum, ``K_0 = d u_0^* / d x_0`` (finite differences of converged cold
     solves; Gauss-Newton drops the dynamics' curvature, so agreement is to ~1 %)."""
-    mpc = _mpc(tol=1e-12, max_iter=200)
+    mpc = _mpc(solver=DDPOptions(tol=1e-12, max_iter=200))
     q, v = reference().sample(0.0)[:2]
     x0 = np.concatenate([q, v])
     mpc.reset(q, v)
@@ -91,7 +91,7 @@ def test_feedback_gain_is_the_sensitivity_of_the_optimal_torque() -> None:
 def test_a_warm_step_from_the_optimum_stays_at_the_optimum() -> None:
     """Shifting a converged plan by one stage and taking one DDP step from the state it
     predicts lands on the cold solve of that problem (RTI from a good guess: 1e-3 rel.)."""
-    mpc = _mpc(tol=1e-12, max_iter=200)
+    mpc = _mpc(solver=DDPOptions(tol=1e-12, max_iter=200))
     q, v = reference().sample(0.0)[:2]
     q = q + 0.02
     mpc.reset(q, v)
@@ -100,7 +100,7 @@ def test_a_warm_step_from_the_optimum_stays_at_the_optimum() -> None:
     x1 = first.x[1]
     warm = mpc.solve(mpc.dt, x1[:7], x1[7:])
     assert warm.status == "warm step" and warm.iterations == 1
-    cold = _mpc(tol=1e-12, max_iter=200)
+    cold = _mpc(solver=DDPOptions(tol=1e-12, max_iter=200))
     cold.reset(x1[:7], x1[7:])
     ref = cold.solve(mpc.dt, x1[:7], x1[7:])
     err = np.linalg.norm(warm.u[0] - ref.u[0]) / np.linalg.norm(ref.u[0])
@@ -125,8 +125,6 @@ def test_reference_sampler_shifts_what_sample_reference_computes() -> None:
         ({"control": "acceleration"}, "control='torque'"),
         ({"effort": "acceleration"}, "effort"),
         ({"hessian": "exact"}, "hessian"),
-        ({"solver_options": {"max_iter": 3}}, "warm_iterations"),
-        ({"solver_options": {"warm_iterations": 0}}, "warm_iterations"),
         ({"solver": "ddpx"}, "solver"),
         ({"tracking": "riemann"}, "tracking"),
     ],
@@ -135,6 +133,19 @@ def test_bad_ddp_settings_are_refused_by_name(kwargs: dict, named: str) -> None:
     with pytest.raises(InvalidArgument, match=named) as info:
         _mpc(**kwargs)
     assert isinstance(info.value, GeosynError)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"warm_iterations": 0}, "warm_iterations"),
+        ({"limit_weight": -1.0}, "limit_weight"),
+        ({"tol": float("nan")}, "tol"),
+    ],
+)
+def test_bad_ddp_options_are_refused_by_name(kwargs: dict, named: str) -> None:
+    with pytest.raises(InvalidArgument, match=named):
+        DDPOptions(**kwargs)
 
 
 def test_the_open_loop_ocp_still_solves_with_ddp_tracking() -> None:
@@ -185,7 +196,7 @@ def test_ddp_plan_obeys_the_dynamics_for_other_horizons_and_rk4_steps(
     synergy = GeodesicSynergy(get_metric("planar2"), q0, np.array([0.5, -0.3]))
     mpc = GeodesicMPC(
         robot, get_metric("planar2"), horizon=horizon, dt=0.05, control="torque",
-        solver="ddp", rk4_steps=rk4_steps, tol=1e-10, max_iter=100,
+        solver=DDPOptions(tol=1e-10, max_iter=100), rk4_steps=rk4_steps,
         reference=GeodesicReference(synergy, duration=1.0, steps=100),
     )  # fmt: skip
     q, v = q0 + 0.05, np.zeros(2)
@@ -287,7 +298,7 @@ def test_yaml_mpc_clearance_keeps_clear_of_the_scene_even_on_a_colliding_referen
     import yaml
 
     from geosyn.experiments import run_experiment
-    from geosyn.experiments.loader import load_config
+    from geosyn.experiments.config.loader import load_config
 
     text = (
         Path(__file__).parents[1] / "experiments/configs/panda_obstacle_shaping.yaml"
@@ -311,7 +322,7 @@ def test_yaml_mpc_clearance_keeps_clear_of_the_scene_even_on_a_colliding_referen
 
 
 def test_yaml_mpc_clearance_without_obstacles_is_refused_by_name() -> None:
-    from geosyn.experiments.build import clearance_metric
+    from geosyn.experiments.run.build import clearance_metric
 
     with pytest.raises(InvalidArgument, match="scene.obstacles"):
         clearance_metric(get_metric("panda"), [])

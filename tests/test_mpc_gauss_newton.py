@@ -12,14 +12,14 @@ import pytest
 
 from conftest import get_metric, get_robot
 from geosyn.controllers.mpc import GeodesicMPC
-from geosyn.controllers.mpc.dynamics import stage_dynamics
-from geosyn.controllers.mpc.gauss_newton import (
+from geosyn.controllers.mpc.ocp.compiled import (
     cached_stage_dynamics,
     compiled_dynamics,
     stage_recipe,
     zero_curvature_library,
 )
-from geosyn.controllers.mpc.settings import DEFAULT_EFFORT_WEIGHT, ocp_settings
+from geosyn.controllers.mpc.ocp.dynamics import stage_dynamics
+from geosyn.controllers.mpc.ocp.settings import DEFAULT_EFFORT_WEIGHT, ocp_settings
 from geosyn.core import InvalidArgument, codegen
 from geosyn.core.codegen import CodegenError, clear_cache, compile_library
 

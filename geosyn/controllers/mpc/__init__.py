@@ -1,25 +1,42 @@
-"""Geodesic-tracking model predictive control: a CasADi OCP solved by fatrop or IPOPT.
+"""Geodesic-tracking model predictive control: a CasADi OCP solved by fatrop, IPOPT or
+box-DDP.
 
-`GeodesicMPC` solves, every ``dt`` seconds, a multiple-shooting optimal control problem
-over ``horizon`` stages with states ``x = (q, v)`` and torque or acceleration controls,
-and follows the plan between solves. The problem is built once; each solve only sets
-parameters (the measured state and the reference samples) and the shifted previous
-solution. The package reads in the order the problem is composed:
+`GeodesicMPC` solves, every ``dt`` seconds, an optimal control problem over ``horizon``
+stages with states ``x = (q, v)`` and torque or acceleration controls, and follows the
+plan between solves. The package reads "describe, then solve": one description of the
+problem (`.ocp`), shared by every solver family (`.nlp`, `.ddp`), each family behind the
+contract of `.backend`. The problem is built once; each solve only sets parameters (the
+measured state, the reference samples, the obstacles) and the shifted previous solution.
 
-============================  =========================================================
-module                        holds
-============================  =========================================================
-`.settings`                   argument choices, defaults, validated settings
-`.dynamics`                   one shooting stage: RK4 on the ABA, or a double integrator
-`.gauss_newton`               stage dynamics compiled without curvature (codegen cache)
-`.costs`                      cost terms with their weights, stage and terminal costs
-`.problem`                    shooting problem -> NLP graph -> indexed NLP, one solve
-`.solvers`                    fatrop and IPOPT option builders, warm and cold solvers
-`.ocp`                        `OCPBuilder`: the tracking and open-loop OCPs from parts
-`.plan`                       `MPCPlan`, reference samples, following a plan
-`.controller`                 `GeodesicMPC`: re-solves, warm starts, fallbacks
-`.open_loop`                  the minimum-effort Riemannian OCP, `OpenLoopSolution`
-============================  =========================================================
+==============================  =======================================================
+module                          holds
+==============================  =======================================================
+`.ocp.settings`                 argument choices, defaults, validated `OCPSettings`
+`.ocp.dynamics`                 one shooting stage: RK4 on the ABA, or a double integrator
+`.ocp.rk4`                      the RK4 step's Jacobians by the chain rule
+`.ocp.linalg`                   small symbolic SPD solves (Cholesky, LDL^T)
+`.ocp.compiled`                 stage dynamics compiled without curvature (codegen cache)
+`.ocp.costs`                    cost terms: expression and Gauss-Newton derivatives
+`.ocp.penalties`                soft joint-limit and clearance penalties (cost terms)
+`.ocp.obstacles`                obstacle slots of `geosyn.world` shapes, clearances
+`.ocp.plan`                     `MPCPlan` (what every backend returns), reference samples
+`.backend`                      `TrackingProblem`, the `TrackingBackend` protocol
+`.nlp.options`                  `NLPOptions` (fatrop, IPOPT)
+`.nlp.problem`                  shooting problem -> NLP graph -> indexed NLP, one solve
+`.nlp.solvers`                  fatrop and IPOPT option builders, warm and cold solvers
+`.nlp.builder`                  `OCPBuilder`: the tracking and open-loop NLPs from parts
+`.nlp.tracking`                 the fatrop/IPOPT backend (`NLPTracking`)
+`.nlp.open_loop`                the minimum-effort Riemannian OCP, `OpenLoopSolution`
+`.ddp.options`                  `DDPOptions` (box-DDP)
+`.ddp.parameters`               the DDP's parameter vector and its cost terms
+`.ddp.box_qp`                   the box-constrained QP of a stage (projected Newton)
+`.ddp.parts`                    compiled stage functions: linearisation, Riccati step, ...
+`.ddp.riccati`                  `RiccatiSolver`: backward and forward passes, line search
+`.ddp.tracking`                 the box-DDP backend (`DDPTracking`)
+`.follow`                       `PlanFollower`: a plan between solves, the fallback torque
+`.controller`                   `GeodesicMPC`: re-solves, warm starts, fallbacks
+`.ddp_clearance`                deprecated: a shaped metric's obstacle terms (experiments)
+==============================  =======================================================
 
 Formulation selected by each option (the same names in Python and in YAML ``type: mpc``
 sections; the YAML defaults are read from `GeodesicMPC`'s constructor):
@@ -37,13 +54,17 @@ option                  selects
                         ``"metric"``: the squared Riemannian norm of the covariant
                         acceleration.
 ``hessian``             ``"gauss-newton"`` (default): the stage dynamics compiled to C with
-                        zero curvature, found on disk by a recipe (`.gauss_newton`), one
+                        zero curvature, found on disk by a recipe (`.ocp.compiled`), one
                         MX graph; ``"exact"``: an SX graph with exact Hessians on
                         CasADi's virtual machine (no compiler needed).
 ``solver``              ``"fatrop"`` (default): interior point on the stage structure
-                        (Riccati); ``"ipopt"``: general sparse interior point.
+                        (Riccati); ``"ipopt"``: general sparse interior point;
+                        ``"ddp"``: box-DDP (torque control); or the options objects
+                        `NLPOptions`, `DDPOptions` (YAML: ``solver: {type: ddp, ...}``).
 ``max_solve_time``      the wall-time budget of one solve (IPOPT stops at it; a longer
-                        fatrop solve is discarded); over it, the controller falls back.
+                        fatrop or DDP solve is discarded); over it, the controller
+                        falls back.
+``obstacles``           `geosyn.world` shapes kept ``clearance_margin`` [m] away (DDP).
 ======================  ===============================================================
 
 Build time. The compiled stage functions are looked up by a recipe (the serialised robot
@@ -59,17 +80,24 @@ curvature. Only these small functions are compiled, never the whole NLP. Measure
 figures are in ``benchmarks/RESULTS.md`` (``benchmarks/controllers.py``).
 """
 
-from geosyn.controllers.mpc.controller import GeodesicMPC
-from geosyn.controllers.mpc.open_loop import OpenLoopSolution
-from geosyn.controllers.mpc.plan import MPCPlan
-from geosyn.controllers.mpc.settings import CONTROLS, EFFORTS, HESSIANS, SOLVERS
+from geosyn.controllers.mpc.backend import TrackingBackend, TrackingProblem
+from geosyn.controllers.mpc.controller import SOLVERS, GeodesicMPC
+from geosyn.controllers.mpc.ddp.options import DDPOptions
+from geosyn.controllers.mpc.nlp.open_loop import OpenLoopSolution
+from geosyn.controllers.mpc.nlp.options import NLPOptions
+from geosyn.controllers.mpc.ocp.plan import MPCPlan
+from geosyn.controllers.mpc.ocp.settings import CONTROLS, EFFORTS, HESSIANS
 
 __all__ = [
     "CONTROLS",
+    "DDPOptions",
     "EFFORTS",
     "GeodesicMPC",
     "HESSIANS",
     "MPCPlan",
+    "NLPOptions",
     "OpenLoopSolution",
     "SOLVERS",
+    "TrackingBackend",
+    "TrackingProblem",
 ]

@@ -1,11 +1,37 @@
 """`GeodesicMPC`: the receding-horizon controller (warm starts, plan following, fallbacks).
 
-The OCP is built once by `geosyn.controllers.mpc.ocp.OCPBuilder`; this class only
-re-solves it every ``dt`` seconds (when ``t`` has advanced by at least ``dt`` since the
-last solve) and follows the plan in between (`geosyn.controllers.mpc.plan.PlanFollower`).
-Each solve warm-starts from the previous plan shifted by the elapsed stages, else
-cold-starts from the reference samples: `geosyn.controllers.mpc.nlp_tracking` (fatrop,
-IPOPT) and `geosyn.controllers.mpc.ddp_tracking` (box-DDP) say how.
+The OCP over ``N = horizon`` stages of length ``dt``, solved at time ``t`` from the
+measured state ``(q_m, v_m)``, with the reference sampled at ``t_k = t + k dt``:
+
+.. math::
+    \\min_{x, u} \\sum_{k=0}^{N-1} \\|q_k - q^r_k\\|^2_{W_q} + \\|v_k - v^r_k\\|^2_{W_v}
+        + \\ell(x_k, u_k) + \\|x_N - x^r_N\\|^2_{W_N}
+
+subject to ``x_0 = (q_m, v_m)``, ``x_{k+1} = F(x_k, u_k)`` (RK4, ``rk4_steps`` steps per
+stage, on ``qdd = ABA(q, v, tau)`` with gravity when ``control="torque"``; the exact
+double integrator with ``tau = RNEA(q, v, u)`` when ``control="acceleration"``),
+``|tau_k| <= tau_max``, ``q_min <= q_k <= q_max`` and ``|v_k| <= v_max`` for k >= 1. The
+effort ``ell`` is
+
+- ``effort="torque"``: ``w_tau |tau_k - tau^r_k|^2`` with ``tau^r`` the inverse dynamics
+  of the reference (so perfect tracking costs nothing);
+- ``effort="acceleration"`` (acceleration control only): ``w_tau |u_k - a^r_k|^2``, a
+  quadratic regulariser towards the reference acceleration; the torque then enters only
+  the limits, which keeps the Hessian cheap;
+- ``effort="metric"``: ``w_tau (tau_k - g(q_k))^T G(q_k)^{-1} (tau_k - g(q_k))``, the
+  squared Riemannian norm of the covariant acceleration ``D v / dt`` (for the kinetic
+  energy metric ``G = M``: ``M qdd + C v``). Without gravity and constraints its
+  minimisers between fixed end points are geodesics (zero cost): see
+  `GeodesicMPC.solve_open_loop`.
+
+The description (settings, dynamics, costs, obstacle slots, plan) is
+`geosyn.controllers.mpc.ocp`; a solver family builds a backend from it
+(`geosyn.controllers.mpc.backend`, `BACKENDS`). This class only re-solves every ``dt``
+seconds (when ``t`` has advanced by at least ``dt`` since the last solve) and follows
+the plan in between (`geosyn.controllers.mpc.follow.PlanFollower`). Each solve
+warm-starts from the previous plan shifted by the elapsed stages, else cold-starts from
+the reference samples: `geosyn.controllers.mpc.nlp.tracking` (fatrop, IPOPT) and
+`geosyn.controllers.mpc.ddp.tracking` (box-DDP) say how.
 
 A failed solve (solver status not successful, an exception, non-finite numbers) is
 flagged in the diagnostics (``fallback_used``, ``solver_status``, ``iterations``) and
@@ -21,39 +47,49 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import NoReference
-from geosyn.controllers.mpc.ddp_tracking import DDPTracking, check_ddp_settings
-from geosyn.controllers.mpc.gauss_newton import cached_stage_dynamics
-from geosyn.controllers.mpc.nlp_tracking import NLPTracking, tracking_parameters
-from geosyn.controllers.mpc.ocp import OCPBuilder
-from geosyn.controllers.mpc.open_loop import OpenLoopOCP, OpenLoopSolution
-from geosyn.controllers.mpc.plan import (
-    EPS_T,
-    MPCPlan,
-    PlanFollower,
-    ReferenceSampler,
-    ReferenceSamples,
-)
-from geosyn.controllers.mpc.problem import ShootingNLP
-from geosyn.controllers.mpc.settings import (
-    HESSIANS,
-    ocp_settings,
-    outside_state_margin,
-    solver_settings,
-)
+from geosyn.controllers.mpc.backend import TrackingBackend, TrackingProblem
+from geosyn.controllers.mpc.ddp.options import DDPOptions
+from geosyn.controllers.mpc.ddp.tracking import ddp_backend
+from geosyn.controllers.mpc.follow import PlanFollower
+from geosyn.controllers.mpc.nlp.builder import OCPBuilder
+from geosyn.controllers.mpc.nlp.open_loop import OpenLoopOCP, OpenLoopSolution
+from geosyn.controllers.mpc.nlp.options import NLPOptions
+from geosyn.controllers.mpc.nlp.tracking import nlp_backend, tracking_parameters
+from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots, metric_obstacle_terms
+from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan, ReferenceSampler, ReferenceSamples
+from geosyn.controllers.mpc.ocp.settings import HESSIANS, ocp_settings, outside_state_margin
 from geosyn.controllers.reference import Reference
-from geosyn.core.codegen import CodegenError
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_choice, check_float, check_vector
+from geosyn.core.validation import check_choice, check_float, check_positive, check_vector
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
+from geosyn.world.shapes import Shape
 
-__all__ = ["GeodesicMPC"]
+__all__ = ["BACKENDS", "SOLVERS", "SolverOptions", "GeodesicMPC"]
+
+SolverOptions = NLPOptions | DDPOptions
+"""The options classes of the solver families."""
+
+SOLVERS: dict[str, Callable[[], SolverOptions]] = {
+    "fatrop": lambda: NLPOptions("fatrop"),
+    "ipopt": lambda: NLPOptions("ipopt"),
+    "ddp": DDPOptions,
+}
+"""``GeodesicMPC(solver=name)`` shorthands: each name means its family's default options."""
+
+BACKENDS: dict[type, Callable[[TrackingProblem, Any], TrackingBackend]] = {
+    NLPOptions: nlp_backend,
+    DDPOptions: ddp_backend,
+}
+"""The backend builder of each options class (`geosyn.controllers.mpc.backend`)."""
 
 
 def _report_progress(line: str) -> None:
@@ -61,54 +97,40 @@ def _report_progress(line: str) -> None:
     print(f"geosyn MPC: {line}", file=sys.stderr, flush=True)
 
 
+def _solver_options(solver: object) -> SolverOptions:
+    if isinstance(solver, str):
+        return SOLVERS[check_choice(solver, tuple(SOLVERS), "solver")]()
+    if type(solver) not in BACKENDS:
+        raise InvalidArgument(
+            f"solver must be one of {', '.join(SOLVERS)} or an options object "
+            f"({', '.join(t.__name__ for t in BACKENDS)}), got {solver!r}"
+        )
+    return solver  # type: ignore[return-value]
+
+
 class GeodesicMPC(Controller):
     """Geodesic-tracking MPC: an OCP built in CasADi, solved by fatrop or IPOPT (multiple
-    shooting) or by box-DDP (``solver="ddp"``, torque control).
+    shooting) or by box-DDP (``solver="ddp"``, torque control). The OCP, the efforts and
+    the fallbacks: `geosyn.controllers.mpc.controller`.
 
-    The OCP over ``N = horizon`` stages of length ``dt``, solved at time ``t`` from the
-    measured state ``(q_m, v_m)``, with the reference sampled at ``t_k = t + k dt``:
-
-    .. math::
-        \\min_{x, u} \\sum_{k=0}^{N-1} \\|q_k - q^r_k\\|^2_{W_q} + \\|v_k - v^r_k\\|^2_{W_v}
-            + \\ell(x_k, u_k) + \\|x_N - x^r_N\\|^2_{W_N}
-
-    subject to ``x_0 = (q_m, v_m)``, ``x_{k+1} = F(x_k, u_k)`` (RK4, ``rk4_steps`` steps
-    per stage, on ``qdd = ABA(q, v, tau)`` with gravity when ``control="torque"``; the
-    exact double integrator with ``tau = RNEA(q, v, u)`` when ``control="acceleration"``),
-    ``|tau_k| <= tau_max``, ``q_min <= q_k <= q_max`` and ``|v_k| <= v_max`` for k >= 1.
     Defaults: ``control="acceleration"`` with ``effort="acceleration"`` and fatrop. At
     the torque level, ``solver="ddp"`` is the fast choice (faster than Crocoddyl's
     BoxFDDP on the same problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of
     the RK4 step on the ABA over several interior-point iterations.
-
-    The effort ``ell`` is
-
-    - ``effort="torque"``: ``w_tau |tau_k - tau^r_k|^2`` with ``tau^r`` the inverse
-      dynamics of the reference (so perfect tracking costs nothing);
-    - ``effort="acceleration"`` (acceleration control only): ``w_tau |u_k - a^r_k|^2``, a
-      quadratic regulariser towards the reference acceleration; the torque then enters
-      only the limits, which keeps the Hessian cheap;
-    - ``effort="metric"``: ``w_tau (tau_k - g(q_k))^T G(q_k)^{-1} (tau_k - g(q_k))``, the
-      squared Riemannian norm of the covariant acceleration ``D v / dt`` (for the kinetic
-      energy metric ``G = M``: ``M qdd + C v``). Without gravity and constraints its
-      minimisers between fixed end points are geodesics (zero cost): see
-      `solve_open_loop`.
-
-    Re-solves, plan following and fallbacks: see `geosyn.controllers.mpc.controller`.
 
     Args:
         robot: the robot (its model is the OCP's dynamics).
         metric: the metric of the geodesic reference; weighs the ``"metric"`` effort.
         horizon: number of stages N (>= 1).
         dt: stage length and re-solve period [s] (> 0).
-        solver: ``"fatrop"`` or ``"ipopt"`` (interior point on the multiple-shooting
-            NLP), or ``"ddp"``: box-constrained DDP with compiled stage derivatives
-            and Riccati feedback between solves, the fastest torque-level solver
-            (needs ``control="torque"``, ``effort`` ``"torque"`` or ``"metric"``;
-            position and velocity limits become stiff penalties; a warm solve is one
-            DDP step; its ``solver_options`` are
-            `geosyn.controllers.mpc.ddp_tracking.DDP_OPTIONS`; `solve_open_loop` then
-            uses IPOPT). See `geosyn.controllers.mpc.ddp_tracking`.
+        solver: ``"fatrop"``, ``"ipopt"`` or ``"ddp"`` (each its family's default
+            options), or the options themselves: `NLPOptions` (fatrop or IPOPT on the
+            multiple-shooting NLP: tolerance, iterations, barrier parameters, plugin
+            options) or `DDPOptions` (box-constrained DDP with compiled stage
+            derivatives and Riccati feedback between solves, the fastest torque-level
+            solver: needs ``control="torque"``, ``effort`` ``"torque"`` or
+            ``"metric"``; position and velocity limits become stiff penalties; a warm
+            solve is ``warm_iterations`` DDP steps; `solve_open_loop` then uses IPOPT).
         q_weight: scalar or (nv,) weight on the position error [1/rad^2].
         v_weight: scalar or (nv,) weight on the velocity error [s^2/rad^2].
         tau_weight: scalar or (nv,) effort weight: [1/(N m)^2] for the torque and metric
@@ -121,32 +143,29 @@ class GeodesicMPC(Controller):
         control: ``"torque"`` or ``"acceleration"``.
         rk4_steps: RK4 steps per stage (torque control), 1 or 2.
         hessian: ``"gauss-newton"`` (per-stage dynamics compiled without second
-            derivatives, `geosyn.controllers.mpc.gauss_newton`) or ``"exact"`` (exact
-            Hessian of an SX graph on CasADi's VM).
+            derivatives, `geosyn.controllers.mpc.ocp.compiled`; the DDP's only one) or
+            ``"exact"`` (exact Hessian of an SX graph on CasADi's VM; fatrop and IPOPT).
             Without a C compiler ``"gauss-newton"`` becomes ``"exact"``, with a
             ``RuntimeWarning`` and ``diagnostics.notes["hessian"]``.
-        kp: scalar or (nv,) plan-tracking stiffness [1/s^2] (fatrop and IPOPT plans are
-            followed with it; a DDP plan by its own Riccati gains, and ``kp``, ``kd``
-            only stabilise the first rollout of a cold DDP solve).
-        kd: scalar or (nv,) plan-tracking damping [1/s].
-        max_iter: solver iteration limit per tick (``"ddp"``: per cold solve).
-        tol: solver tolerance.
-        mu_init: initial barrier parameter of cold solves; warm solves use ``mu_warm``.
-        mu_warm: initial barrier parameter of warm-started solves.
+        kp: scalar or (nv,) stiffness [1/s^2] of the fallback computed torque and of
+            following fatrop and IPOPT plans (a DDP plan is followed by its own Riccati
+            gains; ``kp``, ``kd`` stabilise the first rollout of a cold DDP solve).
+        kd: scalar or (nv,) damping [1/s], likewise.
         plan_tolerance: max joint deviation [rad] for reusing the previous plan as fallback.
-        solver_options: extra options for the solver plugin (fatrop or ipopt options), e.g.
-            ``{"max_iter": 1}``; unknown keys are rejected by the plugin at build time.
         max_solve_time: wall-time budget of one solve [s] (> 0). IPOPT stops at it;
-            fatrop cannot be stopped, so a solve that took longer is discarded. Either
-            way the solve counts as failed (``solver_status`` says why) and the
+            fatrop and DDP cannot be stopped, so a solve that took longer is discarded.
+            Either way the solve counts as failed (``solver_status`` says why) and the
             controller falls back. A measured state farther than
-            `geosyn.controllers.mpc.settings.STATE_MARGIN` outside the position or
+            `geosyn.controllers.mpc.ocp.settings.STATE_MARGIN` outside the position or
             velocity limits is not solved at all (status ``"skipped: ..."``): the OCP
             is infeasible there, and fatrop's restoration phase need not return.
-        clearance_margin: obstacle clearance [m] kept by a stiff penalty on every
-            stage, from the obstacle terms of a shaped ``metric`` (their obstacles are
-            read at every solve), or None (no clearance cost). ``solver="ddp"`` only;
-            see `geosyn.controllers.mpc.ddp_clearance`.
+        clearance_margin: obstacle clearance [m] kept from ``obstacles`` by a stiff
+            penalty on every stage (`geosyn.controllers.mpc.ocp.obstacles`), or None.
+            DDP only; combines with every effort.
+        obstacles: `geosyn.world` shapes (`Sphere`, `Box`, `Capsule`, ...) kept clear
+            of with ``clearance_margin``; move them with `set_obstacles`. None: no
+            obstacles (transitional: with ``clearance_margin``, the obstacle terms of a
+            shaped ``metric`` are read at every solve).
         tracking: ``"euclidean"`` (``|q - q_r|^2_Wq + |v - v_r|^2_Wv``) or ``"metric"``:
             the errors in the kinetic-energy metric's norm at the reference,
             ``|S_q (q - q_r)|^2_M(q_r) + |S_v (v - v_r)|^2_M(q_r)``, ``S = diag(sqrt(W))``
@@ -155,10 +174,12 @@ class GeodesicMPC(Controller):
 
     Attributes:
         settings: the validated OCP settings (`OCPSettings`: weights, effort, ...).
-        solver_settings: the validated `SolverSettings`.
+        solver_options: the solver family's options (`NLPOptions` or `DDPOptions`).
         N: horizon; dt: stage length [s]; control, effort, hessian: the modes in use.
-        ocp: the `OCPBuilder` of this controller's problems.
-        build_time: wall-clock time of building the tracking NLP [s].
+        obstacles: the `ObstacleSlots` (None without ``clearance_margin``).
+        ocp: the `OCPBuilder` of the NLPs (the open-loop OCP; fatrop's and IPOPT's
+            tracking OCP).
+        build_time: wall-clock time of building the tracking backend [s].
         solve_count: number of `solve` calls.
 
     Raises:
@@ -175,7 +196,7 @@ class GeodesicMPC(Controller):
         horizon: int = 40,
         dt: float = 0.02,
         *,
-        solver: str = "fatrop",
+        solver: str | NLPOptions | DDPOptions = "fatrop",
         q_weight: float | np.ndarray = 1e4,
         v_weight: float | np.ndarray = 1e1,
         tau_weight: float | np.ndarray | None = None,
@@ -186,14 +207,10 @@ class GeodesicMPC(Controller):
         hessian: str = "gauss-newton",
         kp: float | np.ndarray = 400.0,
         kd: float | np.ndarray = 40.0,
-        max_iter: int = 50,
-        tol: float = 1e-6,
-        mu_init: float = 1e-1,
-        mu_warm: float = 1e-8,
         plan_tolerance: float = 0.05,
-        solver_options: dict | None = None,
         max_solve_time: float = 1.0,
         clearance_margin: float | None = None,
+        obstacles: Sequence[Shape] | None = None,
         tracking: str = "euclidean",
         reference: Reference | None = None,
     ) -> None:
@@ -205,39 +222,40 @@ class GeodesicMPC(Controller):
             )
         self.metric = metric
         weights = (q_weight, v_weight, tau_weight, terminal_weight)
-        self.settings = ocp_settings(
+        self.settings = s = ocp_settings(
             n, horizon, dt, control, effort, rk4_steps, *weights, clearance_margin, tracking
         )
-        self.solver_settings = solver_settings(
-            solver, tol, max_iter, mu_init, mu_warm, solver_options, max_solve_time
-        )
+        self.solver_options = _solver_options(solver)
+        self.max_solve_time = check_positive(max_solve_time, "max_solve_time", "s")
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
-        if self.solver_settings.name == "ddp":
-            check_ddp_settings(self.settings, self.hessian, metric, robot)
-        elif self.settings.clearance_margin is not None:
-            raise InvalidArgument(
-                f"clearance_margin needs solver='ddp' (a stiff clearance penalty), got "
-                f"solver={solver!r}"
-            )
-        self.kp = check_gain(kp, n, "kp")
-        self.kd = check_gain(kd, n, "kd")
+        self.kp, self.kd = check_gain(kp, n, "kp"), check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
-        s = self.settings
+        self.obstacles = self._obstacle_slots(obstacles)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
-        self.ocp = OCPBuilder(robot, metric, s, self.solver_settings)
         self._follower = PlanFollower(
             self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance,
             robot.tau_max,
         )  # fmt: skip
+        open_loop_options = self.solver_options
+        if not isinstance(open_loop_options, NLPOptions):  # a terminal equality: IPOPT
+            open_loop_options = NLPOptions(
+                "ipopt", open_loop_options.tol, open_loop_options.max_iter
+            )
+        self.ocp = OCPBuilder(robot, metric, s, open_loop_options, self.max_solve_time)
         self._open_loop = OpenLoopOCP(self.ocp)
         self._sampler = ReferenceSampler(self._model, self._data)
+        problem = TrackingProblem(
+            robot, metric, s, self.hessian, self.obstacles, self.kp, self.kd,
+            self.max_solve_time, _report_progress,
+        )  # fmt: skip
         start = time.perf_counter()
-        self._tracker: DDPTracking | NLPTracking
-        if self.solver_settings.name == "ddp":
-            self._tracker = self._build_ddp()
-        else:
-            self._tracker = NLPTracking(self._build_tracking(), self.ocp)
+        self._tracker: TrackingBackend = BACKENDS[type(self.solver_options)](
+            problem, self.solver_options
+        )
         self.build_time = time.perf_counter() - start
+        self.hessian = self._tracker.hessian
+        for setting, message in self._tracker.notes.items():
+            self._note(setting, message)
         self._plan: MPCPlan | None = None
         self._t_solve = -math.inf
         self._using_fallback = False
@@ -245,34 +263,41 @@ class GeodesicMPC(Controller):
         if reference is not None:
             self.set_reference(reference)
 
-    def _build_tracking(self) -> ShootingNLP:
-        s = self.settings
-        if self.hessian == "gauss-newton":
-            try:
-                dynamics = cached_stage_dynamics(
-                    self.robot, s.dt, s.control, s.rk4_steps, True, progress=_report_progress
+    def _obstacle_slots(self, obstacles: Sequence[Shape] | None) -> ObstacleSlots | None:
+        """The obstacle slots: of ``obstacles``, or (transitional) of the obstacle terms
+        of a shaped metric, whose parameters are then copied in before every solve."""
+        margin = self.settings.clearance_margin
+        self._metric_terms: tuple[Any, ...] = ()
+        if obstacles is not None:
+            if margin is None:
+                raise InvalidArgument(
+                    "obstacles need clearance_margin (the clearance [m] kept from them)"
                 )
-                return self.ocp.tracking(dynamics, gauss_newton=True)
-            except CodegenError as err:
-                self.hessian = "exact"
-                self._note(
-                    "hessian", f"'exact' instead of 'gauss-newton': no compiled dynamics ({err})"
-                )
-        return self.ocp.tracking(self.ocp.dynamics(gravity=True), gauss_newton=False)
+            return ObstacleSlots(self.robot, obstacles)
+        if margin is None:
+            return None
+        self._metric_terms = metric_obstacle_terms(self.metric)
+        if not self._metric_terms:
+            return None  # the backend names what is missing
+        capacity = sum(int(t.capacity) for t in self._metric_terms)
+        slots = ObstacleSlots(self.robot, (), capacity=capacity)
+        self._read_metric_obstacles(slots)
+        return slots
 
-    def _build_ddp(self) -> DDPTracking:
-        s = self.settings
-        try:
-            return DDPTracking(
-                self.robot, s, self.solver_settings, self.kp, self.kd, self.metric,
-                progress=_report_progress,
-            )  # fmt: skip
-        except CodegenError as err:
-            self._note("compiled", f"DDP stage functions on CasADi's VM: not compiled ({err})")
-            return DDPTracking(
-                self.robot, s, self.solver_settings, self.kp, self.kd, self.metric,
-                compiled=False,
-            )  # fmt: skip
+    def _read_metric_obstacles(self, slots: ObstacleSlots) -> None:
+        slots.write(np.concatenate([t.parameter_values() for t in self._metric_terms]))
+
+    def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
+        """Move or replace the obstacles (at most as many as given at construction; a
+        parameter write, read by the next solve).
+
+        Raises:
+            InvalidArgument: no obstacle slots (built without ``obstacles``), or too
+                many shapes.
+        """
+        if self.obstacles is None or self._metric_terms:
+            raise InvalidArgument("set_obstacles needs GeodesicMPC(obstacles=[...]) at build")
+        self.obstacles.set_obstacles(obstacles)
 
     # -- controller hooks ------------------------------------------------------------
     def _on_reset(self, q: Vector, v: Vector, t: float) -> None:
@@ -338,6 +363,8 @@ class GeodesicMPC(Controller):
         ref = self._reference_samples(t)
         r = self.robot
         self.solve_count += 1
+        if self._metric_terms and self.obstacles is not None:  # the terms' obstacles now
+            self._read_metric_obstacles(self.obstacles)
         outside = outside_state_margin(q, v, r.q_min, r.q_max, r.v_max)
         if outside:
             return self._failed_plan(t, f"skipped: measured state {outside}", 0.0)
@@ -347,7 +374,7 @@ class GeodesicMPC(Controller):
 
     def _within_budget(self, plan: MPCPlan) -> MPCPlan:
         """A successful plan solved in more than ``max_solve_time`` counts as failed."""
-        budget = self.solver_settings.max_solve_time
+        budget = self.max_solve_time
         if plan.success and plan.solve_time > budget:
             status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
             return plan._replace(success=False, status=f"{status} ({plan.status})")
@@ -397,7 +424,7 @@ class GeodesicMPC(Controller):
     ) -> OpenLoopSolution:
         """The minimum-effort OCP from ``q0`` to ``q_goal`` in time ``T = N dt``.
 
-        Minimises the metric effort (see `geosyn.controllers.mpc.open_loop`): for the
+        Minimises the metric effort (see `geosyn.controllers.mpc.nlp.open_loop`): for the
         kinetic-energy metric without gravity and with inactive limits, the minimiser is
         the geodesic from ``q0`` to ``q_goal``. The NLP is built on the first call for
         each ``(free_initial_velocity, gravity)`` pair and kept.

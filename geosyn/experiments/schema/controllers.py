@@ -13,6 +13,7 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from geosyn.controllers import ComputedTorque, GeodesicMPC, QPController, RiemannianPD
+from geosyn.controllers.mpc import DDPOptions, NLPOptions
 from geosyn.experiments.schema.section import Section, python_defaults
 from geosyn.experiments.schema.values import Gain, NonNegFloat, PositiveFloat
 
@@ -23,6 +24,8 @@ _COMPUTED_TORQUE = python_defaults(ComputedTorque, kp=400.0, kd=40.0)
 _RIEMANNIAN_PD = python_defaults(RiemannianPD, lam=20.0, k=50.0)
 _QP = python_defaults(QPController, kp=400.0, kd=40.0)
 _MPC = python_defaults(GeodesicMPC)
+_NLP = python_defaults(NLPOptions)
+_DDP = python_defaults(DDPOptions)
 
 
 class _ControllerBase(Section):
@@ -70,18 +73,64 @@ class QPConfig(_ControllerBase):
     friction_velocity: PositiveFloat = _QP["friction_velocity"]
 
 
+class NLPSolverConfig(Section):
+    """`NLPOptions` of the MPC's ``solver`` (``type: fatrop`` or ``ipopt``): tolerance,
+    iterations, barrier parameters, ``plugin_options`` passed to the plugin as they are."""
+
+    builds = (NLPOptions,)
+    parameter_names = {"type": "solver"}
+    type: Literal["fatrop", "ipopt"]
+    tol: PositiveFloat = _NLP["tol"]
+    max_iter: Iterations = _NLP["max_iter"]
+    mu_init: PositiveFloat = _NLP["mu_init"]
+    mu_warm: PositiveFloat = _NLP["mu_warm"]
+    plugin_options: dict[str, bool | int | float | str] | None = _NLP["plugin_options"]
+
+    def build(self) -> NLPOptions:
+        """The options object."""
+        return NLPOptions(**self.kwargs())
+
+
+class DDPSolverConfig(Section):
+    """`DDPOptions` of the MPC's ``solver`` (``type: ddp``; torque control and effort):
+    cold-solve tolerance and iterations, warm iterations, soft-limit and clearance
+    weights, control regularisation."""
+
+    builds = (DDPOptions,)
+    type: Literal["ddp"]
+    tol: PositiveFloat = _DDP["tol"]
+    max_iter: Iterations = _DDP["max_iter"]
+    warm_iterations: Iterations = _DDP["warm_iterations"]
+    limit_weight: PositiveFloat = _DDP["limit_weight"]
+    regularisation: PositiveFloat = _DDP["regularisation"]
+    clearance_weight: PositiveFloat = _DDP["clearance_weight"]
+
+    def build(self) -> DDPOptions:
+        """The options object."""
+        return DDPOptions(**self.kwargs())
+
+
+SolverConfig = Annotated[NLPSolverConfig | DDPSolverConfig, Field(discriminator="type")]
+
+
+def _solver_options(value: object) -> object:
+    return value.build() if isinstance(value, NLPSolverConfig | DDPSolverConfig) else value
+
+
 class MPCConfig(_ControllerBase):
     """`GeodesicMPC`. ``effort``/``tau_weight`` None: chosen from ``control`` by the
-    controller; ``solver_options`` are passed to the NLP solver as they are (fatrop,
-    ipopt), or are the box-DDP's options (``solver: ddp``, torque control and effort:
-    ``warm_iterations``, ``limit_weight``, ``regularisation``, ``clearance_weight``);
-    ``clearance_margin`` [m] (``solver: ddp``) keeps the shaped metric's obstacles away."""
+    controller; ``solver``: ``fatrop``, ``ipopt`` or ``ddp`` (their default options), or
+    a section of the family's options, e.g. ``{type: ddp, warm_iterations: 2}`` or
+    ``{type: ipopt, max_iter: 100, plugin_options: {...}}`` (`NLPSolverConfig`,
+    `DDPSolverConfig`); ``clearance_margin`` [m] (``solver: ddp``) keeps the scene's
+    obstacles away."""
 
     builds = (GeodesicMPC,)
+    to_python = {"solver": _solver_options}
     type: Literal["mpc"]
     horizon: Annotated[int, Field(ge=1, le=1000)] = _MPC["horizon"]
     dt: PositiveFloat = _MPC["dt"]
-    solver: Literal["fatrop", "ipopt", "ddp"] = _MPC["solver"]
+    solver: Literal["fatrop", "ipopt", "ddp"] | SolverConfig = _MPC["solver"]
     q_weight: NonNegFloat = _MPC["q_weight"]
     v_weight: NonNegFloat = _MPC["v_weight"]
     tau_weight: NonNegFloat | None = _MPC["tau_weight"]
@@ -92,12 +141,7 @@ class MPCConfig(_ControllerBase):
     hessian: Literal["gauss-newton", "exact"] = _MPC["hessian"]
     kp: Gain = _MPC["kp"]
     kd: Gain = _MPC["kd"]
-    max_iter: Iterations = _MPC["max_iter"]
-    tol: PositiveFloat = _MPC["tol"]
-    mu_init: PositiveFloat = _MPC["mu_init"]
-    mu_warm: PositiveFloat = _MPC["mu_warm"]
     plan_tolerance: NonNegFloat = _MPC["plan_tolerance"]
-    solver_options: dict[str, bool | int | float | str] | None = _MPC["solver_options"]
     max_solve_time: PositiveFloat = _MPC["max_solve_time"]
     clearance_margin: PositiveFloat | None = _MPC["clearance_margin"]
     tracking: Literal["euclidean", "metric"] = _MPC["tracking"]
@@ -110,7 +154,10 @@ ControllerConfig = Annotated[
 __all__ = [
     "ComputedTorqueConfig",
     "ControllerConfig",
+    "DDPSolverConfig",
     "MPCConfig",
+    "NLPSolverConfig",
     "QPConfig",
     "RiemannianPDConfig",
+    "SolverConfig",
 ]

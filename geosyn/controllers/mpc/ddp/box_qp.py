@@ -1,8 +1,8 @@
-"""The box-constrained QP of a DDP stage and the small symmetric solves it needs.
+"""The box-constrained QP of a DDP stage.
 
-``min 0.5 k^T H k + g^T k`` subject to ``lo <= k <= hi``, written symbolically (SX: an
-unrolled Cholesky factorisation, straight-line code; MX: CasADi's LDL^T solver) so that
-it compiles into the Riccati step of `geosyn.controllers.mpc.ddp`.
+``min 0.5 k^T H k + g^T k`` subject to ``lo <= k <= hi``, written symbolically (its solves
+by `geosyn.controllers.mpc.ocp.linalg.spd_solve`) so that it compiles into the Riccati
+step of `geosyn.controllers.mpc.ddp.parts`.
 """
 
 from __future__ import annotations
@@ -11,57 +11,15 @@ from typing import Any
 
 import casadi as ca
 
-__all__ = ["BOX_ITERATIONS", "box_qp", "spd_solve"]
+from geosyn.controllers.mpc.ocp.linalg import spd_solve
+
+__all__ = ["BOX_ITERATIONS", "box_qp"]
 
 BOX_ITERATIONS = 5
 """Projected-Newton steps of the box QP per stage (from the clipped unconstrained step;
 exact once the active set is found, which takes one step per newly active joint)."""
 
 _Sym = Any  # a CasADi SX or MX expression (the QP and the solves are written for both)
-
-
-def _cholesky(H: ca.SX) -> ca.SX:
-    """Lower Cholesky factor of a symmetric positive-definite SX matrix (unrolled)."""
-    n = H.shape[0]
-    L = ca.SX.zeros(n, n)
-    for j in range(n):
-        s = H[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        L[j, j] = ca.sqrt(s)
-        for i in range(j + 1, n):
-            s = H[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            L[i, j] = s / L[j, j]
-    return L
-
-
-def _cholesky_solve(L: ca.SX, b: ca.SX) -> ca.SX:
-    """``(L L^T)^{-1} b`` for an (n, m) right-hand side, by two triangular sweeps."""
-    n = L.shape[0]
-    y = ca.SX.zeros(b.shape)
-    for i in range(n):
-        s = b[i, :]
-        for k in range(i):
-            s -= L[i, k] * y[k, :]
-        y[i, :] = s / L[i, i]
-    z = ca.SX.zeros(b.shape)
-    for i in reversed(range(n)):
-        s = y[i, :]
-        for k in range(i + 1, n):
-            s -= L[k, i] * z[k, :]
-        z[i, :] = s / L[i, i]
-    return z
-
-
-def spd_solve(H: _Sym, b: _Sym) -> _Sym:
-    """``H^{-1} b`` for a symmetric positive-definite ``H``: an unrolled Cholesky
-    factorisation in SX (small, fastest), CasADi's LDL^T solver in MX (compact code for
-    many joints)."""
-    if isinstance(H, ca.MX):
-        return ca.solve(H, b, "ldl")
-    return _cholesky_solve(_cholesky(H), b)
 
 
 def _free_mask(k: _Sym, grad: _Sym, lo: _Sym, hi: _Sym) -> _Sym:

@@ -1,9 +1,9 @@
 """`RiccatiSolver`: box-constrained DDP (iLQR) iterations of the torque-level tracking OCP.
 
-The OCP is the one `geosyn.controllers.mpc.ocp` builds with ``control="torque"`` (RK4
-on the ABA per stage, tracking and effort costs, hard torque limits), with the position
-and velocity limits as stiff penalties instead of hard bounds and an optional clearance
-penalty (`geosyn.controllers.mpc.ddp_costs`). One iteration is two calls into compiled
+The OCP is the shared description (`geosyn.controllers.mpc.ocp`) with torque control
+(RK4 on the ABA per stage, tracking and effort costs, hard torque limits), with the
+position and velocity limits as stiff penalties instead of hard bounds and an optional clearance
+penalty (`geosyn.controllers.mpc.ocp.penalties`). One iteration is two calls into compiled
 code:
 
 1. backward: the stage Jacobians along the current trajectory, then the Riccati
@@ -29,7 +29,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
-from geosyn.controllers.mpc.ddp import DDPParts
+from geosyn.controllers.mpc.ddp.parts import DDPParts
 from geosyn.core.calls import numpy_function
 
 __all__ = ["LINE_SEARCH_STEPS", "MAX_REGULARISATION", "ROUNDING", "RiccatiResult", "RiccatiSolver"]
@@ -69,10 +69,10 @@ class RiccatiSolver:
     """Backward and forward passes over ``N`` stages (graphs built once; allocates).
 
     Args:
-        parts: the stage functions (`geosyn.controllers.mpc.ddp.ddp_parts`).
+        parts: the stage functions (`geosyn.controllers.mpc.ddp.parts.ddp_parts`).
         N: number of stages.
         n: number of joints.
-        P: the parameter vector (`geosyn.controllers.mpc.ddp.parameter_vector`).
+        P: the parameter vector (`geosyn.controllers.mpc.ddp.parameters.parameter_vector`).
         tol: convergence tolerance of cold solves: the largest control update divided
             by ``1 + max |u|`` [-].
         max_iter: iteration limit of cold solves.
@@ -247,18 +247,20 @@ def _inputs(N: int, n: int, n_p: int) -> _Inputs:
 def _backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     """``(X, U, XR, TR, P) -> (k (n, N), K (n, 2n N), dV (2,))`` (MX, N calls per piece)."""
     nx = 2 * n
-    s = _inputs(N, n, parts.riccati.size1_in(8))
+    s = _inputs(N, n, parts.riccati.size1_in("P"))
     A_all, B_all = parts.lin.map(N)(s.X[:, :N], s.U)
-    _, Vx, Vxx = parts.terminal(s.X[:, N], s.XR[:, N], s.P)
+    end = parts.terminal(x=s.X[:, N], xr=s.XR[:, N], P=s.P)
+    Vx, Vxx = end["Vx"], end["Vxx"]
     ks: list[ca.MX] = [ca.MX()] * N
     Ks: list[ca.MX] = [ca.MX()] * N
     dV = ca.MX.zeros(2)
     for k in reversed(range(N)):
-        A, B = A_all[:, k * nx : (k + 1) * nx], B_all[:, k * n : (k + 1) * n]
-        Vx, Vxx, ks[k], Ks[k], dv = parts.riccati(
-            Vx, Vxx, A, B, s.X[:, k], s.U[:, k], s.XR[:, k], s.TR[:, k], s.P
-        )
-        dV = dV + dv
+        step = parts.riccati(
+            Vx=Vx, Vxx=Vxx, A=A_all[:, k * nx : (k + 1) * nx], B=B_all[:, k * n : (k + 1) * n],
+            x=s.X[:, k], u=s.U[:, k], xr=s.XR[:, k], tr=s.TR[:, k], P=s.P,
+        )  # fmt: skip
+        Vx, Vxx, ks[k], Ks[k] = step["Vx_prev"], step["Vxx_prev"], step["k"], step["K"]
+        dV = dV + step["dV"]
     return ca.Function(
         "ddp_backward",
         list(s),
@@ -271,19 +273,20 @@ def _backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
 def _forward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     """``(x0, X, U, k, K, alpha, XR, TR, P) -> (X', U', cost)`` (MX, N forward steps)."""
     nx = 2 * n
-    s = _inputs(N, n, parts.riccati.size1_in(8))
+    s = _inputs(N, n, parts.riccati.size1_in("P"))
     x0, k_all, K_all = ca.MX.sym("x0", nx), ca.MX.sym("k", n, N), ca.MX.sym("K", n, nx * N)
     alpha = ca.MX.sym("alpha")
     x, xs, us, cost = x0, [x0], [], ca.MX(0)
     for k in range(N):
-        u, x, c = parts.forward(
-            x, s.X[:, k], s.U[:, k], k_all[:, k], K_all[:, k * nx : (k + 1) * nx], alpha,
-            s.XR[:, k], s.TR[:, k], s.P,
+        step = parts.forward(
+            x=x, xb=s.X[:, k], ub=s.U[:, k], k=k_all[:, k], K=K_all[:, k * nx : (k + 1) * nx],
+            alpha=alpha, xr=s.XR[:, k], tr=s.TR[:, k], P=s.P,
         )  # fmt: skip
+        x = step["xn"]
         xs.append(x)
-        us.append(u)
-        cost = cost + c
-    cost = cost + parts.terminal(x, s.XR[:, N], s.P)[0]
+        us.append(step["u"])
+        cost = cost + step["cost"]
+    cost = cost + parts.terminal(x=x, xr=s.XR[:, N], P=s.P)["cost"]
     return ca.Function(
         "ddp_rollout",
         [x0, s.X, s.U, k_all, K_all, alpha, s.XR, s.TR, s.P],

@@ -1,39 +1,35 @@
-"""The MPC's optimal-control problems, assembled from their parts.
+"""The MPC's optimal-control problems as NLPs, assembled from the shared description.
 
 Read top to bottom like a Crocoddyl example: the state ``x = (q, v)`` and the stage
-dynamics (`geosyn.controllers.mpc.dynamics`) -> the cost terms with their weights
-(`geosyn.controllers.mpc.costs`) -> the stage model and the shooting problem
-(`geosyn.controllers.mpc.problem`) -> the solvers (`geosyn.controllers.mpc.solvers`).
-`OCPBuilder` does this for the tracking OCP (built once by `GeodesicMPC`) and for the
-minimum-effort open-loop OCP (`geosyn.controllers.mpc.open_loop`).
+dynamics (`geosyn.controllers.mpc.ocp.dynamics`) -> the cost terms with their weights
+(`geosyn.controllers.mpc.ocp.costs`) -> the stage model and the shooting problem
+(`geosyn.controllers.mpc.nlp.problem`) -> the solvers (`geosyn.controllers.mpc.nlp.solvers`).
+`OCPBuilder` does this for the tracking OCP (the fatrop/IPOPT backend,
+`geosyn.controllers.mpc.nlp.tracking`) and for the minimum-effort open-loop OCP
+(`geosyn.controllers.mpc.nlp.open_loop`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import replace
-
 import casadi as ca
 import numpy as np
 
-from geosyn.controllers.mpc.costs import (
-    AccelerationEffort,
-    CostTerm,
-    MetricEffort,
+from geosyn.controllers.mpc.nlp.options import NLPOptions
+from geosyn.controllers.mpc.nlp.problem import ShootingNLP, ShootingProblem, transcribe
+from geosyn.controllers.mpc.nlp.solvers import build_solvers
+from geosyn.controllers.mpc.ocp.costs import (
+    EFFORT_TERMS,
     StateTracking,
     TerminalStateTracking,
-    TorqueEffort,
     stage_cost,
     terminal_cost,
 )
-from geosyn.controllers.mpc.dynamics import StageDynamics, stage_dynamics
-from geosyn.controllers.mpc.problem import ShootingNLP, ShootingProblem, transcribe
-from geosyn.controllers.mpc.settings import OCPSettings, SolverSettings
-from geosyn.controllers.mpc.solvers import build_solvers
+from geosyn.controllers.mpc.ocp.dynamics import StageDynamics, stage_dynamics
+from geosyn.controllers.mpc.ocp.settings import OCPSettings
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
-__all__ = ["EFFORT_TERMS", "OCPBuilder"]
+__all__ = ["OCPBuilder"]
 
 
 class OCPBuilder:
@@ -44,17 +40,24 @@ class OCPBuilder:
         metric: the metric (the ``"metric"`` effort).
         settings: horizon, control mode, effort and weights.
         solver: solver plugin and options.
+        max_solve_time: wall-time budget of one solve [s] (IPOPT stops at it).
 
     Every method allocates (CasADi graphs, solvers: seconds); build once, solve often.
     """
 
     def __init__(
-        self, robot: Robot, metric: Metric, settings: OCPSettings, solver: SolverSettings
+        self,
+        robot: Robot,
+        metric: Metric,
+        settings: OCPSettings,
+        solver: NLPOptions,
+        max_solve_time: float = 1.0,
     ) -> None:
         self.robot = robot
         self.metric = metric
         self.settings = settings
         self.solver = solver
+        self.max_solve_time = max_solve_time
         self.n_p = int(np.asarray(metric.parameter_values()).size)
 
     def metric_parameters(self) -> np.ndarray:
@@ -64,7 +67,7 @@ class OCPBuilder:
         return np.asarray(self.metric.parameter_values(), dtype=np.float64).ravel()
 
     def dynamics(self, gravity: bool) -> StageDynamics:
-        """The SX stage dynamics (see `geosyn.controllers.mpc.dynamics.stage_dynamics`)."""
+        """The SX stage dynamics (see `geosyn.controllers.mpc.ocp.dynamics.stage_dynamics`)."""
         s = self.settings
         return stage_dynamics(self.robot, s.dt, s.control, s.rk4_steps, gravity)
 
@@ -81,13 +84,14 @@ class OCPBuilder:
 
         Args:
             dynamics: the stage dynamics (SX or compiled).
-            effort: name of the effort term (a key of `EFFORT_TERMS`).
+            effort: name of the effort term (a key of
+                `geosyn.controllers.mpc.ocp.costs.EFFORT_TERMS`).
             gravity: include gravity in the effort (the dynamics carry their own).
             open_loop: no tracking costs; the last position is the goal parameter.
             free_v0: with ``open_loop``, leave the initial velocity free.
         """
         s, robot, n = self.settings, self.robot, self.robot.nv
-        terms = [EFFORT_TERMS[effort](self, gravity)]
+        terms = [EFFORT_TERMS[effort](s.effort_weight, robot, self.metric, gravity)]
         terminal = None
         if not open_loop:
             model = robot.model if s.tracking == "metric" else None
@@ -122,28 +126,15 @@ class OCPBuilder:
             graph = transcribe(problem, ca.MX, mapped=True)
         else:
             graph = transcribe(problem, ca.SX, mapped=False)
-        return ShootingNLP.from_problem(problem, graph, *build_solvers(graph, self.solver))
+        solvers = build_solvers(graph, self.solver, self.max_solve_time)
+        return ShootingNLP.from_problem(problem, graph, *solvers)
 
     def open_loop(self, *, free_v0: bool, gravity: bool) -> ShootingNLP:
-        """The minimum-metric-effort NLP between two configurations (exact Hessian;
-        solved by IPOPT when the tracking solver is ``"ddp"``)."""
+        """The minimum-metric-effort NLP between two configurations (exact Hessian)."""
         dynamics = self.dynamics(gravity)
         problem = self.problem(
             dynamics, effort="metric", gravity=gravity, open_loop=True, free_v0=free_v0
         )
         graph = transcribe(problem, ca.SX, mapped=False)
-        solver = self.solver
-        if solver.name == "ddp":  # an NLP with a terminal equality: IPOPT solves it
-            solver = replace(solver, name="ipopt", options={})
-        return ShootingNLP.from_problem(problem, graph, *build_solvers(graph, solver))
-
-
-EFFORT_TERMS: dict[str, Callable[[OCPBuilder, bool], CostTerm]] = {
-    "torque": lambda b, gravity: TorqueEffort(b.settings.effort_weight),
-    "acceleration": lambda b, gravity: AccelerationEffort(b.settings.effort_weight),
-    # The metric effort is a scalar weight on the Riemannian norm: the first entry.
-    "metric": lambda b, gravity: MetricEffort(
-        float(b.settings.effort_weight[0]), b.robot, b.metric, gravity
-    ),
-}
-"""The effort term of each ``effort`` name, built from a builder and the gravity flag."""
+        solvers = build_solvers(graph, self.solver, self.max_solve_time)
+        return ShootingNLP.from_problem(problem, graph, *solvers)

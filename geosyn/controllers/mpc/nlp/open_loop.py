@@ -16,8 +16,8 @@ from typing import NamedTuple
 import numpy as np
 
 from geosyn.controllers.errors import SolverFailed
-from geosyn.controllers.mpc.ocp import OCPBuilder
-from geosyn.controllers.mpc.problem import ShootingNLP, pack_parameters
+from geosyn.controllers.mpc.nlp.builder import OCPBuilder
+from geosyn.controllers.mpc.nlp.problem import ShootingNLP, pack_parameters
 
 __all__ = ["OpenLoopOCP", "OpenLoopSolution"]
 

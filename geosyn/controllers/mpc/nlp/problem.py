@@ -21,7 +21,7 @@ from typing import Any, NamedTuple, TypeVar
 import casadi as ca
 import numpy as np
 
-from geosyn.controllers.mpc.dynamics import StageDynamics
+from geosyn.controllers.mpc.ocp.dynamics import StageDynamics
 from geosyn.core.types import Vector
 
 __all__ = [

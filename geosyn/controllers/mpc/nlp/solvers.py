@@ -7,8 +7,8 @@ from typing import Any
 
 import casadi as ca
 
-from geosyn.controllers.mpc.problem import NLPGraph
-from geosyn.controllers.mpc.settings import SolverSettings
+from geosyn.controllers.mpc.nlp.options import NLPOptions
+from geosyn.controllers.mpc.nlp.problem import NLPGraph
 
 __all__ = ["build_solvers", "fatrop_options", "ipopt_options"]
 
@@ -17,14 +17,14 @@ __all__ = ["build_solvers", "fatrop_options", "ipopt_options"]
 _COMMON: dict[str, Any] = {"expand": False, "print_time": False, "error_on_fail": False}
 
 
-def fatrop_options(settings: SolverSettings, equality: list[bool], mu: float) -> dict[str, Any]:
+def fatrop_options(settings: NLPOptions, equality: list[bool], mu: float) -> dict[str, Any]:
     """``casadi.nlpsol`` options for fatrop.
 
     fatrop ignores the multipliers passed as a warm start; only the primal guess and the
     initial barrier parameter ``mu`` make a warm start.
 
     Args:
-        settings: tolerances, iteration limit and extra plugin options (applied last).
+        settings: tolerances, iteration limit and plugin options (applied last).
         equality: per constraint row, whether it is an equality (structure detection).
         mu: initial barrier parameter.
     """
@@ -34,20 +34,23 @@ def fatrop_options(settings: SolverSettings, equality: list[bool], mu: float) ->
         "tol": settings.tol,
         "max_iter": settings.max_iter,
     }
-    plugin.update(settings.options)
+    plugin.update(settings.plugin_options or {})
     return {**_COMMON, "structure_detection": "auto", "equality": equality, "fatrop": plugin}
 
 
-def ipopt_options(settings: SolverSettings, mu: float, warm: bool) -> dict[str, Any]:
+def ipopt_options(
+    settings: NLPOptions, mu: float, warm: bool, max_solve_time: float
+) -> dict[str, Any]:
     """``casadi.nlpsol`` options for IPOPT.
 
     Args:
-        settings: tolerances, iteration limit and extra plugin options (applied last).
+        settings: tolerances, iteration limit and plugin options (applied last).
         mu: initial barrier parameter.
         warm: start from the given primal-dual point (``warm_start_init_point``), with a
             monotone barrier strategy.
+        max_solve_time: wall-time budget of one solve [s].
 
-    IPOPT stops after ``settings.max_solve_time`` seconds (``max_wall_time``; status
+    IPOPT stops after ``max_solve_time`` seconds (``max_wall_time``; status
     ``Maximum_WallTime_Exceeded``, an unsuccessful solve).
     """
     plugin: dict[str, Any] = {
@@ -56,7 +59,7 @@ def ipopt_options(settings: SolverSettings, mu: float, warm: bool) -> dict[str, 
         "tol": settings.tol,
         "max_iter": settings.max_iter,
         "mu_init": mu,
-        "max_wall_time": settings.max_solve_time,
+        "max_wall_time": max_solve_time,
     }
     if warm:
         plugin.update(
@@ -65,28 +68,31 @@ def ipopt_options(settings: SolverSettings, mu: float, warm: bool) -> dict[str, 
             warm_start_mult_bound_push=1e-6,
             mu_strategy="monotone",
         )
-    plugin.update(settings.options)
+    plugin.update(settings.plugin_options or {})
     return {**_COMMON, "ipopt": plugin}
 
 
-def build_solvers(graph: NLPGraph, settings: SolverSettings) -> tuple[ca.Function, ca.Function]:
+def build_solvers(
+    graph: NLPGraph, settings: NLPOptions, max_solve_time: float
+) -> tuple[ca.Function, ca.Function]:
     """The warm-start and cold-start solvers of an NLP graph (allocates; seconds).
 
     Args:
-        graph: the NLP graph (`geosyn.controllers.mpc.problem.transcribe`).
-        settings: the solver settings; warm solves start with ``mu_warm``, cold ones
+        graph: the NLP graph (`geosyn.controllers.mpc.nlp.problem.transcribe`).
+        settings: the solver options; warm solves start with ``mu_warm``, cold ones
             with ``mu_init``.
+        max_solve_time: wall-time budget of one solve [s] (IPOPT's ``max_wall_time``).
 
     Returns:
         ``(warm, cold)`` ``casadi.nlpsol`` functions.
     """
-    name, nlp = settings.name, graph.nlp
+    name, nlp = settings.solver, graph.nlp
     if name == "fatrop":
         warm_opts = fatrop_options(settings, graph.equality, settings.mu_warm)
         cold_opts = fatrop_options(settings, graph.equality, settings.mu_init)
     else:
-        warm_opts = ipopt_options(settings, settings.mu_warm, warm=True)
-        cold_opts = ipopt_options(settings, settings.mu_init, warm=False)
+        warm_opts = ipopt_options(settings, settings.mu_warm, True, max_solve_time)
+        cold_opts = ipopt_options(settings, settings.mu_init, False, max_solve_time)
     warm = ca.nlpsol("mpc_warm", name, nlp, warm_opts)
     cold = ca.nlpsol("mpc_cold", name, nlp, cold_opts)
     return warm, cold

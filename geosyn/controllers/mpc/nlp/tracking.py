@@ -1,10 +1,12 @@
 """The tracking OCP solved as one NLP by fatrop or IPOPT (``GeodesicMPC(solver="fatrop"
-| "ipopt")``): warm starts and plans.
+| "ipopt")`` or ``solver=NLPOptions(...)``): the family's backend
+(`geosyn.controllers.mpc.backend.TrackingBackend`), with its warm starts and plans.
 
 Each solve warm-starts from the previous plan shifted by the elapsed stages (its
 multipliers too, which IPOPT uses and fatrop ignores), else cold-starts from the
-reference samples. The counterpart for ``solver="ddp"`` is
-`geosyn.controllers.mpc.ddp_tracking.DDPTracking`; both turn a solve into an `MPCPlan`.
+reference samples. `nlp_backend` builds it: with ``hessian="gauss-newton"`` on the
+compiled, curvature-free stage dynamics (`geosyn.controllers.mpc.ocp.compiled`), or,
+without a C compiler, on an SX graph with exact Hessians (recorded in ``notes``).
 """
 
 from __future__ import annotations
@@ -13,11 +15,16 @@ import math
 
 import numpy as np
 
-from geosyn.controllers.mpc.ocp import OCPBuilder
-from geosyn.controllers.mpc.plan import MPCPlan, ReferenceSamples
-from geosyn.controllers.mpc.problem import ShootingNLP, SolveResult, pack_parameters
+from geosyn.controllers.mpc.backend import TrackingProblem
+from geosyn.controllers.mpc.nlp.builder import OCPBuilder
+from geosyn.controllers.mpc.nlp.options import NLPOptions
+from geosyn.controllers.mpc.nlp.problem import ShootingNLP, SolveResult, pack_parameters
+from geosyn.controllers.mpc.ocp.compiled import cached_stage_dynamics
+from geosyn.controllers.mpc.ocp.plan import MPCPlan, ReferenceSamples
+from geosyn.core.codegen import CodegenError
+from geosyn.core.errors import InvalidArgument
 
-__all__ = ["NLPTracking", "tracking_parameters"]
+__all__ = ["NLPTracking", "nlp_backend", "tracking_parameters"]
 
 
 def tracking_parameters(
@@ -43,11 +50,21 @@ class NLPTracking:
     Args:
         nlp: the built tracking NLP with its solvers.
         builder: the OCP builder (settings and metric parameters).
+        hessian: the Hessian the NLP uses.
+        notes: settings not honoured at build time (see `TrackingBackend`).
     """
 
-    def __init__(self, nlp: ShootingNLP, builder: OCPBuilder) -> None:
+    def __init__(
+        self,
+        nlp: ShootingNLP,
+        builder: OCPBuilder,
+        hessian: str = "gauss-newton",
+        notes: dict[str, str] | None = None,
+    ) -> None:
         self.nlp = nlp
         self.builder = builder
+        self.hessian = hessian
+        self.notes = dict(notes or {})
         self._lam: tuple[np.ndarray, np.ndarray] | None = None
 
     def forget(self) -> None:
@@ -89,3 +106,31 @@ class NLPTracking:
         if res.success:
             self._lam = res.multipliers
         return MPCPlan(t, res.x, res.u, res.tau, res.status, res.iterations, res.success, math.nan)
+
+
+def nlp_backend(problem: TrackingProblem, options: NLPOptions) -> NLPTracking:
+    """The fatrop or IPOPT backend of ``problem`` (allocates; seconds, up to a minute on
+    a first build that compiles the stage dynamics).
+
+    Raises:
+        InvalidArgument: ``clearance_margin`` (a stiff penalty of the DDP family only).
+    """
+    s = problem.settings
+    if s.clearance_margin is not None:
+        raise InvalidArgument(
+            f"clearance_margin needs solver='ddp' (a stiff clearance penalty), got "
+            f"solver={options.solver!r}"
+        )
+    builder = OCPBuilder(problem.robot, problem.metric, s, options, problem.max_solve_time)
+    if problem.hessian == "gauss-newton":
+        try:
+            dynamics = cached_stage_dynamics(
+                problem.robot, s.dt, s.control, s.rk4_steps, True, progress=problem.progress
+            )
+            return NLPTracking(builder.tracking(dynamics, gauss_newton=True), builder)
+        except CodegenError as err:
+            note = f"'exact' instead of 'gauss-newton': no compiled dynamics ({err})"
+            nlp = builder.tracking(builder.dynamics(gravity=True), gauss_newton=False)
+            return NLPTracking(nlp, builder, "exact", {"hessian": note})
+    nlp = builder.tracking(builder.dynamics(gravity=True), gauss_newton=False)
+    return NLPTracking(nlp, builder, "exact")

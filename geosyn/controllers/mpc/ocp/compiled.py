@@ -19,8 +19,10 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from geosyn.controllers.mpc import dynamics as dynamics_module
-from geosyn.controllers.mpc.dynamics import StageDynamics, stage_step, stage_torque
+from geosyn.controllers.mpc.ocp import dynamics as dynamics_module
+from geosyn.controllers.mpc.ocp import rk4 as rk4_module
+from geosyn.controllers.mpc.ocp.dynamics import StageDynamics, stage_step, stage_torque
+from geosyn.controllers.mpc.ocp.rk4 import rk4_step
 from geosyn.core.codegen import compile_library, compile_recipe
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
@@ -80,18 +82,10 @@ def zero_curvature_parts(funs: list[ca.Function]) -> list[ca.Function]:
 
 
 def rk4_parts(robot: Robot, dt: float, rk4_steps: int, gravity: bool) -> list[ca.Function]:
-    """The torque-control stage ``mpc_F<g|0>`` (RK4 on the ABA), its Jacobian by the chain
-    rule through RK4, a structurally zero ``jac_jac_*``, and its reverse derivative
-    ``adj1_*`` (with a zero Jacobian): a `zero_curvature_parts` equivalent whose C code is
-    about ten times smaller.
-
-    Differentiating the expanded RK4 step gives straight-line code with the ABA's Jacobian
-    inlined four times per RK4 step (megabytes of C for 7 DoF, minutes at ``-O1``). Here
-    the ODE ``(x, u) -> (v, ABA(q, v, u))`` and its Jacobian are two SX functions; the step
-    and its Jacobian are MX functions that call them (the generated C calls them in a
-    loop-free sequence), with the exact same derivative:
-    ``dk_i = A_i (D + c_i dk_{i-1})`` (+ ``B_i`` for ``u``) and
-    ``D' = D + h/6 (dk_1 + 2 dk_2 + 2 dk_3 + dk_4)``.
+    """The torque-control stage ``mpc_F<g|0>`` (RK4 on the ABA) and its Jacobian by the
+    chain rule through RK4 (`geosyn.controllers.mpc.ocp.rk4.rk4_step`), a structurally
+    zero ``jac_jac_*``, and its reverse derivative ``adj1_*`` (with a zero Jacobian): a
+    `zero_curvature_parts` equivalent whose C code is about ten times smaller.
 
     Args:
         robot: the robot.
@@ -99,45 +93,11 @@ def rk4_parts(robot: Robot, dt: float, rk4_steps: int, gravity: bool) -> list[ca
         rk4_steps: RK4 steps per stage.
         gravity: include the robot's gravity.
     """
+    step = rk4_step(robot, dt, rk4_steps, gravity)
+    F, jac, name = step.F, step.jacobian, step.F.name()
     n = robot.nv
-    tag = "g" if gravity else "0"
-    g = np.asarray(robot.gravity, dtype=np.float64) if gravity else np.zeros(3)
-    xs, us = ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
-    xdot = ca.vertcat(xs[n:], symbolic.aba(robot.model, xs[:n], xs[n:], us, g))
-    ode = ca.Function(f"mpc_ode{tag}", [xs, us], [xdot], {"cse": True})
-    ode_jac = ca.Function(
-        f"mpc_ode_jac{tag}",
-        [xs, us],
-        [ca.jacobian(xdot, xs), ca.jacobian(xdot, us)],
-        {"cse": True},
-    )
     x, u = ca.MX.sym("x", 2 * n), ca.MX.sym("u", n)
-    hs = dt / rk4_steps
-    xk, Dx, Du = x, ca.MX.eye(2 * n), ca.MX(2 * n, n)
-    for _ in range(rk4_steps):
-        ks: list[ca.MX] = []
-        dks: list[tuple[ca.MX, ca.MX]] = []
-        prev_x, prev_u = ca.MX(2 * n, 2 * n), ca.MX(2 * n, n)
-        for c in (0.0, 0.5 * hs, 0.5 * hs, hs):
-            xi = xk if not ks else xk + c * ks[-1]
-            A, B = ode_jac(xi, u)
-            ks.append(ode(xi, u))
-            prev_x, prev_u = A @ (Dx + c * prev_x), A @ (Du + c * prev_u) + B
-            dks.append((prev_x, prev_u))
-        w = (hs / 6.0, hs / 3.0, hs / 3.0, hs / 6.0)
-        xk = xk + sum((wi * ki for wi, ki in zip(w, ks, strict=True)), ca.MX(2 * n, 1))
-        Dx = Dx + sum((wi * d[0] for wi, d in zip(w, dks, strict=True)), ca.MX(2 * n, 2 * n))
-        Du = Du + sum((wi * d[1] for wi, d in zip(w, dks, strict=True)), ca.MX(2 * n, n))
-    name = f"mpc_F{tag}"
-    F = ca.Function(name, [x, u], [xk], ["x", "u"], ["xn"])
     out = ca.MX.sym("out_xn", ca.Sparsity(2 * n, 1))  # the unused nominal output
-    jac = ca.Function(
-        f"jac_{name}",
-        [x, u, out],
-        [Dx, Du],
-        ["x", "u", "out_xn"],
-        ["jac_xn_x", "jac_xn_u"],
-    )
     # The reverse derivative (exact) with a structurally zero Jacobian: the Lagrangian
     # Hessian (forward over reverse, in x only) then skips a second pass through the
     # dynamics. Zero is the Gauss-Newton value in x and u; the block in the seed (J^T)
@@ -229,10 +189,10 @@ def _library_name(robot_name: str, control: str) -> str:
 
 
 def _code_digest() -> str:
-    """sha256 of the code that builds the stage functions (symbolic dynamics, this
-    package's dynamics and this module): a code change is a new recipe."""
+    """sha256 of the code that builds the stage functions (symbolic dynamics, the
+    description's dynamics and RK4 step, and this module): a code change is a new recipe."""
     files = sorted(Path(symbolic.__file__).parent.glob("*.py"))
-    files += [Path(dynamics_module.__file__), Path(__file__)]
+    files += [Path(dynamics_module.__file__), Path(rk4_module.__file__), Path(__file__)]
     digest = hashlib.sha256()
     for path in files:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())

@@ -37,7 +37,7 @@ def stage_dynamics(
     """The SX functions ``F`` and ``TAU`` of one stage (allocates a graph).
 
     Their names (``mpc_F<g|0>``, ``mpc_tau<g|0>``) and graphs are part of the key of the
-    compiled-code cache (see `geosyn.controllers.mpc.gauss_newton`).
+    compiled-code cache (see `geosyn.controllers.mpc.ocp.compiled`).
 
     Args:
         robot: the robot; its Pinocchio model gives the dynamics.

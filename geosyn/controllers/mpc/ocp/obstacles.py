@@ -1,19 +1,22 @@
-"""Obstacle clearance in the DDP tracking OCP, from the obstacle terms of a shaped metric.
+"""Obstacle slots of the OCP: world shapes, and the clearance of the robot's spheres to them.
 
-``GeodesicMPC(solver="ddp", clearance_margin=m)`` with a `ShapedMetric` that has
-`ObstacleTerm` s adds to every stage (and the terminal state) the stiff penalty
+``GeodesicMPC(obstacles=[...], clearance_margin=m)`` adds to every stage (and the
+terminal state) the stiff penalty
 
 .. math:: w_c \\sum_{s,o} \\max(0,\\ m - c_{so}(q))^2
 
-over the robot's collision spheres ``s`` and the terms' obstacle slots ``o`` (clearance
-``c_so = sd_o(x_s(q)) - r_s`` [m], `ObstacleTerm.symbolic_clearances`; empty slots never
-count). Its Gauss-Newton derivatives use the exact clearance Jacobian. The obstacles'
-poses and sizes are read from the terms at every solve (moving obstacles need no
-rebuild); the weight ``w_c`` is ``solver_options["clearance_weight"]`` [1/m^2].
+(`geosyn.controllers.mpc.ocp.costs.ClearancePenalty`) over the robot's collision spheres
+``s`` and the obstacle slots ``o``: clearance ``c_so = sd_o(x_s(q)) - r_s`` [m], with
+``sd_o`` the exact signed distance of the slot's rounded box
+(`geosyn.world.distance.rounded_box_distance`); an empty slot reports
+`EMPTY_SLOT_CLEARANCE` and never counts. Each slot holds one `geosyn.world` shape as its
+rounded box plus an active flag (`SLOT_SIZE` numbers), so the compiled functions take the
+obstacles as a parameter: moving or replacing them (`ObstacleSlots.set_obstacles`) is a
+parameter write, read at the next solve.
 
 A penalty, not a constraint: the margin holds to within a few millimetres when the
-reference passes near an obstacle (the intended use: a reference from the shaped metric,
-the clearance guarding against disturbances). A reference running *through* an obstacle
+reference passes near an obstacle (the intended use: a collision-free reference, the
+clearance guarding against disturbances). A reference running *through* an obstacle
 makes the OCP trade tracking against clearance at full torque, and with stiff weights
 the closed loop can become violent: keep the reference collision-free.
 """
@@ -21,61 +24,146 @@ the closed loop can become violent: keep the reference collision-free.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
+from typing import Any
 
 import casadi as ca
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
-from geosyn.metrics.base import Metric
-from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
+from geosyn.robots import symbolic
+from geosyn.robots.robot import CollisionSphere, Robot
+from geosyn.world.distance import rounded_box_distance
+from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
 
 __all__ = [
+    "EMPTY_SLOT_CLEARANCE",
+    "SLOT_SIZE",
+    "ObstacleSlots",
     "clearance_digest",
-    "clearance_function",
-    "clearance_values",
-    "find_obstacle_terms",
-    "obstacle_terms",
+    "metric_obstacle_terms",
 ]
 
+SLOT_SIZE = ROUNDED_BOX_SIZE + 1
+"""Parameters per slot (17): the shape's rounded box (16, `geosyn.world.shapes`) and an
+active flag (1). The layout of `geosyn.metrics.shaping.ObstacleTerm`'s slots as well."""
 
-def find_obstacle_terms(metric: Metric) -> tuple[ObstacleTerm, ...]:
-    """The `ObstacleTerm` s of a `ShapedMetric`, in term order (empty for other metrics)."""
-    terms = metric.terms if isinstance(metric, ShapedMetric) else ()
-    return tuple(t for t in terms if isinstance(t, ObstacleTerm))
+EMPTY_SLOT_CLEARANCE = 10.0
+"""Clearance [m] an empty slot reports (far beyond any margin)."""
 
 
-def obstacle_terms(metric: Metric) -> tuple[ObstacleTerm, ...]:
-    """`find_obstacle_terms`, refusing a metric without any.
+class ObstacleSlots:
+    """World shapes in a fixed number of slots, and the symbolic clearance to them.
+
+    Args:
+        robot: the robot; its collision spheres (``robot.collision_spheres()``) are
+            what keeps clear.
+        obstacles: `geosyn.world` shapes (`Sphere`, `Box`, `Capsule`, `Cylinder` as its
+            enclosing capsule, `HalfSpace`).
+        capacity: number of slots (>= len(obstacles)); None: one per obstacle.
 
     Raises:
-        InvalidArgument: ``metric`` is not a `ShapedMetric` with an `ObstacleTerm`.
+        InvalidArgument: no obstacles and no capacity, a capacity below the obstacle
+            count, or a robot without collision spheres.
+        geosyn.world.InvalidGeometry: an obstacle is not a shape.
     """
-    found = find_obstacle_terms(metric)
-    if not found:
-        raise InvalidArgument(
-            "clearance_margin needs a ShapedMetric with an ObstacleTerm (its obstacles are "
-            f"the OCP's), got {metric!r}"
-        )
-    return found
 
+    def __init__(
+        self, robot: Robot, obstacles: Sequence[Shape], capacity: int | None = None
+    ) -> None:
+        obstacles = list(obstacles)
+        self.capacity = len(obstacles) if capacity is None else int(capacity)
+        if self.capacity < max(len(obstacles), 1):
+            raise InvalidArgument(
+                f"obstacles: {len(obstacles)} shapes in {self.capacity} slots; give at "
+                "least one shape (a geosyn.world Sphere, Box, Capsule, ...) and no more "
+                "than the capacity"
+            )
+        self.spheres: tuple[CollisionSphere, ...] = tuple(robot.collision_spheres())
+        if not self.spheres:
+            raise InvalidArgument(f"obstacles: robot {robot.name!r} has no collision spheres")
+        self._robot = robot
+        self._values = np.zeros(self.capacity * SLOT_SIZE)
+        self._obstacles: tuple[Shape, ...] = ()
+        self.set_obstacles(obstacles)
 
-def clearance_function(terms: tuple[ObstacleTerm, ...]) -> ca.Function:
-    """``ddp_clearance: (q (n,), p (m_p,)) -> (c (m,), dc/dq (m, n))`` for the terms'
-    spheres and slots, ``p`` their stacked parameters (`clearance_values`)."""
-    n = terms[0].n
-    q = ca.SX.sym("q", n)
-    c = ca.vertcat(*(t.symbolic_clearances(q) for t in terms))
-    p = ca.vertcat(*(t.symbolic_parameters() for t in terms))
-    return ca.Function(
-        "ddp_clearance", [q, p], [c, ca.jacobian(c, q)], ["q", "p"], ["c", "dc_dq"], {"cse": True}
-    )
+    @property
+    def obstacles(self) -> tuple[Shape, ...]:
+        """The shapes in the slots, in slot order."""
+        return self._obstacles
 
+    def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
+        """Replace the shapes (a parameter write, read by the next solve).
 
-def clearance_values(terms: tuple[ObstacleTerm, ...]) -> np.ndarray:
-    """(m_p,) the terms' current parameters (obstacle poses, sizes, active flags)."""
-    return np.concatenate([t.parameter_values() for t in terms])
+        Raises:
+            InvalidArgument: more shapes than slots.
+            geosyn.world.InvalidGeometry: an element is not a shape.
+        """
+        shapes = [check_shape(ob, f"obstacles[{i}]") for i, ob in enumerate(obstacles)]
+        if len(shapes) > self.capacity:
+            raise InvalidArgument(
+                f"obstacles: {len(shapes)} shapes, but the OCP has {self.capacity} slots"
+            )
+        slots = self._values.reshape(self.capacity, SLOT_SIZE)
+        slots[:] = 0.0
+        slots[:, 3:12] = np.eye(3).ravel()  # a harmless identity rotation in empty slots
+        for i, shape in enumerate(shapes):
+            slots[i, :ROUNDED_BOX_SIZE] = shape.rounded_box()
+            slots[i, ROUNDED_BOX_SIZE] = 1.0
+        self._obstacles = tuple(shapes)
+
+    def write(self, values: np.ndarray) -> None:
+        """Set every slot from ``values`` (capacity * `SLOT_SIZE`,), the same layout
+        (e.g. the parameters of obstacle shaping terms); `obstacles` is then unknown."""
+        self._values[:] = values
+        self._obstacles = ()
+
+    def values(self) -> np.ndarray:
+        """(capacity * `SLOT_SIZE`,) the slots' parameters (the live array: do not modify)."""
+        return self._values
+
+    def clearance_function(self) -> ca.Function:
+        """``mpc_clearance: (q (n,), p (capacity * 17,)) -> (c (m,), dc_dq (m, n))``, the
+        clearance of every sphere to every slot (sphere-major rows, ``m = n_spheres *
+        capacity``) and its exact Jacobian (builds an SX graph)."""
+        robot, n = self._robot, self._robot.nv
+        q = ca.SX.sym("q", n)
+        p = ca.SX.sym("p", self.capacity * SLOT_SIZE)
+        dist = rounded_box_distance()
+        placements = symbolic.joint_placements(robot.model, q)
+        rows = []
+        for sphere in self.spheres:
+            R, t = placements[robot.joint_id(sphere.joint)]
+            x = ca.mtimes(R, ca.DM(sphere.center)) + t
+            for o in range(self.capacity):
+                prm = p[o * SLOT_SIZE : o * SLOT_SIZE + ROUNDED_BOX_SIZE]
+                active = p[o * SLOT_SIZE + ROUNDED_BOX_SIZE]
+                sd = dist(x, prm)[0] - sphere.radius
+                rows.append(active * sd + (1.0 - active) * EMPTY_SLOT_CLEARANCE)
+        c = ca.vertcat(*rows)
+        return ca.Function(
+            "mpc_clearance", [q, p], [c, ca.jacobian(c, q)], ["q", "p"], ["c", "dc_dq"],
+            {"cse": True},
+        )  # fmt: skip
 
 
 def clearance_digest(fun: ca.Function) -> str:
-    """sha256 of the serialised clearance function (part of the compiled library's key)."""
+    """sha256 of a serialised clearance function (part of a compiled library's key)."""
     return hashlib.sha256(fun.serialize().encode()).hexdigest()
+
+
+def metric_obstacle_terms(metric: object) -> tuple[Any, ...]:
+    """The obstacle terms of a shaped metric (its ``terms`` that hold ``obstacles`` in
+    slots of `SLOT_SIZE` parameters), in term order; empty for other metrics.
+
+    The transitional path of ``GeodesicMPC(metric=ShapedMetric(...), clearance_margin=m)``
+    without ``obstacles=``: read by shape (``obstacles``, ``capacity``,
+    ``parameter_values``), so that this package never imports the metric shaping terms.
+    """
+    terms = getattr(metric, "terms", ())
+    return tuple(
+        t
+        for t in terms
+        if all(hasattr(t, a) for a in ("obstacles", "capacity", "parameter_values"))
+        and np.size(t.parameter_values()) == t.capacity * SLOT_SIZE
+    )

@@ -1,14 +1,15 @@
-"""The choices, defaults and validated settings of the geodesic-tracking MPC.
+"""The choices, defaults and validated settings of the geodesic-tracking OCP.
 
-`OCPSettings` says what the optimal-control problem is (horizon, control mode, weights);
-`SolverSettings` how it is solved (plugin, tolerances, barrier parameters). Both are
-frozen; `ocp_settings` and `solver_settings` validate `GeodesicMPC`'s arguments into them.
+`OCPSettings` says what the optimal-control problem is (horizon, control mode, weights,
+clearance), whichever solver family solves it; how it is solved is the family's options
+class (`geosyn.controllers.mpc.nlp.options.NLPOptions`,
+`geosyn.controllers.mpc.ddp.options.DDPOptions`). `ocp_settings` validates
+`GeodesicMPC`'s arguments into `OCPSettings`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,18 +23,13 @@ __all__ = [
     "DEFAULT_EFFORT_WEIGHT",
     "EFFORTS",
     "HESSIANS",
-    "SOLVERS",
     "STATE_MARGIN",
     "TRACKINGS",
     "OCPSettings",
-    "SolverSettings",
     "ocp_settings",
     "outside_state_margin",
-    "solver_settings",
 ]
 
-SOLVERS = ("fatrop", "ipopt", "ddp")
-"""Names accepted by ``GeodesicMPC(solver=...)``."""
 EFFORTS = ("torque", "metric", "acceleration")
 """Names accepted by ``GeodesicMPC(effort=...)``."""
 CONTROLS = ("torque", "acceleration")
@@ -68,8 +64,8 @@ class OCPSettings:
         v_weight: (nv,) velocity-error weight [s^2/rad^2].
         effort_weight: (nv,) effort weight ([1/(N m)^2] or [s^4/rad^2]).
         terminal_weight: (2 nv,) terminal state-error weight (q then v).
-        clearance_margin: obstacle clearance kept by a stiff penalty [m] (``solver="ddp"``
-            with a shaped metric's obstacle terms), or None.
+        clearance_margin: obstacle clearance kept by a stiff penalty [m]
+            (`geosyn.controllers.mpc.ocp.obstacles`), or None.
         tracking: ``"euclidean"`` or ``"metric"``: the norm of the tracking errors.
     """
 
@@ -84,33 +80,6 @@ class OCPSettings:
     terminal_weight: Vector
     clearance_margin: float | None = None
     tracking: str = "euclidean"
-
-
-@dataclass(frozen=True)
-class SolverSettings:
-    """How the NLPs are solved (validated).
-
-    Attributes:
-        name: ``"fatrop"``, ``"ipopt"`` or ``"ddp"`` (box-DDP, torque control only:
-            `geosyn.controllers.mpc.ddp_tracking`).
-        tol: solver tolerance.
-        max_iter: iteration limit per solve.
-        mu_init: initial barrier parameter of cold solves.
-        mu_warm: initial barrier parameter of warm-started solves.
-        options: extra plugin options, applied last (they win).
-        max_solve_time: wall-time budget of one solve [s]: IPOPT stops at it
-            (``max_wall_time``); fatrop has no such option, so `GeodesicMPC` checks it
-            after the call and refuses measured states outside `STATE_MARGIN` of the
-            OCP's bounds beforehand (fatrop's restoration phase need not return there).
-    """
-
-    name: str
-    tol: float
-    max_iter: int
-    mu_init: float
-    mu_warm: float
-    options: dict[str, Any] = field(default_factory=dict)
-    max_solve_time: float = 1.0
 
 
 def ocp_settings(
@@ -175,33 +144,6 @@ def ocp_settings(
             else check_positive(clearance_margin, "clearance_margin", "m")
         ),
         tracking=check_choice(tracking, TRACKINGS, "tracking"),
-    )
-
-
-def solver_settings(
-    solver: object,
-    tol: object,
-    max_iter: object,
-    mu_init: object,
-    mu_warm: object,
-    solver_options: object,
-    max_solve_time: object = 1.0,
-) -> SolverSettings:
-    """Validate the solver arguments of `GeodesicMPC` (same names and meaning).
-
-    Raises:
-        InvalidArgument: a bad argument (named in the message, with what is allowed).
-    """
-    if solver_options is not None and not isinstance(solver_options, dict):
-        raise InvalidArgument(f"solver_options must be a dict or None, got {solver_options!r}")
-    return SolverSettings(
-        name=check_choice(solver, SOLVERS, "solver"),
-        tol=check_positive(tol, "tol"),
-        max_iter=check_int(max_iter, "max_iter", low=1),
-        mu_init=check_positive(mu_init, "mu_init"),
-        mu_warm=check_positive(mu_warm, "mu_warm"),
-        options=dict(solver_options or {}),
-        max_solve_time=check_positive(max_solve_time, "max_solve_time", "s"),
     )
 
 

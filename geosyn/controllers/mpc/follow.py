@@ -1,0 +1,110 @@
+"""Following an MPC plan between solves (`PlanFollower`), and the reference when there
+is no plan."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan
+from geosyn.controllers.reference import Reference
+from geosyn.core.interpolation import hermite_point
+from geosyn.core.types import Vector
+
+__all__ = ["PlanFollower", "plan_state"]
+
+
+def plan_state(plan: MPCPlan, t: float, dt: float) -> tuple[int, np.ndarray, np.ndarray]:
+    """Stage index and planned ``(q, v)`` at time ``t``: cubic Hermite between stages.
+
+    Args:
+        plan: the plan.
+        t: time [s]; before ``plan.t`` it is the first state, past the horizon the last.
+        dt: stage length [s].
+
+    Returns:
+        ``(j, q, v)``: the stage ``j`` containing ``t``, (nv,) positions [rad] and
+        velocities [rad/s].
+    """
+    N = plan.u.shape[0]
+    n = plan.u.shape[1]
+    s = max(t - plan.t, 0.0)
+    j = min(int(s / dt + EPS_T), N - 1)
+    frac = min((s - j * dt) / dt, 1.0)
+    x0, x1 = plan.x[j], plan.x[j + 1]
+    q, v = hermite_point(x0[:n], x0[n:], x1[:n], x1[n:], dt, frac)
+    return j, q, v
+
+
+class PlanFollower:
+    """Follows a plan between solves, and the reference when there is no plan.
+
+    On a plan, the first control of the current stage ``j`` is held and a feedback keeps
+    the plant on the planned states:
+
+    .. math::
+        \\tau = u^*_j + M(q) (K_p (q^*(t) - q) + K_d (v^*(t) - v))
+
+    (torque control), or ``tau = RNEA(q, v, u^*_j + K_p (q^* - q) + K_d (v^* - v))``
+    (acceleration control), with ``(q^*, v^*)`` the cubic Hermite interpolation of the
+    planned states (`plan_state`). A plan with DDP gains (``plan.K``) is followed by its
+    own feedback, saturated at the torque limits like the DDP rollout:
+    ``tau = clip(u^*_j + K_j ((q, v) - (q^*, v^*)), -tau_max, tau_max)``.
+
+    Args:
+        model: Pinocchio model of the plant.
+        data: its workspace (shared with the caller; used per call).
+        control: ``"torque"`` or ``"acceleration"``: what the plan's controls are.
+        dt: stage length [s].
+        kp: (nv,) stiffness [1/s^2].
+        kd: (nv,) damping [1/s].
+        plan_tolerance: max joint deviation from a plan that may still be followed [rad].
+        tau_max: (nv,) torque limits [N m] saturating the DDP feedback (None: no plan
+            with gains is expected).
+
+    Each method allocates only (nv,) arrays (and ``M`` in torque control).
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        data: pin.Data,
+        control: str,
+        dt: float,
+        kp: Vector,
+        kd: Vector,
+        plan_tolerance: float,
+        tau_max: Vector | None = None,
+    ) -> None:
+        self._model, self._data = model, data
+        self.tau_max = None if tau_max is None else np.asarray(tau_max, dtype=np.float64)
+        self.torque_control = control == "torque"
+        self.dt, self.kp, self.kd = dt, kp, kd
+        self.plan_tolerance = plan_tolerance
+
+    def torque(self, plan: MPCPlan, t: float, q: Vector, v: Vector) -> Vector:
+        """(nv,) torque [N m] that follows ``plan`` at time ``t`` from the state ``(q, v)``."""
+        j, q_p, v_p = plan_state(plan, t, self.dt)
+        if plan.K is not None and self.tau_max is not None:
+            tau = plan.u[j] + plan.K[j] @ np.concatenate([q - q_p, v - v_p])
+            return np.clip(tau, -self.tau_max, self.tau_max)
+        fb = self.kp * (q_p - q) + self.kd * (v_p - v)
+        if self.torque_control:
+            M = pin.crba(self._model, self._data, q)
+            return plan.u[j] + M @ fb
+        return pin.rnea(self._model, self._data, q, v, plan.u[j] + fb).copy()
+
+    def usable(self, plan: MPCPlan | None, t: float, q: Vector) -> bool:
+        """A successful plan that still covers ``t`` and is within tolerance of ``q``."""
+        if plan is None or not plan.success:
+            return False
+        if t - plan.t >= plan.u.shape[0] * self.dt - EPS_T:
+            return False
+        _, q_p, _ = plan_state(plan, t, self.dt)
+        return float(np.max(np.abs(q_p - q))) <= self.plan_tolerance
+
+    def reference_torque(self, reference: Reference, t: float, q: Vector, v: Vector) -> Vector:
+        """(nv,) computed torque [N m] on ``reference`` with the same gains (no plan)."""
+        q_ref, v_ref, a_ref = reference.sample(t)
+        a = a_ref + self.kp * (q_ref - q) + self.kd * (v_ref - v)
+        return pin.rnea(self._model, self._data, q, v, a).copy()
