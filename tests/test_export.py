@@ -113,7 +113,11 @@ def test_torques_equal_python_controller(exports, robot_name: str, kind: str) ->
 def test_friction_compensation_equals_python(tmp_path: Path) -> None:
     """The xarm7's file has joint damping and dry friction: compensated by default."""
     ctl = make_controller("xarm7", "computed_torque")
-    assert isinstance(ctl, ComputedTorque) and ctl.compensate_friction and np.all(ctl.robot.frictionloss > 0)
+    assert (
+        isinstance(ctl, ComputedTorque)
+        and ctl.compensate_friction
+        and np.all(ctl.robot.frictionloss > 0)
+    )
     res = export_controller("xarm7", ctl, tmp_path, sample_dt=0.02)
     assert "| compensate_friction | True |" in res.readme.read_text()
     assert_same_torques(CController(res.shared_library), python_twin(res), states(res, seed=4))
@@ -185,6 +189,12 @@ def test_bad_input_gives_error_codes_and_leaves_the_controller_usable(exports) -
         "ref repeated time": (
             lib.geosyn_controller_set_reference(
                 h, T, P(np.r_[t[:2], t[1:-1]]), P(qs), P(vs), P(as_)
+            ),
+            3,
+        ),
+        "ref tiny spacing": (
+            lib.geosyn_controller_set_reference(
+                h, T, P(np.r_[0.0, 1e-300, t[2:]]), P(qs), P(vs), P(as_)
             ),
             3,
         ),

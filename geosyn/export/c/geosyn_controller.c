@@ -36,7 +36,8 @@ struct geosyn_controller {
     double coef[(MAXS - 1) * NCOEF * NQ]; /* (K, 6, nq), lowest power first */
     double q_start[NQ], q_goal[NQ];
     double q_ref[NQ], v_ref[NQ], a_ref[NQ];
-    double x1[NQ], x2[NQ], tmp[NQ], tau_raw[NQ];
+    double x1[NQ], x2[NQ], tau_raw[NQ];
+    double tmp_coef[NCOEF * NQ];
     double q_reset[NQ], v_reset[NQ];
     const casadi_real* arg[geosyn_law_SZ_ARG + 1];
     casadi_real* res[geosyn_law_SZ_RES + 1];
@@ -78,7 +79,12 @@ int geosyn_controller_set_reference(geosyn_controller* ctl, int n, const double*
         !all_finite(a, n * NQ))
         return GEOSYN_ERR_NONFINITE;
     for (int k = 0; k + 1 < n; ++k) {
-        if (!(t[k + 1] - t[k] > 0.0)) return GEOSYN_ERR_TIME_ORDER;
+        double h = t[k + 1] - t[k];
+        if (!(h > 0.0) || !isfinite(h)) return GEOSYN_ERR_TIME_ORDER;
+        /* a spacing so small (or values so large) that the interpolant overflows */
+        const int i = k * NQ, o = (k + 1) * NQ;
+        quintic(h, q + i, v + i, a + i, q + o, v + o, a + o, ctl->tmp_coef);
+        if (!all_finite(ctl->tmp_coef, NCOEF * NQ)) return GEOSYN_ERR_TIME_ORDER;
     }
     /* Validated: nothing below can fail, so the old reference is only replaced whole. */
     for (int k = 0; k < n; ++k) ctl->knots[k] = t[k] - t[0];
@@ -228,7 +234,9 @@ const char* geosyn_controller_error(int code) {
         case GEOSYN_OK: return "ok";
         case GEOSYN_ERR_NULL: return "a NULL controller or array argument";
         case GEOSYN_ERR_NONFINITE: return "a NaN or infinite input";
-        case GEOSYN_ERR_TIME_ORDER: return "reference times must be strictly increasing";
+        case GEOSYN_ERR_TIME_ORDER:
+            return "reference times must be strictly increasing, spaced so that the "
+                   "interpolant is finite";
         case GEOSYN_ERR_N_SAMPLES:
             return "n_samples must be at least 2 and at most GEOSYN_MAX_SAMPLES";
         case GEOSYN_ERR_TORQUE: return "the control law gave a non-finite torque";

@@ -31,7 +31,8 @@ enum geosyn_controller_status {
     GEOSYN_OK = 0,
     GEOSYN_ERR_NULL = 1,          /* a NULL controller or array */
     GEOSYN_ERR_NONFINITE = 2,     /* NaN or infinite input */
-    GEOSYN_ERR_TIME_ORDER = 3,    /* reference times not strictly increasing */
+    GEOSYN_ERR_TIME_ORDER = 3,    /* reference times not strictly increasing (or so
+                                     close that the interpolant overflows) */
     GEOSYN_ERR_N_SAMPLES = 4,     /* n_samples < 2 or > the compiled maximum */
     GEOSYN_ERR_TORQUE = 5,        /* the control law gave a non-finite torque */
     GEOSYN_ERR_SOLVER = 6         /* an MPC solve failed (feedback kept) */
