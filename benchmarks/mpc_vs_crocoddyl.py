@@ -9,7 +9,7 @@ Run (in geosyn's venv)::
 
     .venv/bin/python benchmarks/mpc_vs_crocoddyl.py [--rounds 3] [--horizon 10 40]
         [--scenario on_reference offset_at_rest] [--skip-geosyn] [--croc-python PATH]
-        [--croc-threads 1] [--save summaries.json] [--geosyn-option tol=1e-4 ...]
+        [--croc-threads 1] [--save summaries.json] [--geosyn-option tau_weight=1e-2 ...]
 
 Crocoddyl comes from PyPI into its own venv (``.venv-croc``, gitignored), never into
 geosyn's: ``pip install crocoddyl`` pulls pin 4.1.0, with which the crocoddyl 3.2.1 wheel's
@@ -312,8 +312,9 @@ def main(argv: list[str] | None = None) -> int:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="a GeodesicMPC keyword argument for geosyn's side, e.g. tol=1e-4 (repeatable;"
-        " the value is parsed as a Python literal)",
+        help="a GeodesicMPC keyword argument for geosyn's side, e.g. tau_weight=1e-2 or"
+        " solver=fatrop (repeatable; the value is parsed as a Python literal; solver"
+        " options such as tol are DDPOptions/NLPOptions fields, not keywords)",
     )
     args = parser.parse_args(argv)
     if max(args.horizon) > MAX_HORIZON:

@@ -33,6 +33,7 @@ module                          holds
 `.ddp.parts`                    compiled stage functions: linearisation, Riccati step, ...
 `.ddp.riccati`                  `RiccatiSolver`: backward and forward passes, line search
 `.ddp.tracking`                 the box-DDP backend (`DDPTracking`)
+`.families`                     ``solver=`` names and the backend builder of each options class
 `.follow`                       `PlanFollower`: a plan between solves, the fallback torque
 `.controller`                   `GeodesicMPC`: re-solves, warm starts, fallbacks
 `.ddp_clearance`                deprecated: a shaped metric's obstacle terms (experiments)
@@ -81,8 +82,9 @@ figures are in ``benchmarks/RESULTS.md`` (``benchmarks/controllers.py``).
 """
 
 from geosyn.controllers.mpc.backend import TrackingBackend, TrackingProblem
-from geosyn.controllers.mpc.controller import SOLVERS, GeodesicMPC
+from geosyn.controllers.mpc.controller import GeodesicMPC
 from geosyn.controllers.mpc.ddp.options import DDPOptions
+from geosyn.controllers.mpc.families import SOLVERS
 from geosyn.controllers.mpc.nlp.open_loop import OpenLoopSolution
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.ocp.plan import MPCPlan

@@ -26,7 +26,7 @@ effort ``ell`` is
 
 The description (settings, dynamics, costs, obstacle slots, plan) is
 `geosyn.controllers.mpc.ocp`; a solver family builds a backend from it
-(`geosyn.controllers.mpc.backend`, `BACKENDS`). This class only re-solves every ``dt``
+(`geosyn.controllers.mpc.backend`, `geosyn.controllers.mpc.families`). This class only re-solves every ``dt``
 seconds (when ``t`` has advanced by at least ``dt`` since the last solve) and follows
 the plan in between (`geosyn.controllers.mpc.follow.PlanFollower`). Each solve
 warm-starts from the previous plan shifted by the elapsed stages, else cold-starts from
@@ -47,8 +47,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -56,13 +55,13 @@ from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import NoReference
 from geosyn.controllers.mpc.backend import TrackingBackend, TrackingProblem
 from geosyn.controllers.mpc.ddp.options import DDPOptions
-from geosyn.controllers.mpc.ddp.tracking import ddp_backend
+from geosyn.controllers.mpc.families import BACKENDS, solver_options
 from geosyn.controllers.mpc.follow import PlanFollower
 from geosyn.controllers.mpc.nlp.builder import OCPBuilder
 from geosyn.controllers.mpc.nlp.open_loop import OpenLoopOCP, OpenLoopSolution
 from geosyn.controllers.mpc.nlp.options import NLPOptions
-from geosyn.controllers.mpc.nlp.tracking import nlp_backend, tracking_parameters
-from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots, metric_obstacle_terms
+from geosyn.controllers.mpc.nlp.tracking import tracking_parameters
+from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots
 from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan, ReferenceSampler, ReferenceSamples
 from geosyn.controllers.mpc.ocp.settings import HESSIANS, ocp_settings, outside_state_margin
 from geosyn.controllers.reference import Reference
@@ -73,23 +72,7 @@ from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 from geosyn.world.shapes import Shape
 
-__all__ = ["BACKENDS", "SOLVERS", "SolverOptions", "GeodesicMPC"]
-
-SolverOptions = NLPOptions | DDPOptions
-"""The options classes of the solver families."""
-
-SOLVERS: dict[str, Callable[[], SolverOptions]] = {
-    "fatrop": lambda: NLPOptions("fatrop"),
-    "ipopt": lambda: NLPOptions("ipopt"),
-    "ddp": DDPOptions,
-}
-"""``GeodesicMPC(solver=name)`` shorthands: each name means its family's default options."""
-
-BACKENDS: dict[type, Callable[[TrackingProblem, Any], TrackingBackend]] = {
-    NLPOptions: nlp_backend,
-    DDPOptions: ddp_backend,
-}
-"""The backend builder of each options class (`geosyn.controllers.mpc.backend`)."""
+__all__ = ["GeodesicMPC"]
 
 
 def _report_progress(line: str) -> None:
@@ -97,15 +80,25 @@ def _report_progress(line: str) -> None:
     print(f"geosyn MPC: {line}", file=sys.stderr, flush=True)
 
 
-def _solver_options(solver: object) -> SolverOptions:
-    if isinstance(solver, str):
-        return SOLVERS[check_choice(solver, tuple(SOLVERS), "solver")]()
-    if type(solver) not in BACKENDS:
-        raise InvalidArgument(
-            f"solver must be one of {', '.join(SOLVERS)} or an options object "
-            f"({', '.join(t.__name__ for t in BACKENDS)}), got {solver!r}"
-        )
-    return solver  # type: ignore[return-value]
+def _obstacle_slots(
+    robot: Robot, metric: Metric, margin: float | None, obstacles: Sequence[Shape] | None
+) -> ObstacleSlots | None:
+    """Slots of ``obstacles``, or (transitional) of a shaped metric's obstacle terms."""
+    if obstacles is not None and margin is None:
+        raise InvalidArgument("obstacles need clearance_margin (the clearance [m] kept)")
+    if obstacles is not None:
+        return ObstacleSlots(robot, obstacles)
+    if margin is None:
+        return None
+    return ObstacleSlots.of_metric(robot, metric)  # None: the backend names what is missing
+
+
+def _within_budget(plan: MPCPlan, budget: float) -> MPCPlan:
+    """A successful plan solved in more than ``budget`` [s] counts as failed."""
+    if plan.success and plan.solve_time > budget:
+        status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
+        return plan._replace(success=False, status=f"{status} ({plan.status})")
+    return plan
 
 
 class GeodesicMPC(Controller):
@@ -152,24 +145,18 @@ class GeodesicMPC(Controller):
             gains; ``kp``, ``kd`` stabilise the first rollout of a cold DDP solve).
         kd: scalar or (nv,) damping [1/s], likewise.
         plan_tolerance: max joint deviation [rad] for reusing the previous plan as fallback.
-        max_solve_time: wall-time budget of one solve [s] (> 0). IPOPT stops at it;
-            fatrop and DDP cannot be stopped, so a solve that took longer is discarded.
-            Either way the solve counts as failed (``solver_status`` says why) and the
-            controller falls back. A measured state farther than
-            `geosyn.controllers.mpc.ocp.settings.STATE_MARGIN` outside the position or
-            velocity limits is not solved at all (status ``"skipped: ..."``): the OCP
-            is infeasible there, and fatrop's restoration phase need not return.
-        clearance_margin: obstacle clearance [m] kept from ``obstacles`` by a stiff
-            penalty on every stage (`geosyn.controllers.mpc.ocp.obstacles`), or None.
-            DDP only; combines with every effort.
-        obstacles: `geosyn.world` shapes (`Sphere`, `Box`, `Capsule`, ...) kept clear
-            of with ``clearance_margin``; move them with `set_obstacles`. None: no
-            obstacles (transitional: with ``clearance_margin``, the obstacle terms of a
-            shaped ``metric`` are read at every solve).
-        tracking: ``"euclidean"`` (``|q - q_r|^2_Wq + |v - v_r|^2_Wv``) or ``"metric"``:
-            the errors in the kinetic-energy metric's norm at the reference,
-            ``|S_q (q - q_r)|^2_M(q_r) + |S_v (v - v_r)|^2_M(q_r)``, ``S = diag(sqrt(W))``
-            (the weights then carry [1/(kg m^2)] more); every solver.
+        max_solve_time: wall-time budget of one solve [s] (> 0): IPOPT stops at it, a
+            longer fatrop or DDP solve is discarded; either way the controller falls
+            back. A state beyond `geosyn.controllers.mpc.ocp.settings.STATE_MARGIN` of
+            the limits is not solved (status ``"skipped: ..."``; the OCP is infeasible).
+        clearance_margin: clearance [m] kept from ``obstacles`` by a stiff penalty
+            (`geosyn.controllers.mpc.ocp.obstacles`; DDP, any effort), or None.
+        obstacles: `geosyn.world` shapes (`Sphere`, `Box`, ...; `set_obstacles` moves
+            them). None with ``clearance_margin``: a shaped metric's obstacle terms
+            (transitional), read at every solve.
+        tracking: ``"euclidean"`` or ``"metric"``: the errors in the kinetic-energy
+            metric's norm at the reference (`geosyn.controllers.mpc.ocp.costs.StateTracking`;
+            the weights then carry [1/(kg m^2)] more).
         reference: optional reference.
 
     Attributes:
@@ -177,8 +164,7 @@ class GeodesicMPC(Controller):
         solver_options: the solver family's options (`NLPOptions` or `DDPOptions`).
         N: horizon; dt: stage length [s]; control, effort, hessian: the modes in use.
         obstacles: the `ObstacleSlots` (None without ``clearance_margin``).
-        ocp: the `OCPBuilder` of the NLPs (the open-loop OCP; fatrop's and IPOPT's
-            tracking OCP).
+        ocp: the `OCPBuilder` of the open-loop NLP.
         build_time: wall-clock time of building the tracking backend [s].
         solve_count: number of `solve` calls.
 
@@ -225,12 +211,12 @@ class GeodesicMPC(Controller):
         self.settings = s = ocp_settings(
             n, horizon, dt, control, effort, rk4_steps, *weights, clearance_margin, tracking
         )
-        self.solver_options = _solver_options(solver)
+        self.solver_options = solver_options(solver)
         self.max_solve_time = check_positive(max_solve_time, "max_solve_time", "s")
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.kp, self.kd = check_gain(kp, n, "kp"), check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
-        self.obstacles = self._obstacle_slots(obstacles)
+        self.obstacles = _obstacle_slots(robot, metric, s.clearance_margin, obstacles)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
         self._follower = PlanFollower(
             self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance,
@@ -263,30 +249,6 @@ class GeodesicMPC(Controller):
         if reference is not None:
             self.set_reference(reference)
 
-    def _obstacle_slots(self, obstacles: Sequence[Shape] | None) -> ObstacleSlots | None:
-        """The obstacle slots: of ``obstacles``, or (transitional) of the obstacle terms
-        of a shaped metric, whose parameters are then copied in before every solve."""
-        margin = self.settings.clearance_margin
-        self._metric_terms: tuple[Any, ...] = ()
-        if obstacles is not None:
-            if margin is None:
-                raise InvalidArgument(
-                    "obstacles need clearance_margin (the clearance [m] kept from them)"
-                )
-            return ObstacleSlots(self.robot, obstacles)
-        if margin is None:
-            return None
-        self._metric_terms = metric_obstacle_terms(self.metric)
-        if not self._metric_terms:
-            return None  # the backend names what is missing
-        capacity = sum(int(t.capacity) for t in self._metric_terms)
-        slots = ObstacleSlots(self.robot, (), capacity=capacity)
-        self._read_metric_obstacles(slots)
-        return slots
-
-    def _read_metric_obstacles(self, slots: ObstacleSlots) -> None:
-        slots.write(np.concatenate([t.parameter_values() for t in self._metric_terms]))
-
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Move or replace the obstacles (at most as many as given at construction; a
         parameter write, read by the next solve).
@@ -295,7 +257,7 @@ class GeodesicMPC(Controller):
             InvalidArgument: no obstacle slots (built without ``obstacles``), or too
                 many shapes.
         """
-        if self.obstacles is None or self._metric_terms:
+        if self.obstacles is None:
             raise InvalidArgument("set_obstacles needs GeodesicMPC(obstacles=[...]) at build")
         self.obstacles.set_obstacles(obstacles)
 
@@ -363,27 +325,19 @@ class GeodesicMPC(Controller):
         ref = self._reference_samples(t)
         r = self.robot
         self.solve_count += 1
-        if self._metric_terms and self.obstacles is not None:  # the terms' obstacles now
-            self._read_metric_obstacles(self.obstacles)
+        if self.obstacles is not None:  # a shaped metric's obstacles as they are now
+            self.obstacles.refresh()
         outside = outside_state_margin(q, v, r.q_min, r.q_max, r.v_max)
         if outside:
-            return self._failed_plan(t, f"skipped: measured state {outside}", 0.0)
+            nan_u = np.full((self.N, self.nv), np.nan)
+            nan_x = np.full((self.N + 1, 2 * self.nv), np.nan)
+            status = f"skipped: measured state {outside}"
+            return MPCPlan(t, nan_x, nan_u, nan_u.copy(), status, 0, False, 0.0)
         start = time.perf_counter()
         plan = self._tracker.solve(t, x_init, ref, self._plan)
-        return self._within_budget(plan._replace(solve_time=time.perf_counter() - start))
-
-    def _within_budget(self, plan: MPCPlan) -> MPCPlan:
-        """A successful plan solved in more than ``max_solve_time`` counts as failed."""
-        budget = self.max_solve_time
-        if plan.success and plan.solve_time > budget:
-            status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
-            return plan._replace(success=False, status=f"{status} ({plan.status})")
-        return plan
-
-    def _failed_plan(self, t: float, status: str, solve_time: float) -> MPCPlan:
-        nan_u = np.full((self.N, self.nv), np.nan)
-        nan_x = np.full((self.N + 1, 2 * self.nv), np.nan)
-        return MPCPlan(t, nan_x, nan_u, nan_u.copy(), status, 0, False, solve_time)
+        return _within_budget(
+            plan._replace(solve_time=time.perf_counter() - start), self.max_solve_time
+        )
 
     # -- control ---------------------------------------------------------------------
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:

@@ -85,7 +85,31 @@ class ObstacleSlots:
         self._robot = robot
         self._values = np.zeros(self.capacity * SLOT_SIZE)
         self._obstacles: tuple[Shape, ...] = ()
+        self._terms: tuple[Any, ...] = ()
         self.set_obstacles(obstacles)
+
+    @classmethod
+    def of_metric(cls, robot: Robot, metric: object) -> ObstacleSlots | None:
+        """Slots linked to the obstacle terms of a shaped metric (`metric_obstacle_terms`;
+        None if it has none): `refresh` copies the terms' obstacles in (transitional,
+        until every caller passes shapes)."""
+        terms = metric_obstacle_terms(metric)
+        if not terms:
+            return None
+        slots = cls(robot, (), capacity=sum(int(t.capacity) for t in terms))
+        slots._terms = terms
+        slots.refresh()
+        return slots
+
+    @property
+    def linked(self) -> bool:
+        """The slots follow a shaped metric's obstacle terms (`of_metric`)."""
+        return bool(self._terms)
+
+    def refresh(self) -> None:
+        """Copy the linked terms' current obstacles in (nothing for plain slots)."""
+        if self._terms:
+            self._values[:] = np.concatenate([t.parameter_values() for t in self._terms])
 
     @property
     def obstacles(self) -> tuple[Shape, ...]:
@@ -96,9 +120,11 @@ class ObstacleSlots:
         """Replace the shapes (a parameter write, read by the next solve).
 
         Raises:
-            InvalidArgument: more shapes than slots.
+            InvalidArgument: more shapes than slots, or slots linked to a metric.
             geosyn.world.InvalidGeometry: an element is not a shape.
         """
+        if self._terms:
+            raise InvalidArgument("set_obstacles: these slots follow a shaped metric's terms")
         shapes = [check_shape(ob, f"obstacles[{i}]") for i, ob in enumerate(obstacles)]
         if len(shapes) > self.capacity:
             raise InvalidArgument(
@@ -111,12 +137,6 @@ class ObstacleSlots:
             slots[i, :ROUNDED_BOX_SIZE] = shape.rounded_box()
             slots[i, ROUNDED_BOX_SIZE] = 1.0
         self._obstacles = tuple(shapes)
-
-    def write(self, values: np.ndarray) -> None:
-        """Set every slot from ``values`` (capacity * `SLOT_SIZE`,), the same layout
-        (e.g. the parameters of obstacle shaping terms); `obstacles` is then unknown."""
-        self._values[:] = values
-        self._obstacles = ()
 
     def values(self) -> np.ndarray:
         """(capacity * `SLOT_SIZE`,) the slots' parameters (the live array: do not modify)."""
