@@ -23,6 +23,7 @@ import contextlib
 import hashlib
 import os
 import re
+import stat
 import struct
 from pathlib import Path
 
@@ -80,6 +81,8 @@ def _read_small(path: Path) -> str | None:
     Raises:
         OSError: the file cannot be opened or read (FileNotFoundError when missing).
     """
+    if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO would block, a device never end
+        return None
     with open(path, "rb") as fh:
         raw = fh.read(_MAX_SMALL_FILE + 1)
     if len(raw) > _MAX_SMALL_FILE:
@@ -183,6 +186,8 @@ def damage(library: Path, key: str | None = None, recipe_key: str | None = None)
         recipe_key: the key of the recipe it must have been built for, if any.
     """
     try:
+        if not stat.S_ISREG(os.stat(library).st_mode):
+            return "not a regular file"
         data = library.read_bytes()
     except OSError as err:
         return f"unreadable: {err.strerror or err}"

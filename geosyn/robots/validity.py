@@ -34,6 +34,9 @@ MAX_MASS = 1e6
 """Largest body mass geosyn accepts [kg] (a tenth of a large crane; 1e300 overflows M)."""
 MAX_INERTIA = 1e6
 """Largest rotational inertia entry geosyn accepts [kg m^2]."""
+MAX_DISTANCE = 1e4
+"""Largest joint offset or centre-of-mass distance geosyn accepts [m] (MuJoCo's M at a
+body placed 1e300 m away is rounding noise)."""
 
 
 def _where(path: object) -> str:
@@ -291,6 +294,13 @@ def check_model(model: pin.Model, path: object = None) -> None:
         if not (np.all(np.isfinite(body.lever)) and np.all(np.isfinite(placement.homogeneous))):
             raise RobotFileError(
                 f"{_where(path)}joint {name!r} has a non-finite placement or centre of mass",
+                path,
+            )
+        far = max(float(np.abs(body.lever).max()), float(np.abs(placement.translation).max()))
+        if far > MAX_DISTANCE:
+            raise RobotFileError(
+                f"{_where(path)}joint {name!r} is placed {far:g} m from its parent (or its"
+                f" centre of mass from it); allowed: at most {MAX_DISTANCE:g} m",
                 path,
             )
         lo = np.asarray(model.lowerPositionLimit[joint.idx_q : joint.idx_q + joint.nq])
