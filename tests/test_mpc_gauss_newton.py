@@ -146,10 +146,11 @@ def test_compile_recipe_hit_builds_nothing_and_clear_cache_removes_the_index(
     again = codegen.compile_recipe("geosyn_test_recipe", "probe v1", make, load=["gn_probe"])
     assert calls == [1]  # the hit called nothing
     np.testing.assert_allclose(again["gn_probe"](1.0, 2.0), first["gn_probe"](1.0, 2.0))
-    # Another recipe is another index; the same source still finds the same library.
+    # Another recipe is another index and another library: each library carries the key
+    # of the recipe it was built for, checked before loading (issue 23).
     codegen.compile_recipe("geosyn_test_recipe", "probe v2", make, load=["gn_probe"])
     assert calls == [1, 1] and len(list(cache.glob("*.recipe"))) == 2
-    assert len(list(cache.glob("*.so"))) == 1
+    assert len(list(cache.glob("*.so"))) == 2
     # An index whose library is gone is rebuilt, not trusted.
     library.unlink()
     codegen.compile_recipe("geosyn_test_recipe", "probe v1", make, load=["gn_probe"])
