@@ -169,9 +169,115 @@ def stage_pga(out: Path, n_configs: int, kmax: int, evals: int, steps: int) -> N
     (out / "pga.json").write_text(json.dumps(summary, indent=1))
 
 
+ROBOTS = {
+    # name: (load_robot name, home posture [rad], shoulder frame)
+    "panda": ("panda", [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], "panda_joint2"),
+}
+
+
+def _human_axes(arm) -> np.ndarray:
+    """Columns forward, left, up of the human arm model (forward: the forearm at 90 deg)."""
+    robot = arm.robot
+    lo, hi = ik.z_box(robot)
+    z = np.clip(np.zeros(robot.coupling.nz), lo, hi)
+    z[3] = np.pi / 2  # elbow flexion
+    kp = ik.model_keypoints(robot, robot.coupling.q(z), ("RightForeArm", "RightHand"))
+    up = np.array([0.0, 0.0, 1.0])
+    fwd = kp[1] - kp[0]
+    fwd = fwd - (fwd @ up) * up
+    fwd /= np.linalg.norm(fwd)
+    return np.column_stack([fwd, np.cross(up, fwd), up])
+
+
+def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> None:
+    from geosyn.controllers import ComputedTorque, GeodesicReference
+    from geosyn.metrics.geodesic.exp_map import Geodesic
+    from geosyn.robots import load_robot
+    from geosyn.sim import Push, Simulation
+    from geosyn.synergies.human import transfer as tr
+
+    t0 = _clock()
+    seqs, _ = climb_sequences()
+    arms = _arms(seqs)
+    arm = arms[0][0]
+    group = [i for i in range(len(seqs)) if arms[i][2] == arms[0][2]]
+    rows = json.loads((out / "segments.json").read_text())["rows"]
+    name, home, shoulder = ROBOTS[robot_name]
+    robot = load_robot(name)
+    metric = KineticEnergyMetric(robot)
+    q_home = np.array(home)
+    wrist, gh, per_seq = [], [], {}
+    for i in group:
+        z = np.load(out / f"{seqs[i].name}.npz")["z"]
+        kp = np.array([ik.model_keypoints(arm.robot, arm.robot.coupling.q(zz),
+                                          ("RightArm", "RightHand")) for zz in z])  # fmt: skip
+        per_seq[seqs[i].name] = kp[:, 1]
+        wrist.append(kp[:, 1])
+        gh.append(kp[:, 0])
+    hmap = tr.hand_map(robot, q_home, shoulder, np.concatenate(wrist), np.concatenate(gh),
+                       _human_axes(arm))  # fmt: skip
+    results, tracked = [], []
+    fps = seqs[0].fps
+    kin_cache = {}
+    for r in rows:
+        if r["sequence"] not in per_seq:
+            continue
+        seq = r["sequence"]
+        if seq not in kin_cache:
+            kin_cache[seq] = tr.kinematic_retarget(robot, hmap(per_seq[seq]), q_home)
+        q_all, err = kin_cache[seq]
+        a, b = r["start"], r["stop"]
+        t = np.arange(b - a + 1) / fps
+        res = tr.transfer_segment(metric, robot, t, hmap(per_seq[seq][a : b + 1]), q_all[a : b + 1])
+        results.append({"sequence": seq, "start": a, "stop": b,
+                        "hand_dev_kinematic_m": res.hand_dev_kinematic,
+                        "hand_dev_geodesic_m": res.hand_dev_geodesic,
+                        "energy_kinematic": res.energy_kinematic,
+                        "energy_geodesic": res.energy_geodesic,
+                        "kinematic_ik_error_median_m": float(np.median(err[a : b + 1])),
+                        "pieces": res.pieces})  # fmt: skip
+        if len(tracked) < n_track:
+            ref = GeodesicReference(Geodesic(res.t, res.q_geodesic, res.v_geodesic), metric)
+            ctl = ComputedTorque(robot, 400.0, 40.0, reference=ref)
+            duration = float(res.t[-1])
+            kick = Push(robot.ee_frame, [push, 0.0, 0.0], start=duration / 3, duration=0.1)
+            sim = Simulation(robot, ctl, disturbances=[kick])
+            out_sim = sim.run(res.q_geodesic[0], res.v_geodesic[0], duration=duration)
+            e = out_sim.tracking_error
+            tracked.append({"segment": len(results) - 1, "duration_s": duration,
+                            "rms_rad": float(np.sqrt(np.mean(e**2))),
+                            "max_rad": float(np.abs(e).max())})  # fmt: skip
+    hk = np.array([x["hand_dev_kinematic_m"] for x in results])
+    hg = np.array([x["hand_dev_geodesic_m"] for x in results])
+    ek = np.array([x["energy_kinematic"] for x in results])
+    eg = np.array([x["energy_geodesic"] for x in results])
+    summary = {
+        "robot": robot_name, "segments": len(results), "scale": hmap.scale,
+        "hand_dev_geodesic_median_m": float(np.median(hg)),
+        "hand_dev_geodesic_worst_m": float(hg.max()),
+        "hand_dev_kinematic_median_m": float(np.median(hk)),
+        "energy_geodesic_below_kinematic": int(np.sum(eg < ek)),
+        "energy_ratio_quartiles": np.percentile(eg / ek, [25, 50, 75]).tolist(),
+        "energy_ratio_worst": float(np.max(eg / ek)),
+        "pieces_histogram": np.bincount([x["pieces"] for x in results]).tolist(),
+        "tracked": len(tracked), "push_N": push,
+        "tracking_rms_worst_rad": max((x["rms_rad"] for x in tracked), default=float("nan")),
+        "tracking_rms_median_rad": float(np.median([x["rms_rad"] for x in tracked]))
+        if tracked else float("nan"),
+        "time": _since(t0),
+    }  # fmt: skip
+    print(json.dumps(summary, indent=1))
+    (out / f"transfer_{robot_name}.json").write_text(
+        json.dumps({"summary": summary, "rows": results, "tracked": tracked}, indent=1)
+    )
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--stage", choices=("ik", "segments", "pga", "all"), default="all")
+    p.add_argument("--stage", choices=("ik", "segments", "pga", "transfer", "all"), default="all")
+    p.add_argument("--robot", choices=tuple(ROBOTS), default="panda")
+    p.add_argument("--track", type=int, default=20, help="segments tracked in MuJoCo")
+    p.add_argument("--push", type=float, default=50.0, help="push on the hand [N]")
     p.add_argument("--out", type=Path, default=Path("benchmarks/data/human_synergies"))
     p.add_argument("--configs", type=int, default=40)
     p.add_argument("--kmax", type=int, default=5)
@@ -185,6 +291,8 @@ def main() -> None:
         stage_segments(a.out)
     if a.stage in ("pga", "all"):
         stage_pga(a.out, a.configs, a.kmax, a.evals, a.steps)
+    if a.stage in ("transfer", "all"):
+        stage_transfer(a.out, a.robot, a.track, a.push)
 
 
 if __name__ == "__main__":
