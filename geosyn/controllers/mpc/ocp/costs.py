@@ -129,6 +129,12 @@ def _control_derivatives(value: Any, lu: Any, luu: Any, n: int) -> StageDerivati
     return StageDerivatives(value, ca.DM(2 * n, 1), ca.DM(2 * n, 2 * n), lu, luu, ca.DM(n, 2 * n))
 
 
+def _control_tracking(s: StageSymbols, w: Weight) -> StageDerivatives:
+    """``|u - effort_ref|^2_W`` and its (exact) derivatives."""
+    e = s.u - s.effort_ref
+    return _control_derivatives(ca.dot(w, e * e), 2 * w * e, ca.diag(2 * w), s.u.numel())
+
+
 def _sqrt(w: Weight) -> Any:
     return ca.sqrt(w) if isinstance(w, ca.SX | ca.MX) else ca.DM(np.sqrt(np.asarray(w)))
 
@@ -204,8 +210,7 @@ class TorqueEffort(CostTerm):
 
     def derivatives(self, s: StageSymbols) -> StageDerivatives:
         """Torque control (``tau = u``)."""
-        e, w = s.u - s.effort_ref, self.weight
-        return _control_derivatives(ca.dot(w, e * e), 2 * w * e, ca.diag(2 * w), s.u.numel())
+        return _control_tracking(s, self.weight)
 
 
 @dataclass(frozen=True, eq=False)
@@ -222,8 +227,7 @@ class AccelerationEffort(CostTerm):
         return ca.dot(self.weight, (s.u - s.effort_ref) ** 2)
 
     def derivatives(self, s: StageSymbols) -> StageDerivatives:
-        e, w = s.u - s.effort_ref, self.weight
-        return _control_derivatives(ca.dot(w, e * e), 2 * w * e, ca.diag(2 * w), s.u.numel())
+        return _control_tracking(s, self.weight)
 
 
 def is_robot_kinetic_metric(metric: Metric, robot: Robot) -> bool:
