@@ -234,3 +234,28 @@ def test_dop853_with_a_huge_velocity_is_bounded(monkeypatch, speed):
     a = exp(metric, np.array([0.2, 0.3]), v0, method="dop853")
     b = exp(metric, np.array([0.2, 0.3]), v0, steps=1000)
     np.testing.assert_allclose(a.q[-1], b.q[-1], atol=1e-10)
+
+
+class _Exploding(ConstantMetric):
+    """A metric whose geodesic acceleration turns NaN once |v| > 1.5 (after t = 0.4 s from
+    |v0| = 1, as qdd = v) and whose symbolic form divides by zero while it is built (a
+    singular G folded into constants)."""
+
+    def geodesic_acceleration(self, q, v):
+        v = np.asarray(v)
+        return np.where(np.abs(v) > 1.5, np.nan, v)
+
+    def symbolic_geodesic_acceleration(self, q, v):
+        return ca.SX(1.0 / 0.0)
+
+
+def test_blow_ups_inside_exp_are_nonfinite_results_not_other_errors():
+    """Issue 23: a singular metric gave a ZeroDivisionError, and a NaN state inside DOP853
+    an InvalidArgument blaming the caller's q."""
+    from geosyn.metrics.errors import NonFiniteResult
+
+    metric = _Exploding(np.eye(2))
+    with pytest.raises(NonFiniteResult, match="divides by zero"):
+        exp(metric, np.zeros(2), np.ones(2))
+    with pytest.raises(NonFiniteResult, match="left the float64 range"):
+        exp(metric, np.zeros(2), np.ones(2), method="dop853")

@@ -126,6 +126,12 @@ def rk4_step(metric: Metric) -> ca.Function | None:
         return metric.functions.get("geodesic_rk4_step", lambda: _build_step(metric))
     except NoSymbolicForm:
         return None
+    except ZeroDivisionError as err:  # constants folded while building: a singular G
+        raise NonFiniteResult(
+            f"exp: the geodesic acceleration of {metric!r} divides by zero (a singular"
+            " metric, e.g. a joint that moves no mass)",
+            "exp",
+        ) from err
 
 
 def rk4_map(metric: Metric, steps: int) -> ca.Function:
@@ -209,10 +215,17 @@ def _dop853_states(metric: Metric, q0: Vector, v0: Vector, t: np.ndarray) -> np.
     acc = metric.geodesic_acceleration
     calls = [0]
 
-    def rhs(_t: float, x: np.ndarray) -> np.ndarray:
+    def rhs(t_now: float, x: np.ndarray) -> np.ndarray:
         calls[0] += 1
         if calls[0] > MAX_DOP853_EVALUATIONS:
             raise _OverBudget
+        if not np.isfinite(x).all():  # not the caller's q: the integration blew up
+            when = f" at t={t_now:.6g} s" if np.isfinite(t_now) else ""
+            raise NonFiniteResult(
+                f"exp: the geodesic left the float64 range{when} with |v0| ="
+                f" {np.linalg.norm(v0):.3g} rad/s; reduce |v0| or the duration",
+                "exp",
+            )
         return np.concatenate([x[n:], acc(x[:n], x[n:])])
 
     x0 = np.concatenate([q0, v0])
