@@ -141,3 +141,18 @@ def test_planner_refuses_a_configuration_beyond_float64_arithmetic() -> None:
     for q in (np.array([1e300, 0.0]), np.array([-1e200, 1e200])):
         result = call_api(planner.plan, q, Q)
         assert isinstance(result, GeosynError) and "too large" in str(result), result
+
+
+@pytest.mark.parametrize("value", [10**400, -(10**400), 2**1100])
+def test_python_integers_beyond_float64_are_invalid_arguments(value: int) -> None:
+    """float(10**400) raises OverflowError: the shared validators report it as bad input."""
+    from geosyn.core.validation import check_float, check_positive, check_scalar_or_vector
+
+    for check in (
+        lambda: check_float(value, "x"),
+        lambda: check_positive(value, "x"),
+        lambda: check_scalar_or_vector(value, 2, "x"),
+        lambda: exp(_metric(), Q, V, duration=value),
+    ):
+        result = call_api(check)
+        assert isinstance(result, GeosynError) and len(str(result)) < 400, result

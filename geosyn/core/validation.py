@@ -172,14 +172,14 @@ def check_float(
     left = "(" if low_open else "["
     allowed = f"a finite number in {left}{low:g}, {high:g}]" + (f" [{unit}]" if unit else "")
     if isinstance(x, (bool, str, bytes, complex, np.bool_)) or _is_complex(x):
-        raise InvalidArgument(f"{name} must be {allowed}, got {x!r}")
+        raise InvalidArgument(f"{name} must be {allowed}, got {_describe(x)}")
     try:
         val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be {allowed}, got {x!r}") from err
+    except (TypeError, ValueError, OverflowError) as err:  # 10**400 overflows float
+        raise InvalidArgument(f"{name} must be {allowed}, got {_describe(x)}") from err
     inside = (val > low if low_open else val >= low) and val <= high
     if not (math.isfinite(val) and inside):
-        raise InvalidArgument(f"{name} must be {allowed}, got {x!r}")
+        raise InvalidArgument(f"{name} must be {allowed}, got {_describe(x)}")
     return val
 
 
@@ -192,14 +192,14 @@ def check_positive(x: object, name: str, unit: str = "") -> float:
         unit: unit for the message.
     """
     if isinstance(x, (bool, str, bytes, complex, np.bool_)):
-        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}")
+        raise InvalidArgument(f"{name} must be a finite number > 0, got {_describe(x)}")
     try:
         val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as err:
-        raise InvalidArgument(f"{name} must be a finite number > 0, got {x!r}") from err
+    except (TypeError, ValueError, OverflowError) as err:  # 10**400 overflows float
+        raise InvalidArgument(f"{name} must be a finite number > 0, got {_describe(x)}") from err
     if not (math.isfinite(val) and val > 0.0):
         suffix = f" [{unit}]" if unit else ""
-        raise InvalidArgument(f"{name} must be a finite number > 0{suffix}, got {x!r}")
+        raise InvalidArgument(f"{name} must be a finite number > 0{suffix}, got {_describe(x)}")
     return val
 
 
@@ -223,10 +223,10 @@ def check_int(x: object, name: str, *, low: int | None = None, high: int | None 
     else:
         allowed = "an integer"
     if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, np.integer)):
-        raise InvalidArgument(f"{name} must be {allowed}, got {x!r}")
+        raise InvalidArgument(f"{name} must be {allowed}, got {_describe(x)}")
     val = int(x)
     if (low is not None and val < low) or (high is not None and val > high):
-        raise InvalidArgument(f"{name} must be {allowed}, got {x!r}")
+        raise InvalidArgument(f"{name} must be {allowed}, got {_describe(x)}")
     return val
 
 
@@ -239,5 +239,7 @@ def check_choice(x: object, allowed: Sequence[str], name: str) -> str:
         name: argument name for the error message.
     """
     if not isinstance(x, str) or x not in allowed:
-        raise InvalidArgument(f"{name} must be one of {', '.join(map(repr, allowed))}, got {x!r}")
+        raise InvalidArgument(
+            f"{name} must be one of {', '.join(map(repr, allowed))}, got {_describe(x)}"
+        )
     return x
