@@ -60,9 +60,10 @@ LARGE_SOURCE_CHARS = 500_000
 """Source length [characters] from which :func:`compile_library` uses LARGE_SOURCE_FLAGS."""
 _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
-# Salt of the recipe keys: bumped when what a recipe index or a library carries changes,
-# so older index files are never read (clear_cache removes them).
+# Salts of the keys: bumped when what a recipe index or a library carries changes, so
+# older files are never looked up (no warning about them; clear_cache removes them).
 _RECIPE_FORMAT = "geosyn-recipe-v2"
+_LIBRARY_FORMAT = "geosyn-library-v2"  # v2: the library carries its keys
 
 
 class CodegenError(GeosynError):
@@ -203,7 +204,8 @@ def _compile_cached(
 
 def _library_key(source: str, cc: str, flags: Sequence[str], recipe_key: str | None) -> str:
     """64 hex digits: the key of a library (its file name holds the first 24)."""
-    parts = [source, cc, *flags] + ([recipe_key] if recipe_key is not None else [])
+    parts = [_LIBRARY_FORMAT, source, cc, *flags]
+    parts += [recipe_key] if recipe_key is not None else []
     return hashlib.sha256("\0".join(parts).encode()).hexdigest()
 
 
