@@ -205,8 +205,9 @@ def test_solver_failure_triggers_fallback():
         ({"kd": np.ones(7, dtype=bool)}, "kd must be a float array, got booleans"),
         ({"kp": "900"}, "kp must be a real"),
         ({"eps_abs": 1e-300}, r"eps_abs must be a finite number in \[1e-15, 1\]"),
-        ({"max_iter": 10**9}, r"max_iter must be an integer in \[1, 10000\]"),
-        ({"max_iter": 10_000, "max_inner_iter": 30}, "max_iter \\* max_inner_iter must be <="),
+        ({"max_iter": 10**9}, r"max_iter must be an integer in \[1, 1000\]"),
+        ({"max_inner_iter": 1001}, r"max_inner_iter must be an integer in \[1, 1000\]"),
+        ({"max_iter": 1000, "max_inner_iter": 30}, "max_iter \\* max_inner_iter must be <="),
         ({"position_horizon": 1e300}, "position_horizon must be a finite number in"),
     ],
 )

@@ -40,12 +40,14 @@ MAX_EPS = 1e6
 """Largest torque regularisation weight ``eps``."""
 MIN_EPS_ABS = 1e-15
 """Smallest proxsuite tolerance ``eps_abs`` (below float64 resolution of the torques)."""
-MAX_ITER = 10_000
-"""Largest ``max_iter`` and ``max_inner_iter``."""
-MAX_INNER_ITERATIONS = 30_000
+MAX_ITER = 1000
+"""Largest ``max_iter`` and ``max_inner_iter`` (10,000 outer iterations of one inner
+iteration each cost 150 ms of CPU per tick)."""
+MAX_INNER_ITERATIONS = 10_000
 """Largest ``max_iter * max_inner_iter``: proxsuite has no wall-time limit, and about a
-million inner iterations took 8 s; 30,000 (ten times the default 100 * 30) keeps one tick
-well under a second."""
+million inner iterations took 8 s. At this bound (three times the default 100 * 30) the
+worst tick of the Panda under velocity noise with an unreachable ``eps_abs`` costs about
+40 ms of CPU (1000 * 10; measured, ``benchmarks/RESULTS.md``)."""
 
 
 class QPController(ComputedTorque):
