@@ -169,9 +169,29 @@ def stage_pga(out: Path, n_configs: int, kmax: int, evals: int, steps: int) -> N
     (out / "pga.json").write_text(json.dumps(summary, indent=1))
 
 
+def _g1_right_arm():
+    from geosyn.robots.files import example_robot_data_dir, load_file
+
+    path = example_robot_data_dir() / "g1_description/urdf/g1_29dof_rev_1_0.urdf"
+    sides = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", "wrist_roll")
+    keep = [f"right_{j}_joint" for j in (*sides, "wrist_pitch", "wrist_yaw")]
+    return load_file(path, keep_joints=keep, name="g1_right_arm")
+
+
+def _builtin(name):
+    def load():
+        from geosyn.robots import load_robot
+
+        return load_robot(name)
+
+    return load
+
+
 ROBOTS = {
-    # name: (load_robot name, home posture [rad], shoulder frame)
-    "panda": ("panda", [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], "panda_joint2"),
+    # name: (loader, home posture [rad], shoulder frame)
+    "panda": (_builtin("panda"), [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], "panda_joint2"),
+    "talos_arm": (_builtin("talos_arm"), [0.3, 0.4, 0.0, -1.2, 0.0, 0.0, 0.0], "arm_left_2_joint"),
+    "g1_arm": (_g1_right_arm, [0.0, -0.3, 0.0, 1.0, 0.0, 0.0, 0.0], "right_shoulder_roll_joint"),
 }
 
 
@@ -192,7 +212,6 @@ def _human_axes(arm) -> np.ndarray:
 def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> None:
     from geosyn.controllers import ComputedTorque, GeodesicReference
     from geosyn.metrics.geodesic.exp_map import Geodesic
-    from geosyn.robots import load_robot
     from geosyn.sim import Push, Simulation
     from geosyn.synergies.human import transfer as tr
 
@@ -202,8 +221,8 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
     arm = arms[0][0]
     group = [i for i in range(len(seqs)) if arms[i][2] == arms[0][2]]
     rows = json.loads((out / "segments.json").read_text())["rows"]
-    name, home, shoulder = ROBOTS[robot_name]
-    robot = load_robot(name)
+    loader, home, shoulder = ROBOTS[robot_name]
+    robot = loader()
     metric = KineticEnergyMetric(robot)
     q_home = np.array(home)
     wrist, gh, per_seq = [], [], {}
@@ -217,6 +236,7 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
     hmap = tr.hand_map(robot, q_home, shoulder, np.concatenate(wrist), np.concatenate(gh),
                        _human_axes(arm))  # fmt: skip
     results, tracked = [], []
+    examples: dict[str, np.ndarray] = {}
     fps = seqs[0].fps
     kin_cache = {}
     for r in rows:
@@ -236,6 +256,11 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
                         "energy_geodesic": res.energy_geodesic,
                         "kinematic_ik_error_median_m": float(np.median(err[a : b + 1])),
                         "pieces": res.pieces})  # fmt: skip
+        if not examples:
+            hands = [np.array([tr.hand_position(robot, q) for q in Q])
+                     for Q in (res.q_kinematic, res.q_geodesic)]  # fmt: skip
+            examples = {"target": res.target, "kinematic": hands[0], "geodesic": hands[1]}
+            np.savez(out / f"transfer_{robot_name}_example.npz", **examples)
         if len(tracked) < n_track:
             ref = GeodesicReference(Geodesic(res.t, res.q_geodesic, res.v_geodesic), metric)
             ctl = ComputedTorque(robot, 400.0, 40.0, reference=ref)
@@ -246,7 +271,10 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
             e = out_sim.tracking_error
             tracked.append({"segment": len(results) - 1, "duration_s": duration,
                             "rms_rad": float(np.sqrt(np.mean(e**2))),
-                            "max_rad": float(np.abs(e).max())})  # fmt: skip
+                            "max_rad": float(np.abs(e).max()),
+                            "saturated_ticks": float(out_sim.saturated.any(axis=1).mean()),
+                            "pieces": res.pieces,
+                            "ref_speed_max_rad_s": float(np.abs(res.v_geodesic).max())})  # fmt: skip
     hk = np.array([x["hand_dev_kinematic_m"] for x in results])
     hg = np.array([x["hand_dev_geodesic_m"] for x in results])
     ek = np.array([x["energy_kinematic"] for x in results])
@@ -272,9 +300,26 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
     )
 
 
+def stage_figures(out: Path, docs: Path) -> None:
+    from geosyn.synergies.human import figures as fg
+
+    seqs, _ = climb_sequences()
+    res = np.concatenate([np.load(out / f"{s.name}.npz")["residual"] for s in seqs])
+    fg.ik_residuals(res, ik.FITTED, docs / "human_ik_residuals.png")
+    rows = json.loads((out / "segments.json").read_text())["rows"]
+    fg.segment_fit(np.array([r["geodesic_dev"] for r in rows]),
+                   np.array([r["line_dev"] for r in rows]), docs / "human_segments.png")  # fmt: skip
+    fg.pga_vs_pca(json.loads((out / "pga.json").read_text())["rows"], docs / "human_pga_vs_pca.png")
+    ex = np.load(out / "transfer_panda_example.npz")
+    fg.hand_paths(ex["target"], ex["kinematic"], ex["geodesic"], docs / "human_to_panda.png",
+                  "a human climbing segment on the Panda")  # fmt: skip
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
-    p.add_argument("--stage", choices=("ik", "segments", "pga", "transfer", "all"), default="all")
+    p.add_argument(
+        "--stage", choices=("ik", "segments", "pga", "transfer", "figures", "all"), default="all"
+    )
     p.add_argument("--robot", choices=tuple(ROBOTS), default="panda")
     p.add_argument("--track", type=int, default=20, help="segments tracked in MuJoCo")
     p.add_argument("--push", type=float, default=50.0, help="push on the hand [N]")
@@ -293,6 +338,8 @@ def main() -> None:
         stage_pga(a.out, a.configs, a.kmax, a.evals, a.steps)
     if a.stage in ("transfer", "all"):
         stage_transfer(a.out, a.robot, a.track, a.push)
+    if a.stage in ("figures", "all"):
+        stage_figures(a.out, Path("docs"))
 
 
 if __name__ == "__main__":

@@ -14,6 +14,15 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+_LABELS = {
+    "RightArm": "shoulder",
+    "RightForeArm": "elbow",
+    "RightHand": "wrist",
+    "RightHandIndex1": "index MCP",
+    "RightHandMiddle1": "middle MCP",
+    "RightHandPinky1": "little MCP",
+}
+
 
 def _save(fig: Figure, path: Path) -> Path:
     FigureCanvasAgg(fig)
@@ -33,7 +42,7 @@ def ik_residuals(residuals: np.ndarray, names: Sequence[str], path: Path) -> Pat
     fig = Figure(figsize=(6.4, 3.4))
     ax = fig.add_subplot(1, 1, 1)
     ax.boxplot([100 * residuals[:, k] for k in range(residuals.shape[1])], showfliers=False)
-    ax.set_xticks(range(1, len(names) + 1), [n.replace("RightHand", "") or "Hand" for n in names])
+    ax.set_xticks(range(1, len(names) + 1), [_LABELS.get(n, n) for n in names], fontsize=8)
     ax.axhline(1.0, color="k", lw=0.8, ls="--", label="1 cm")
     med = 100 * float(np.median(residuals))
     ax.set_ylabel("keypoint residual [cm]")
