@@ -1,10 +1,11 @@
-"""Config sections to library objects (experiments/build.py)."""
+"""Config sections to library objects (experiments/run/build.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from geosyn.experiments.build import (
+from geosyn.experiments.config.loader import builtin_names, load_config
+from geosyn.experiments.run.build import (
     SIM_FIELDS,
     build_disturbances,
     build_metric,
@@ -12,7 +13,6 @@ from geosyn.experiments.build import (
     build_payloads,
     build_robot,
 )
-from geosyn.experiments.loader import builtin_names, load_config
 from geosyn.metrics.shaping import LoadTerm
 from geosyn.sim import Disturbance
 from geosyn.world import Box, Payload
@@ -102,7 +102,7 @@ class _Still:
 def test_scene_contact_makes_the_simulated_obstacles_collide() -> None:
     """``scene.contact`` reaches `Simulation`: a sphere around the hand at the start pushes
     on the arm (MuJoCo's contact solver reports a normal force) only when it is true."""
-    from geosyn.experiments.build import simulate
+    from geosyn.experiments.run.build import simulate
     from geosyn.robots.kinematics import frame_position
 
     base, _ = load_config("panda_obstacle_shaping")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from geosyn.experiments import load_config, run_experiment
-from geosyn.experiments.loader import builtin_names
+from geosyn.experiments.config.loader import builtin_names
 
 
 def _run(name, tmp_path, *overrides, plots=False):

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from geosyn.experiments.cli import main
-from geosyn.experiments.loader import read_yaml, resolve_source
+from geosyn.experiments.config.loader import read_yaml, resolve_source
 
 BASE = read_yaml(resolve_source("planar2_geodesic_vs_euclidean"))
 
@@ -345,7 +345,7 @@ def test_list_descriptions_match_the_validated_configs(capsys):
     those of the validated configs."""
     import re
 
-    from geosyn.experiments.loader import builtin_names, load_config
+    from geosyn.experiments.config.loader import builtin_names, load_config
 
     assert main(["list"]) == 0
     out = capsys.readouterr().out

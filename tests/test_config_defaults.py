@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from geosyn.experiments import schema as S
-from geosyn.experiments.loader import load_config
+from geosyn.experiments.config.loader import load_config
 
 SECTIONS = sorted(
     (
@@ -44,7 +44,7 @@ NOT_PARAMETERS = {
     ("OutputsConfig", "plots"),
     ("OutputsConfig", "video"),
     ("OutputsConfig", "video_format"),
-    ("OutputsConfig", "csv"),  # per-run CSV tables (geosyn.experiments.data)
+    ("OutputsConfig", "csv"),  # per-run CSV tables (geosyn.experiments.results.data)
 }
 
 #: Parameters of a section's first target that the config does not expose, and why.
@@ -219,7 +219,7 @@ def test_scene_contact_default_is_the_simulations_and_has_one_place():
 
     python = inspect.signature(Simulation).parameters["contact"].default
     assert S.SceneConfig().contact is python is False
-    from geosyn.experiments.loader import builtin_names
+    from geosyn.experiments.config.loader import builtin_names
 
     with_obstacles = [n for n in builtin_names() if load_config(n)[0].scene.obstacles]
     assert "panda_obstacle_shaping" in with_obstacles and "ur5_tracking" in with_obstacles

@@ -105,7 +105,7 @@ RANDOM = [_mutate(random.Random(seed)) for seed in range(16)]
 
 
 def test_the_base_config_is_valid():
-    from geosyn.experiments.loader import validate_config
+    from geosyn.experiments.config.loader import validate_config
 
     validate_config(BASE)
 

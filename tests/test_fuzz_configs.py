@@ -198,7 +198,7 @@ def test_there_are_at_least_100_cases():
 
 
 def test_the_base_config_is_valid():
-    from geosyn.experiments.loader import validate_config
+    from geosyn.experiments.config.loader import validate_config
 
     validate_config(BASE)
 
@@ -217,7 +217,7 @@ def test_malformed_config(tmp_path, monkeypatch, name, content, phrase):
 
 def test_utf16_config_with_bom_is_read():
     """A config saved as UTF-16 (with its byte-order mark) reads like the UTF-8 one."""
-    from geosyn.experiments.loader import read_yaml
+    from geosyn.experiments.config.loader import read_yaml
 
     for encoding in ("utf-16", "utf-32", "utf-8-sig"):
         path = Path(os.environ.get("TMPDIR", "/tmp")) / f"geosyn-fuzz-{os.getpid()}.yaml"

@@ -82,7 +82,7 @@ def test_simulation_log_size_is_bounded():
 
 
 def test_tick_limit_can_be_raised(monkeypatch):
-    from geosyn.experiments.loader import load_config
+    from geosyn.experiments.config.loader import load_config
 
     bomb = ["simulation.duration=2000", "params.duration=1.0", "outputs.plots=false"]
     with pytest.raises(

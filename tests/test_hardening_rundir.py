@@ -13,10 +13,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from geosyn.experiments import load_config, run_experiment, rundir
+from geosyn.experiments import load_config, run_experiment
 from geosyn.experiments.cli import main
 from geosyn.experiments.errors import OutputNotWritable, RunDirectoryExists
-from geosyn.experiments.report import clean_summary
+from geosyn.experiments.results.summary import clean_summary
+from geosyn.experiments.run import rundir
 
 FAST = ["outputs.plots=false", "params.steps=100"]
 SRC = "planar2_geodesic_vs_euclidean"
@@ -110,7 +111,7 @@ def test_out_pointing_at_a_file_is_refused(tmp_path, capsys, force):
 
 @pytest.mark.parametrize("code", [errno.ENOSPC, errno.EROFS, errno.EACCES])
 def test_disk_full_or_read_only_is_one_line(tmp_path, monkeypatch, capsys, code):
-    import geosyn.experiments.runner as runner_mod
+    import geosyn.experiments.run.runner as runner_mod
 
     def fail(*args, **kwargs):
         raise OSError(code, "simulated", str(tmp_path / "run" / "results.npz"))

@@ -31,8 +31,8 @@ from conftest import get_metric, get_robot
 from geosyn.controllers import ComputedTorque, GeodesicReference
 from geosyn.controllers.mpc import GeodesicMPC
 from geosyn.controllers.qp import QPController
-from geosyn.experiments.metrics import Window, standard_metrics
-from geosyn.experiments.report import clean_summary
+from geosyn.experiments.results.summary import clean_summary
+from geosyn.experiments.run.run_metrics import Window, standard_metrics
 from geosyn.sim import Simulation
 from geosyn.sim.disturbances import Latency, PayloadChange, Push, SensorNoise
 from geosyn.synergies.synergy import GeodesicSynergy

@@ -5,14 +5,14 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from geosyn.experiments.errors import ConfigError
-from geosyn.experiments.loader import (
+from geosyn.experiments.config.loader import (
     apply_override,
     dump_config,
     load_config,
     parse_override,
     validate_config,
 )
+from geosyn.experiments.errors import ConfigError
 
 
 def test_builtin_loads_and_params_get_defaults():
@@ -142,9 +142,9 @@ def test_nesting_limit_is_geosyn_s_whatever_parser_stops_first(
     at 1000 levels) or Python's recursion limit stops the pure-Python parser."""
     import yaml
 
-    from geosyn.experiments import loader as loader_mod
+    from geosyn.experiments.config import loader as loader_mod
+    from geosyn.experiments.config.resource_limits import MAX_DEPTH
     from geosyn.experiments.errors import ConfigError
-    from geosyn.experiments.limits import MAX_DEPTH
 
     if not hasattr(yaml, loader):
         pytest.skip(f"PyYAML built without {loader}")

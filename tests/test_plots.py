@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from geosyn.experiments.plots import (
+from geosyn.experiments.results.plots import (
     bar_plot,
     log_floor,
     reference_end,

@@ -1,4 +1,4 @@
-"""Recovery time per disturbance window (`geosyn.experiments.metrics`): synthetic error
+"""Recovery time per disturbance window (`geosyn.experiments.run.run_metrics`): synthetic error
 traces with known windows and known recovery times, and the UR5 case against an
 independent run whose reference does not end."""
 
@@ -10,9 +10,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from geosyn.experiments import build as B
 from geosyn.experiments import load_config, run_experiment
-from geosyn.experiments.metrics import (
+from geosyn.experiments.run import build as B
+from geosyn.experiments.run.run_metrics import (
     Window,
     disturbance_windows,
     recovery_times,

@@ -280,3 +280,29 @@ def test_interpolated_acceleration_is_close_to_exact(panda_geodesic, rest_to_res
         np.testing.assert_allclose(s.q, e.q, atol=1e-8)
         np.testing.assert_allclose(s.v, e.v, atol=1e-6)
         np.testing.assert_allclose(s.a, e.a, atol=1e-4)
+
+
+def test_sequence_reference_plays_segments_in_turn():
+    """Two cubic pieces of one polynomial (independent: the polynomial itself) played one
+    after the other give the polynomial on both, and hold the end after the last."""
+    from geosyn.controllers.reference import SequenceReference
+
+    rng = np.random.default_rng(3)
+    coeffs = rng.normal(size=(4, 2))
+    pieces = []
+    for t in (np.linspace(0.0, 1.0, 6), np.linspace(1.0, 2.5, 6)):
+        s = [_poly(coeffs, tk) for tk in t]
+        pieces.append(
+            JointTrajectoryReference(t, np.array([x[0] for x in s]), np.array([x[1] for x in s]))
+        )
+    seq = SequenceReference(pieces)
+    assert seq.n == 2 and seq.t0 == 0.0 and seq.duration == pytest.approx(2.5)
+    for tt in rng.uniform(0.0, 2.5, size=20):
+        np.testing.assert_allclose(seq.sample(tt).q, _poly(coeffs, tt)[0], atol=1e-10)
+    np.testing.assert_allclose(seq.sample(9.0).q, _poly(coeffs, 2.5)[0], atol=1e-12)
+    np.testing.assert_array_equal(seq.sample(9.0).v, 0.0)
+    np.testing.assert_allclose(seq.goal(), _poly(coeffs, 2.5)[0], atol=1e-12)
+    with pytest.raises(InvalidArgument, match="at least one"):
+        SequenceReference([])
+    with pytest.raises(InvalidArgument, match=r"segments\[1\].t0"):
+        SequenceReference([pieces[0], pieces[0]])

@@ -12,7 +12,7 @@ import yaml
 from geosyn.experiments import load_config, run_experiment
 from geosyn.experiments.errors import ProcedureFailed, RunDirectoryExists
 from geosyn.experiments.procedures import PROCEDURES
-from geosyn.experiments.report import report
+from geosyn.experiments.results.report import report
 
 FAST = ["outputs.plots=false", "params.steps=100"]
 
@@ -98,7 +98,7 @@ def test_several_controllers_each_get_a_run(tmp_path):
 
 
 def test_pga_synergy_source_gives_g_orthonormal_synergies():
-    from geosyn.experiments.build import build_metric, build_robot, build_synergies
+    from geosyn.experiments.run.build import build_metric, build_robot, build_synergies
 
     cfg, _ = load_config(
         "panda_push_recovery",
@@ -139,7 +139,7 @@ def test_video_is_rendered_with_the_run(tmp_path):
 
 
 def test_default_run_directory_is_unique(tmp_path, monkeypatch):
-    from geosyn.experiments.runner import default_run_dir
+    from geosyn.experiments.run.runner import default_run_dir
 
     monkeypatch.chdir(tmp_path)
     cfg = _planar()
@@ -156,7 +156,7 @@ def test_default_run_directory_is_unique(tmp_path, monkeypatch):
 
 
 def test_explicit_synergies_and_every_disturbance_type(tmp_path):
-    from geosyn.experiments.build import (
+    from geosyn.experiments.run.build import (
         build_disturbances,
         build_metric,
         build_reference,

@@ -6,7 +6,7 @@ import pytest
 from pydantic import ValidationError
 
 from geosyn.experiments import schema as S
-from geosyn.experiments.loader import builtin_names, read_yaml, resolve_source
+from geosyn.experiments.config.loader import builtin_names, read_yaml, resolve_source
 
 MINIMAL = {"name": "x", "kind": "push_recovery", "robot": {"name": "planar2"}}
 
@@ -152,7 +152,7 @@ def test_schema_command_prints_sections_and_suggests_names(capsys):
 def test_kinds_table_is_the_documented_one():
     from pathlib import Path
 
-    from geosyn.experiments.cli_schema import kinds_table
+    from geosyn.experiments.cli.schema_commands import kinds_table
 
     doc = (Path(__file__).resolve().parent.parent / "docs" / "experiments.md").read_text()
     for line in kinds_table().splitlines():
@@ -218,7 +218,7 @@ def test_all_errors_of_a_file_are_listed(tmp_path):
 
 def test_set_appends_to_lists():
     from geosyn.experiments import ConfigError, load_config
-    from geosyn.experiments.loader import apply_override, parse_override
+    from geosyn.experiments.config.loader import apply_override, parse_override
 
     cfg, _ = load_config("ur5_tracking", ["controllers+={type: computed_torque, label: ct}"])
     assert [c.type for c in cfg.controllers] == ["qp", "computed_torque"]

@@ -1,5 +1,5 @@
 """SIGTERM ends a run or sweep even when Python swallows the handler's exception
-(experiments/termination.py)."""
+(experiments/run/termination.py)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import weakref
 
 import pytest
 
-from geosyn.experiments import termination
-from geosyn.experiments.loader import load_config
-from geosyn.experiments.runner import run_experiment
+from geosyn.experiments.config.loader import load_config
+from geosyn.experiments.run import termination
+from geosyn.experiments.run.runner import run_experiment
 
 
 @pytest.fixture(autouse=True)

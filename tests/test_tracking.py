@@ -9,8 +9,8 @@ import pinocchio as pin
 import pytest
 
 from geosyn.experiments import ConfigError, load_config, run_experiment
-from geosyn.experiments.build import build_robot
-from geosyn.experiments.loader import validate_config
+from geosyn.experiments.config.loader import validate_config
+from geosyn.experiments.run.build import build_robot
 from geosyn.world import Box, signed_distance
 
 
@@ -164,7 +164,7 @@ def test_paper_kinds_gain_the_standard_metrics(tmp_path):
 
 
 def test_rest_to_rest_is_expressible_in_yaml():
-    from geosyn.experiments import build as B
+    from geosyn.experiments.run import build as B
 
     for rest in (True, False):
         cfg, _ = load_config("ur5_tracking", [f"reference.rest_to_rest={str(rest).lower()}"])

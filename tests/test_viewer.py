@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from geosyn.experiments.loader import load_config
+from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.viewer import Viewer, ViewerUnavailable, explore_robot, view_run
 
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
@@ -121,7 +121,7 @@ def _press(driver, slider, key, times: int) -> None:
 def run_dir(tmp_path_factory):
     """The acceptance run: ``ur5_tracking`` (kind tracking: UR5, box obstacle, push, QP)
     with ``--video``, shortened to 0.8 s (the push acts at 0.5-0.6 s) and small frames."""
-    from geosyn.experiments.runner import run_experiment
+    from geosyn.experiments.run.runner import run_experiment
 
     overrides = [
         "simulation.duration=0.8",

@@ -7,6 +7,7 @@
 - `CoupledReference`: a reference in the independent coordinates z of coupled joints
   (``q = S z + c``, `geosyn.robots.Coupling`), e.g. a geodesic of the pull-back metric
   `geosyn.metrics.CoupledMetric`, lifted to the joints so that any controller tracks it.
+- `SequenceReference`: references played one after the other (geodesics through goals).
 
 All hold the final configuration with zero velocity and acceleration after their
 duration, and the initial configuration with zero velocity and acceleration before their
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import bisect
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -413,3 +415,47 @@ class CoupledReference(Reference):
     def goal(self) -> Vector:
         """(n,) final joint configuration ``S z_goal + c`` [rad]."""
         return self._S @ np.asarray(self.inner.goal(), dtype=np.float64) + self._c
+
+
+class SequenceReference(Reference):
+    """References played one after the other: segment ``i`` runs from its ``t0`` until the
+    next one's; before the first it holds the first's start, after the last its goal.
+
+    Args:
+        segments: the references, in order, each with ``t0`` at the end of the previous
+            one (``t0 + duration``), all of dimension ``n``.
+
+    Raises:
+        InvalidArgument: no segment, dimensions that differ, or a segment that does not
+            start where the previous one ends (to 1e-9 s).
+    """
+
+    def __init__(self, segments: Sequence[Reference]) -> None:
+        self.segments = list(segments)
+        if not self.segments:
+            raise InvalidArgument("segments must hold at least one reference, got none")
+        self.n = self.segments[0].n
+        for i, (prev, seg) in enumerate(zip(self.segments, self.segments[1:], strict=False)):
+            if seg.n != self.n:
+                raise InvalidArgument(f"segments[{i + 1}] has n={seg.n}, segments[0] has {self.n}")
+            end = prev.t0 + prev.duration
+            if abs(seg.t0 - end) > 1e-9:
+                raise InvalidArgument(
+                    f"segments[{i + 1}].t0={seg.t0} [s] must equal the end of segments[{i}],"
+                    f" {end} [s]"
+                )
+        self.t0 = self.segments[0].t0
+        last = self.segments[-1]
+        self.duration = last.t0 + last.duration - self.t0
+
+    def sample(self, t: float) -> ReferenceSample:
+        """Reference ``(q, v, a)`` at controller time ``t`` [s] (that of the segment
+        running at ``t``; the goal at rest after the last)."""
+        for seg in self.segments:
+            if t < seg.t0 + seg.duration:
+                return seg.sample(t)
+        return self.segments[-1].sample(t)
+
+    def goal(self) -> Vector:
+        """(n,) the last goal [rad]."""
+        return self.segments[-1].goal()

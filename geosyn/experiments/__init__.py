@@ -1,8 +1,12 @@
 """Experiments: typed YAML configs, the runner, built-in procedures, sweeps and reports.
 
-The functions ``sweep`` and ``report`` live in the submodules of the same names
-(`geosyn.experiments.sweep.sweep`, `geosyn.experiments.report.report`); they are not
-re-exported here so that the submodules stay importable under their names.
+The rooms follow a run's stages: `schema` (typed YAML sections), `config` (loading a
+file: every problem at once, resource limits), `run` (build the parts, claim the run
+directory, run a procedure, log), `procedures` (the built-in experiments, registered by
+``kind``), `results` (summaries, reports, tables, plots, videos), `sweep` (grids x seeds
+on local workers or Ray), `cli` (the ``geosyn`` command) and `viewer` (browser viewers).
+The functions `geosyn.experiments.sweep.sweep` and
+`geosyn.experiments.results.report.report` are not re-exported here.
 
 Names load on first use (PEP 562), so importing this package (as the ``geosyn`` command
 line does for ``--help`` and ``list``) imports neither MuJoCo, CasADi nor Pinocchio;
@@ -24,15 +28,15 @@ _NAMES = {
     "OutputNotWritable": "geosyn.experiments.errors",
     "ProcedureFailed": "geosyn.experiments.errors",
     "RunDirectoryExists": "geosyn.experiments.errors",
-    "builtin_names": "geosyn.experiments.loader",
-    "load_config": "geosyn.experiments.loader",
-    "validate_config": "geosyn.experiments.loader",
+    "builtin_names": "geosyn.experiments.config.loader",
+    "load_config": "geosyn.experiments.config.loader",
+    "validate_config": "geosyn.experiments.config.loader",
     "PROCEDURES": "geosyn.experiments.procedures",
     "Procedure": "geosyn.experiments.procedures",
     "RunContext": "geosyn.experiments.procedures",
     "register": "geosyn.experiments.procedures",
-    "RunOutcome": "geosyn.experiments.runner",
-    "run_experiment": "geosyn.experiments.runner",
+    "RunOutcome": "geosyn.experiments.run.runner",
+    "run_experiment": "geosyn.experiments.run.runner",
     "ExperimentConfig": "geosyn.experiments.schema",
     "SweepResult": "geosyn.experiments.sweep",
     "parse_grid": "geosyn.experiments.sweep",
@@ -59,6 +63,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
+    from geosyn.experiments.config.loader import builtin_names, load_config, validate_config
     from geosyn.experiments.errors import (
         ConfigError,
         ExperimentError,
@@ -66,9 +71,8 @@ if TYPE_CHECKING:
         ProcedureFailed,
         RunDirectoryExists,
     )
-    from geosyn.experiments.loader import builtin_names, load_config, validate_config
     from geosyn.experiments.procedures import PROCEDURES, Procedure, RunContext, register
-    from geosyn.experiments.runner import RunOutcome, run_experiment
+    from geosyn.experiments.run.runner import RunOutcome, run_experiment
     from geosyn.experiments.schema import ExperimentConfig
     from geosyn.experiments.sweep import SweepResult, parse_grid
 

@@ -8,6 +8,7 @@ from typing import Any, NamedTuple
 import mujoco
 import numpy as np
 
+from geosyn.robots.kinematics import frame_positions
 from geosyn.robots.robot import Robot
 from geosyn.sim.scene import build_scene
 from geosyn.world import Payload
@@ -126,8 +127,6 @@ def _reach_azimuth(robot: Robot, q: np.ndarray) -> float:
     """Azimuth [deg] that sees the end effector from 45 deg beside the direction it reaches
     in (from the first joint to its mean position): 135 deg for an arm reaching along +x,
     and the robot's own body (a humanoid's torso) stays behind the arm, not in front."""
-    from geosyn.robots.kinematics import frame_positions
-
     base = np.asarray(robot.model.jointPlacements[1].translation, dtype=np.float64)
     ee = frame_positions(robot, q[:: max(1, len(q) // 20)], robot.ee_frame).mean(axis=0)
     u = (ee - base)[:2]

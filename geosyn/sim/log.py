@@ -265,7 +265,7 @@ class SimResult:
         """Read a log written by `save`, or one run of an experiment's ``results.npz``.
 
         An experiment stores each closed-loop run under a prefix (its controller label,
-        or ``{path}_{label}``; see `geosyn.experiments.build.sim_arrays`) with its
+        or ``{path}_{label}``; see `geosyn.experiments.run.build.sim_arrays`) with its
         metadata; `saved_runs` lists them. The arrays an experiment does not keep
         (``q_meas``, ``v_meas``, ``tau``, ``v_ref``, ``compute_time``, ``q_final``,
         ``v_final``) are NaN, ``iterations`` -1 and ``solver_status`` 0 (none reported).

@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_choice
@@ -163,8 +164,6 @@ def _joint_qpos(model: mujoco.MjModel, robot: Robot) -> np.ndarray | None:
 def _poses_alike(robot: Robot, model: mujoco.MjModel, adr: np.ndarray) -> float:
     """Largest distance [m] between the joint anchors of ``model`` and Pinocchio's at a
     fixed test configuration (inside the limits)."""
-    import pinocchio as pin
-
     q = robot.neutral() + 0.3 * np.sin(np.arange(1, robot.nq + 1))
     lo, hi = robot.q_min, robot.q_max
     q = np.where(np.isfinite(lo) & np.isfinite(hi), np.clip(q, lo, hi), q)

@@ -249,8 +249,23 @@ class Simulation:
                 of the controller (a failed solve, no reference) end the run with the status
                 ``"controller failed: ..."``.
         """
-        robot = self.robot
-        nq, nv = robot.nq, robot.nv
+        q0, v0, n_ticks, seed = self._check_run(q0, v0, duration, seed)
+        rows = self._allocate_log(n_ticks, duration)
+        self._start(q0, v0, reference, seed)
+        wall0 = time.perf_counter()
+        status, done, status_codes = self._loop(rows, n_ticks, reference)
+        wall = time.perf_counter() - wall0
+        return self._result(rows, done, n_ticks, status, status_codes, wall, seed)
+
+    def _check_run(
+        self,
+        q0: Sequence[float] | Vector,
+        v0: Sequence[float] | Vector | None,
+        duration: float,
+        seed: int | None,
+    ) -> tuple[Vector, Vector, int, int]:
+        """The checked ``(q0, v0, number of ticks, seed)`` of a `run`."""
+        nq, nv = self.robot.nq, self.robot.nv
         q0 = check_vector(q0, nq, "q0")
         v0 = np.zeros(nv) if v0 is None else check_vector(v0, nv, "v0")
         duration = check_positive(duration, "duration", "s")
@@ -260,14 +275,11 @@ class Simulation:
                 f"duration must be >= control_dt={self.control_dt} [s], got {duration!r}"
             )
         seed = check_int(self.seed if seed is None else seed, "seed", low=0)
-        self._start(q0, v0, reference, seed)
+        return q0, v0, n_ticks, seed
 
-        m, d, sc = self.model, self.data, self.scene
-        controller = self.controller
-        has_ref_attr = hasattr(type(controller), "reference") or hasattr(controller, "reference")
-        pay_ids = sc.payload_body_ids
-        n_pay = len(pay_ids)
-        dims = {"nq": nq, "nv": nv, "P": n_pay}
+    def _allocate_log(self, n_ticks: int, duration: float) -> dict[str, np.ndarray]:
+        """The per-tick log rows of a run of ``n_ticks``, refused over `MAX_LOG_BYTES`."""
+        dims = {"nq": self.robot.nq, "nv": self.robot.nv, "P": len(self.scene.payload_body_ids)}
         log_bytes = n_ticks * sum(a.nbytes for a in allocate_rows(1, dims).values())
         if log_bytes > MAX_LOG_BYTES:  # e.g. duration 2e4 s: refuse, do not allocate
             raise InvalidArgument(
@@ -276,7 +288,25 @@ class Simulation:
                 f" {MAX_LOG_BYTES / 2**30:g} GiB; shorten the run or raise"
                 " geosyn.sim.simulation.MAX_LOG_BYTES"
             )
-        rows = allocate_rows(n_ticks, dims)
+        return allocate_rows(n_ticks, dims)
+
+    def _loop(
+        self, rows: dict[str, np.ndarray], n_ticks: int, reference: ReferenceLike | None
+    ) -> tuple[str, int, dict[str, int]]:
+        """The control ticks of a `run` (see the module doc), logged into ``rows``.
+
+        One function on purpose: the tick is the hot path (tens of microseconds), so its
+        steps stay inline on locals bound once here instead of costing a call each.
+
+        Returns:
+            (status, ticks done, solver status name -> code).
+        """
+        m, d, sc = self.model, self.data, self.scene
+        nv = self.robot.nv
+        pay_ids = sc.payload_body_ids
+        n_pay = len(pay_ids)
+        controller = self.controller
+        has_ref_attr = hasattr(type(controller), "reference") or hasattr(controller, "reference")
         t_log, q_log, v_log = rows["t"], rows["q"], rows["v"]
         qm_log, vm_log = rows["q_meas"], rows["v_meas"]
         tau_log, taua_log, sat_log = rows["tau"], rows["tau_applied"], rows["saturated"]
@@ -309,7 +339,6 @@ class Simulation:
         ref = reference
         status = "ok"
         done = 0
-        wall0 = perf()
 
         for k in range(n_ticks + 1):
             t = k * dt
@@ -347,15 +376,8 @@ class Simulation:
                 break
             c1 = perf()
             tau_cmd = np.asarray(out, dtype=np.float64)
-            if tau_cmd.shape != (nv,):
-                raise InvalidArgument(
-                    f"controller {type(controller).__name__}.compute returned shape"
-                    f" {tau_cmd.shape}, expected ({nv},)"
-                )
-            if not isfinite(float(tau_cmd @ tau_cmd)):
-                status = (
-                    f"diverged: controller returned a non-finite torque {tau_cmd} at t={t:.6g} s"
-                )
+            if tau_cmd.shape != (nv,) or not isfinite(float(tau_cmd @ tau_cmd)):
+                status = self._bad_torque(tau_cmd, t)  # raises for a wrong shape
                 break
             tau_out = tau_cmd
             for h in tau_hooks:
@@ -424,14 +446,37 @@ class Simulation:
             for _ in extra_steps:
                 mujoco.mj_step(m, d)
 
-        wall = perf() - wall0
+        return status, done, status_codes
+
+    def _bad_torque(self, tau: np.ndarray, t: float) -> str:
+        """The status of a run whose controller returned a non-finite torque ``tau`` at
+        ``t`` [s]; `InvalidArgument` if ``tau`` has the wrong shape (a setup bug)."""
+        if tau.shape != (self.robot.nv,):
+            raise InvalidArgument(
+                f"controller {type(self.controller).__name__}.compute returned shape"
+                f" {tau.shape}, expected ({self.robot.nv},)"
+            )
+        return f"diverged: controller returned a non-finite torque {tau} at t={t:.6g} s"
+
+    def _result(
+        self,
+        rows: dict[str, np.ndarray],
+        done: int,
+        n_ticks: int,
+        status: str,
+        status_codes: dict[str, int],
+        wall: float,
+        seed: int,
+    ) -> SimResult:
+        """The `SimResult` of a run: the first ``done`` rows and the run's metadata."""
+        d, sc, dt = self.data, self.scene, self.control_dt
         return SimResult(
             **finish_rows(rows, done, dt),
-            q_final=d.qpos[qadr].copy(),
-            v_final=d.qvel[dadr].copy(),
+            q_final=d.qpos[sc.qpos_adr].copy(),
+            v_final=d.qvel[sc.dof_adr].copy(),
             solver_status_names=tuple(status_codes),
-            joint_names=tuple(robot.joint_names),
-            robot_name=robot.name,
+            joint_names=tuple(self.robot.joint_names),
+            robot_name=self.robot.name,
             control_dt=dt,
             substeps=self.substeps,
             integrator=self.integrator,

@@ -44,7 +44,7 @@ def check_video_path(path: str | os.PathLike[str]) -> Path:
 
 def _mp4_writer() -> Any:
     """The ``imageio.v2`` module (with ffmpeg), or a `RenderError` saying how to get it."""
-    try:
+    try:  # deferred: imageio is the optional 'video' extra
         import imageio.v2 as iio
         import imageio_ffmpeg  # noqa: F401
     except ImportError as err:
@@ -92,7 +92,7 @@ def write_frames(
 
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.suffix.lower() == ".gif":
-        from PIL import Image
+        from PIL import Image  # deferred: Pillow (via Matplotlib) only for a GIF
 
         images = [
             Image.fromarray(checked(f, i)).convert("P", palette=Image.Palette.ADAPTIVE, colors=256)

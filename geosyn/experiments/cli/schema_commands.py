@@ -1,15 +1,18 @@
 """``geosyn schema [SECTION]`` (every config field: type, default, unit, meaning) and
-``geosyn init NAME`` (a commented experiment template), registered into
+``geosyn init NAME`` (a commented experiment template), listed in ``COMMANDS`` for
 `geosyn.experiments.cli`. The schema and the robot are imported only when they run."""
 
 from __future__ import annotations
 
 import argparse
 import difflib
+import re
 from pathlib import Path
 from typing import Any
 
-from geosyn.experiments.cli import ARGUMENTS, command
+import numpy as np
+
+from geosyn.experiments.cli.registry import Command
 from geosyn.experiments.errors import ConfigError
 
 
@@ -108,7 +111,6 @@ def _schema_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-@command("schema", "every config field with its type, default, unit and meaning")
 def cmd_schema(args: argparse.Namespace) -> int:
     print(schema_text(args.section))
     return 0
@@ -117,8 +119,6 @@ def cmd_schema(args: argparse.Namespace) -> int:
 def _start_and_goal(robot: Any) -> tuple[list[float], list[float]]:
     """A start at the model's zero configuration moved 0.1 rad inside finite position
     limits, and a goal 0.4 rad away on the first three joints (kept inside too)."""
-    import numpy as np
-
     lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
     finite = (np.abs(lo) < 1e3) & (np.abs(hi) < 1e3) & (hi - lo > 0.3)
     start = np.where(finite, np.clip(0.0, lo + 0.1, hi - 0.1), 0.0)
@@ -191,10 +191,7 @@ def _init_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace an existing file")
 
 
-@command("init", "write a commented experiment template NAME.yaml")
 def cmd_init(args: argparse.Namespace) -> int:
-    import re
-
     if not re.fullmatch(r"[A-Za-z0-9_\-.]+", args.name):
         raise ConfigError("init", "name", "use letters, digits, '_', '-' and '.' only")
     path = Path(args.out or f"{args.name}.yaml")
@@ -210,7 +207,26 @@ def cmd_init(args: argparse.Namespace) -> int:
     return 0
 
 
-ARGUMENTS["schema"] = _schema_arguments
-ARGUMENTS["init"] = _init_arguments
+COMMANDS = (
+    Command(
+        "schema",
+        cmd_schema,
+        "every config field with its type, default, unit and meaning",
+        _schema_arguments,
+    ),
+    Command(
+        "init",
+        cmd_init,
+        "write a commented experiment template NAME.yaml",
+        _init_arguments,
+    ),
+)
 
-__all__ = ["format_docs", "kinds_table", "schema_text", "template", "unknown_name_message"]
+__all__ = [
+    "COMMANDS",
+    "format_docs",
+    "kinds_table",
+    "schema_text",
+    "template",
+    "unknown_name_message",
+]

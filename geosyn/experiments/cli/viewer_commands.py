@@ -1,6 +1,6 @@
 """The ``geosyn view`` and ``geosyn explore`` commands (browser viewers, `geosyn.experiments.viewer`).
 
-Registered into `geosyn.experiments.cli` when it is imported; viser and the robot models
+Listed in ``COMMANDS`` for `geosyn.experiments.cli`; viser and the robot models
 are imported only when a command runs.
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from geosyn.experiments.cli import ARGUMENTS, command
+from geosyn.experiments.cli.registry import Command
 
 
 def _server_arguments(p: argparse.ArgumentParser) -> None:
@@ -31,7 +31,6 @@ def _explore_arguments(p: argparse.ArgumentParser) -> None:
     _server_arguments(p)
 
 
-@command("view", "replay a run directory in the browser (scrub time, play, compare controllers)")
 def cmd_view(args: argparse.Namespace) -> int:
     from geosyn.experiments.viewer import view_run
 
@@ -41,7 +40,6 @@ def cmd_view(args: argparse.Namespace) -> int:
     return 0
 
 
-@command("explore", "explore a robot's geodesic synergies in the browser (a slider per weight)")
 def cmd_explore(args: argparse.Namespace) -> int:
     from geosyn.experiments.viewer import explore_robot
 
@@ -51,5 +49,19 @@ def cmd_explore(args: argparse.Namespace) -> int:
     return 0
 
 
-ARGUMENTS["view"] = _view_arguments
-ARGUMENTS["explore"] = _explore_arguments
+COMMANDS = (
+    Command(
+        "view",
+        cmd_view,
+        "replay a run directory in the browser (scrub time, play, compare controllers)",
+        _view_arguments,
+    ),
+    Command(
+        "explore",
+        cmd_explore,
+        "explore a robot's geodesic synergies in the browser (a slider per weight)",
+        _explore_arguments,
+    ),
+)
+
+__all__ = ["COMMANDS"]

@@ -3,7 +3,7 @@
 Problems are reported as one `ConfigError` naming the file and the field path, e.g.
 ``panda_push_recovery.yaml: controllers.1.kp: Input should be greater than or equal to 0``,
 with every other problem of the same stage listed after the first
-(`geosyn.experiments.config_errors`; unknown keys and types name the closest valid ones).
+(`geosyn.experiments.config.problems`; unknown keys and types name the closest valid ones).
 Validation order: YAML syntax, overrides, then one stage: ``robot`` (the robot is loaded
 to learn its DoF), the whole document with the DoF as context, ``kind`` against the
 registered procedures, ``params`` against the procedure's ``Params`` model; then
@@ -24,9 +24,8 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from geosyn.core.errors import GeosynError
-from geosyn.experiments.config_errors import raise_problems, validation_errors
-from geosyn.experiments.errors import ConfigError
-from geosyn.experiments.limits import (
+from geosyn.experiments.config.problems import raise_problems, validation_errors
+from geosyn.experiments.config.resource_limits import (
     SAFE_LOADER,
     check_nesting,
     check_structure,
@@ -34,10 +33,15 @@ from geosyn.experiments.limits import (
     read_text,
     resource_errors,
 )
+from geosyn.experiments.errors import ConfigError
+from geosyn.experiments.procedures import PROCEDURES
+from geosyn.experiments.run.scene import build_payloads
 from geosyn.experiments.schema import ExperimentConfig, RobotConfig, consistency_errors
+from geosyn.robots import load_robot
+from geosyn.sim import build_scene
 
 #: Folder of the built-in experiment configs.
-CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs"
 
 
 def builtin_names() -> list[str]:
@@ -184,9 +188,6 @@ def scene_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
 
     Builds the MuJoCo scene once (only when a push or wrench names a body).
     """
-    from geosyn.experiments.build import build_payloads
-    from geosyn.sim import build_scene
-
     frames = [f.name for f in robot.model.frames]
     for i, p in enumerate(cfg.scene.payloads):
         if (
@@ -252,9 +253,6 @@ def validate_config(data: Mapping[str, Any], file: str = "<config>") -> Experime
             and params are one stage; resource limits, cross-field and procedure checks
             and scene names come after it).
     """
-    from geosyn.experiments.procedures import PROCEDURES
-    from geosyn.robots import load_robot
-
     check_structure(dict(data), file)
     data = copy.deepcopy(dict(data))
     problems: dict[str, str] = {}  # every problem of the file, one per field

@@ -12,6 +12,7 @@ from typing import Any, NoReturn
 from pydantic import BaseModel, ValidationError
 
 from geosyn.experiments.errors import ConfigError
+from geosyn.experiments.schema.describe import config_models
 
 
 def field_path(loc: tuple[Any, ...], data: Any) -> str:
@@ -43,8 +44,6 @@ def field_path(loc: tuple[Any, ...], data: Any) -> str:
 
 def _model_at(root: type[BaseModel], loc: tuple[Any, ...], data: Any) -> list[type[BaseModel]]:
     """The config models an error location's parent may be (for the valid keys there)."""
-    from geosyn.experiments.schema.describe import _models
-
     candidates: list[type[BaseModel]] = [root]
     node = data
     for item in loc[:-1]:
@@ -58,7 +57,7 @@ def _model_at(root: type[BaseModel], loc: tuple[Any, ...], data: Any) -> list[ty
         owner = next((c for c in candidates if item in c.model_fields), None)
         if owner is None:
             return []
-        candidates = _models(owner.model_fields[item].annotation)
+        candidates = config_models(owner.model_fields[item].annotation)
         if len(candidates) > 1 and isinstance(node, dict) and "type" in node:
             same = [c for c in candidates if typing.get_args(_type_of(c)) == (node["type"],)]
             candidates = same or candidates

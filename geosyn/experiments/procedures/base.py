@@ -17,6 +17,13 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel
 
+from geosyn.experiments.run.build import sim_view
+from geosyn.experiments.run.run_metrics import (
+    DEFAULT_THRESHOLD,
+    disturbance_windows,
+    standard_metrics,
+)
+from geosyn.experiments.run.scene import BuiltScene
 from geosyn.experiments.schema import ExperimentConfig, Strict
 from geosyn.robots import Robot
 
@@ -32,7 +39,9 @@ class RunContext:
     Attributes:
         config: the validated config.
         params: the procedure's validated ``Params``.
-        robot: the robot built from the config.
+        scene: the run's world, built once from the config (robot, obstacles, payloads,
+            contact, cameras; `geosyn.experiments.run.scene`): hand it to the metric, the
+            controllers, the simulation, never rebuild it from the config.
         out_dir: where to write extra files (the run's temporary directory).
         video: render videos (``--video`` or ``outputs.video``).
         progress: ``progress(description, total) -> advance()``, a progress-bar factory.
@@ -40,12 +49,17 @@ class RunContext:
 
     config: ExperimentConfig
     params: Any
-    robot: Robot
+    scene: BuiltScene
     out_dir: Path
     video: bool = False
     progress: Callable[[str, int], Callable[[], None]] = field(
         default=lambda description, total: lambda: None
     )
+
+    @property
+    def robot(self) -> Robot:
+        """The robot of the run (``scene.robot``)."""
+        return self.scene.robot
 
 
 class Procedure(ABC):
@@ -56,7 +70,7 @@ class Procedure(ABC):
         description: one line for ``geosyn list``.
         Params: pydantic model of the ``params`` section (unknown keys rejected).
         units: unit of each summary metric of its own, for the tables (the standard
-            metrics' units, `geosyn.experiments.metrics.UNITS`, apply without listing them).
+            metrics' units, `geosyn.experiments.run.run_metrics.UNITS`, apply without listing them).
     """
 
     kind: ClassVar[str]
@@ -92,7 +106,7 @@ class Procedure(ABC):
     def run_rows(self, cfg: ExperimentConfig, results: dict[str, np.ndarray]) -> dict[str, str]:
         """Summary row of each stored closed-loop run: ``{run prefix: row name}``.
 
-        By default every stored run (see `geosyn.experiments.build.sim_arrays`) is its own
+        By default every stored run (see `geosyn.experiments.run.build.sim_arrays`) is its own
         row, named by its prefix; procedures whose rows have other names override this.
         """
         return {p: p for p in stored_runs(results)}
@@ -101,15 +115,8 @@ class Procedure(ABC):
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]
     ) -> dict[str, float]:
         """`summarize`, then the standard metrics of every stored run
-        (`geosyn.experiments.metrics.standard_metrics`) that the procedure's own summary
+        (`geosyn.experiments.run.run_metrics.standard_metrics`) that the procedure's own summary
         does not already give (its own metrics, the claims, win)."""
-        from geosyn.experiments.build import sim_view
-        from geosyn.experiments.metrics import (
-            DEFAULT_THRESHOLD,
-            disturbance_windows,
-            standard_metrics,
-        )
-
         out = dict(self.summarize(cfg, params, results))
         windows = disturbance_windows(cfg.disturbances)
         threshold = float(getattr(params, "threshold", DEFAULT_THRESHOLD))

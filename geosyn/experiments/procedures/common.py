@@ -12,9 +12,10 @@ from typing import Annotated, Any, ClassVar
 import numpy as np
 from pydantic import Field
 
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import bar_plot, torque_plot, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure
+from geosyn.experiments.results.plots import bar_plot, torque_plot, tracking_error_plot
+from geosyn.experiments.run import build as B
+from geosyn.experiments.run.scene import BuiltScene
 from geosyn.experiments.schema import ExperimentConfig
 from geosyn.metrics import Metric
 from geosyn.robots import Robot
@@ -72,7 +73,7 @@ def geodesic_residual(metric: Metric, t: np.ndarray, q: np.ndarray) -> float:
 
 def track_with_each_controller(
     cfg: ExperimentConfig,
-    robot: Robot,
+    scene: BuiltScene,
     metric: Metric,
     reference: Any,
     q0: np.ndarray,
@@ -86,7 +87,7 @@ def track_with_each_controller(
 
     Args:
         cfg: the experiment (controllers, simulation settings, scene, disturbances).
-        robot: the robot.
+        scene: the run's world (robot, obstacles, payloads; `RunContext.scene`).
         metric: the metric the controllers are built with.
         reference: the reference they track.
         q0: (nv,) initial joint positions [rad].
@@ -100,10 +101,10 @@ def track_with_each_controller(
         The per-tick arrays of every run.
     """
     out: dict[str, np.ndarray] = {}
-    obstacles = B.build_obstacles(cfg)
+    robot = scene.robot
     for label, ccfg in zip(cfg.controller_labels(), cfg.controllers, strict=True):
-        ctrl = B.build_controller(ccfg, robot, metric, cfg.simulation.control_dt, obstacles)
-        res = B.simulate(cfg, robot, ctrl, reference, q0, v0, duration=duration)
+        ctrl = B.build_controller(ccfg, robot, metric, cfg.simulation.control_dt, scene.obstacles)
+        res = B.simulate(cfg, robot, ctrl, reference, q0, v0, duration=duration, scene=scene)
         out.update(B.sim_arrays(f"{prefix}{label}", res))
         if each is not None:
             each(label, res)

@@ -18,7 +18,6 @@ import numpy as np
 from pydantic import Field
 
 from geosyn.controllers import JointTrajectoryReference
-from geosyn.experiments import build as B
 from geosyn.experiments.procedures.base import RunContext, check_required, register
 from geosyn.experiments.procedures.common import (
     Duration,
@@ -27,6 +26,8 @@ from geosyn.experiments.procedures.common import (
     robot_and_metric,
     track_with_each_controller,
 )
+from geosyn.experiments.run import build as B
+from geosyn.experiments.run import references as R
 from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, Strict
 from geosyn.metrics import exp, log, path_energy, straight_line
 from geosyn.synergies.figures import figure_configuration_space
@@ -77,7 +78,7 @@ class GeodesicVsEuclidean(PathComparison):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot, p = ctx.config, ctx.robot, ctx.params
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         q0, q1, T = np.array(p.q0), np.array(p.q1), p.duration
         v0 = log(metric, q0, q1, steps=p.steps) / T
         paths = {
@@ -90,12 +91,12 @@ class GeodesicVsEuclidean(PathComparison):
             out[f"path_{name}__t"], out[f"path_{name}__q"] = geo.t, geo.q
             out[f"path_{name}__energy"] = np.array(path_energy(metric, geo.t, geo.q))
             ref = (
-                B.tracked_reference(geo, metric)
+                R.tracked_reference(geo, metric)
                 if name == "geodesic"
                 else JointTrajectoryReference(geo.t, geo.q, geo.v)
             )
             out |= track_with_each_controller(
-                cfg, robot, metric, ref, q0, geo.v[0], f"{name}_", advance, duration=T
+                cfg, ctx.scene, metric, ref, q0, geo.v[0], f"{name}_", advance, duration=T
             )
         return out
 

@@ -20,6 +20,7 @@ the ball where the simulation put it at each tick (``example__target_position``)
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -30,10 +31,10 @@ from pydantic import Field
 from geosyn.controllers import ComputedTorque, Controller, GeodesicReference
 from geosyn.controllers import JointTrajectoryReference as Hold
 from geosyn.core.types import Vector
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import Duration
+from geosyn.experiments.results.plots import COLORS, figure, save
+from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
 from geosyn.metrics import Metric
 from geosyn.robots import Robot
@@ -199,15 +200,15 @@ class PerceptionReach(Procedure):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot, p = ctx.config, ctx.robot, ctx.params
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         syns = B.build_synergies(cfg, metric, robot)
         frame = getattr(cfg.synergies, "frame", None) or robot.ee_frame
         smap = SynergyMap(syns, frame, robot, duration=1.0, steps=p.steps, degree=p.degree)
         smap.fit(p.fit_samples, p.weight_scale, seed=cfg.seed)
         finals, drifts = target_paths(smap, p, cfg.seed)
         frames = Frames()
-        views = [c.view() for c in p.cameras]
-        sensor = CameraSensor(frames, 0, GREEN, views, p.rate, p.width, p.height)
+        scene = dataclasses.replace(ctx.scene, cameras=tuple(c.view() for c in p.cameras))
+        sensor = CameraSensor(frames, 0, GREEN, list(scene.cameras), p.rate, p.width, p.height)
         gains = cfg.controllers[0].kwargs()  # computed torque (checked)
         ctrl = PerceptionController(robot, metric, smap, frames, p, gains["kp"], gains["kd"])
         sim = Simulation(

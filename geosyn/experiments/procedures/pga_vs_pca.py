@@ -18,10 +18,10 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, register
 from geosyn.experiments.procedures.common import Steps
+from geosyn.experiments.results.plots import COLORS, figure, save
+from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, JointVector, Strict
 from geosyn.metrics import exp
 from geosyn.synergies import pca_synergies, pga
@@ -65,7 +65,7 @@ class PGAvsPCA(Procedure):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot, p = ctx.config, ctx.robot, ctx.params
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         q0 = np.array(p.q0)
         advance = ctx.progress(f"{cfg.name}: k", p.k_max + 1)
         X = B.pga_demonstrations(metric, robot, q0, p.n_demos, p.spread, p.latent, cfg.seed)

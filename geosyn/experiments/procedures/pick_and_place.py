@@ -31,16 +31,17 @@ from typing import Annotated, Any
 
 import numpy as np
 import pinocchio as pin
+from matplotlib.patches import Circle, Rectangle
 from pydantic import Field
 
 from geosyn.controllers import ComputedTorque, Controller, JointTrajectoryReference
 from geosyn.core.types import Vector
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, figure, save, tracking_error_plot
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import EFFORT_LABEL, Duration, Steps
+from geosyn.experiments.results.plots import COLORS, figure, save, tracking_error_plot
+from geosyn.experiments.results.run_video import MARKERS
+from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
-from geosyn.experiments.video import MARKERS
 from geosyn.metrics import KineticEnergyMetric, Metric
 from geosyn.metrics.shaping import LoadTerm, ShapedMetric
 from geosyn.robots import Robot
@@ -176,7 +177,7 @@ class PickAndPlace(Procedure):
         free = KineticEnergyMetric(robot)
         syns = B.build_synergies(cfg, free, robot)
         frame = getattr(cfg.synergies, "frame", None) or robot.ee_frame
-        empty = B.build_payloads(cfg, robot)[0]
+        empty = ctx.scene.payloads[0]
         obj = dataclasses.replace(empty, mass=p.mass)
         loaded_metric = ShapedMetric(free, [LoadTerm.from_payload(obj)])
         loaded_robot = attach_payload(robot, obj)
@@ -247,6 +248,7 @@ class PickAndPlace(Procedure):
                 np.zeros(robot.nv),
                 duration=t_release + p.dwell,
                 disturbances=dist,
+                scene=ctx.scene,
             )
             out |= B.sim_arrays(name, res)
             advance()
@@ -314,14 +316,10 @@ def attached_mass_matrix(loaded: Robot, q: Vector) -> np.ndarray:
 
 
 def _circle(center: tuple[float, float], radius: float) -> Any:
-    from matplotlib.patches import Circle
-
     return Circle(center, radius, color="0.6", alpha=0.6)
 
 
 def _rect(center: list[float], half: list[float]) -> Any:
-    from matplotlib.patches import Rectangle
-
     return Rectangle(
         (center[1] - half[1], center[2] - half[2]), 2 * half[1], 2 * half[2], color="0.6", alpha=0.6
     )

@@ -3,7 +3,7 @@ torque noise, with each configured controller (computed torque, QP, MPC, ...).
 
 Per controller: RMS tracking error, RMS error from ``window`` after the push on, maximum
 error, recovery time (time after the push starts until the tracking-error norm stays
-below ``threshold``, measured in the push's window: `geosyn.experiments.metrics`), effort ``integral ||tau||^2 dt``, saturated (tick, joint) pairs.
+below ``threshold``, measured in the push's window: `geosyn.experiments.run.run_metrics`), effort ``integral ||tau||^2 dt``, saturated (tick, joint) pairs.
 """
 
 from __future__ import annotations
@@ -14,14 +14,6 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
-from geosyn.experiments import build as B
-from geosyn.experiments.metrics import (
-    Window,
-    disturbance_windows,
-    recovery_times,
-    standard_metrics,
-)
-from geosyn.experiments.plots import torque_plot, tracking_error_plot
 from geosyn.experiments.procedures.base import (
     SECTIONS,
     Procedure,
@@ -30,6 +22,15 @@ from geosyn.experiments.procedures.base import (
     register,
 )
 from geosyn.experiments.procedures.common import Duration, track_with_each_controller
+from geosyn.experiments.results.plots import torque_plot, tracking_error_plot
+from geosyn.experiments.run import build as B
+from geosyn.experiments.run import references as R
+from geosyn.experiments.run.run_metrics import (
+    Window,
+    disturbance_windows,
+    recovery_times,
+    standard_metrics,
+)
 from geosyn.experiments.schema import ExperimentConfig, Strict
 
 
@@ -58,7 +59,7 @@ def controller_summary(
     """The per-controller metrics of a stored run (see the module doc).
 
     ``recovery_time`` is that of the first push's window
-    (`geosyn.experiments.metrics`: measured per disturbance window, never counting the
+    (`geosyn.experiments.run.run_metrics`: measured per disturbance window, never counting the
     end of the reference); the standard metrics add one per disturbance window.
     """
     dt = cfg.simulation.control_dt
@@ -116,14 +117,14 @@ class PushRecovery(Procedure):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot = ctx.config, ctx.robot
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         synergies = B.build_synergies(cfg, metric, robot)
-        ref, geo = B.build_reference(cfg, metric, synergies)
+        ref, geo = R.build_reference(cfg, metric, synergies)
         q0, v0, _ = ref.sample(0.0)
         advance = ctx.progress(f"{cfg.name}: controllers", len(cfg.controllers))
         out: dict[str, np.ndarray] = {"reference__t": geo.t, "reference__q": geo.q}
 
-        return out | track_with_each_controller(cfg, robot, metric, ref, q0, v0, "", advance)
+        return out | track_with_each_controller(cfg, ctx.scene, metric, ref, q0, v0, "", advance)
 
     def summarize(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray]

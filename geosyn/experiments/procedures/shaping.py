@@ -25,11 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from geosyn.experiments import build as B
 from geosyn.experiments.errors import ProcedureFailed
-from geosyn.experiments.plots import COLORS, figure, save
 from geosyn.experiments.procedures.base import RunContext, check_required, register
 from geosyn.experiments.procedures.common import PathComparison, track_with_each_controller
+from geosyn.experiments.results.plots import COLORS, figure, save
+from geosyn.experiments.run import build as B
+from geosyn.experiments.run import references as R
 from geosyn.experiments.schema import ExperimentConfig, LogReference
 from geosyn.metrics import Geodesic, Metric, exp, log, path_energy
 from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
@@ -107,8 +108,8 @@ class _Shaping(PathComparison):
         if not isinstance(reference, LogReference):  # `check` refuses such a config
             raise ProcedureFailed(f"kind {cfg.kind!r} needs a 'log' reference, got {reference!r}")
         metrics = {
-            "unshaped": B.build_metric(cfg, robot, terms=[]),
-            "shaped": B.build_metric(cfg, robot),
+            "unshaped": B.build_metric(cfg, robot, terms=[], scene=ctx.scene),
+            "shaped": B.build_metric(cfg, robot, scene=ctx.scene),
         }
         advance = ctx.progress(f"{cfg.name}: runs", 2 * len(cfg.controllers))
         geo_u, u = _geodesic(metrics["unshaped"], reference)
@@ -128,13 +129,13 @@ class _Shaping(PathComparison):
                 else np.full(len(geo.t), np.inf)
             )
             out[f"path_{name}__clearance"] = clear
-            ref = B.tracked_reference(
+            ref = R.tracked_reference(
                 geo, metrics[name], reference.time_scale, reference.rest_to_rest
             )
             q0, v0, _ = ref.sample(0.0)
             # the controllers' model is the robot alone: the unshaped metric
             runs = track_with_each_controller(
-                cfg, robot, metrics["unshaped"], ref, q0, v0, f"{name}_", advance
+                cfg, ctx.scene, metrics["unshaped"], ref, q0, v0, f"{name}_", advance
             )
             out |= runs
             for key in [k for k in runs if k.endswith("__status")]:

@@ -17,8 +17,6 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, RESIDUAL_LABEL, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import (
     Duration,
@@ -26,6 +24,8 @@ from geosyn.experiments.procedures.common import (
     geodesic_residual,
     robot_and_metric,
 )
+from geosyn.experiments.results.plots import COLORS, RESIDUAL_LABEL, figure, save
+from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, Strict
 from geosyn.metrics import path_energy
 from geosyn.synergies import combine, pca_synergies
@@ -75,7 +75,7 @@ class SynergyCombinations(Procedure):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot, p = ctx.config, ctx.robot, ctx.params
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         syns = B.build_synergies(cfg, metric, robot)
         q0 = np.array(syns[0].q0)
         advance = ctx.progress(f"{cfg.name}: combinations", 2 * len(p.weights))

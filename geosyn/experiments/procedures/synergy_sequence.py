@@ -12,7 +12,7 @@ in their own parameter, which the geodesic minimises, and the geodesic's saving;
 position/velocity/acceleration at the junctions, each segment's geodesic residual, the
 reach errors, and per tracked run the effort, RMS tracking error, final hand error and
 minimum clearance to the scene's obstacles. ``--video`` films every tracked run with the
-goals drawn (``video_markers``, `geosyn.experiments.video`).
+goals drawn (``video_markers``, `geosyn.experiments.results.run_video`).
 """
 
 from __future__ import annotations
@@ -24,8 +24,6 @@ import numpy as np
 from pydantic import Field
 
 from geosyn.controllers import JointTrajectoryReference
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import (
     Duration,
@@ -33,8 +31,10 @@ from geosyn.experiments.procedures.common import (
     robot_and_metric,
     track_with_each_controller,
 )
+from geosyn.experiments.results.plots import COLORS, figure, save
+from geosyn.experiments.results.run_video import MARKERS
+from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
-from geosyn.experiments.video import MARKERS
 from geosyn.robots.kinematics import frame_positions
 from geosyn.synergies.sequence import SynergySequence, reach_sequence, straight_sequence
 
@@ -90,7 +90,7 @@ class SynergySequenceProcedure(Procedure):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot, p = ctx.config, ctx.robot, ctx.params
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         syns = B.build_synergies(cfg, metric, robot)
         frame = getattr(cfg.synergies, "frame", None) or robot.ee_frame
         targets = np.array(p.targets)
@@ -118,7 +118,7 @@ class SynergySequenceProcedure(Procedure):
             out[f"{name}__energy"] = np.array(seq.path_energy(metric))
             out[f"{name}__timed_energy"] = np.array(seq.energy(metric))
             out |= track_with_each_controller(
-                cfg, robot, metric, ref, q[0], v[0], f"{name}_", advance, duration=duration
+                cfg, ctx.scene, metric, ref, q[0], v[0], f"{name}_", advance, duration=duration
             )
         return out
 

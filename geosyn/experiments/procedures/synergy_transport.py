@@ -20,10 +20,10 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import Field
 
-from geosyn.experiments import build as B
-from geosyn.experiments.plots import COLORS, RESIDUAL_LABEL, figure, save
 from geosyn.experiments.procedures.base import Procedure, RunContext, register
 from geosyn.experiments.procedures.common import Duration, Steps, geodesic_residual
+from geosyn.experiments.results.plots import COLORS, RESIDUAL_LABEL, figure, save
+from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, FiniteFloat, JointVector, Strict
 from geosyn.metrics import path_energy
 from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies, transported_velocities
@@ -71,7 +71,7 @@ class SynergyTransport(Procedure):
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot, p = ctx.config, ctx.robot, ctx.params
-        metric = B.build_metric(cfg, robot)
+        metric = B.build_metric(cfg, robot, scene=ctx.scene)
         m = len(p.bases)
         syns = []
         for i, base in enumerate(p.bases):  # the i-th designed direction at the i-th base

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import ExperimentError
 from geosyn.sim.log import SimResult, saved_runs
 
@@ -141,14 +142,12 @@ def load_table(run_dir: str | Path) -> pandas.DataFrame:
     Raises:
         ExperimentError: no results.npz, or pandas is not installed.
     """
-    try:
+    try:  # deferred: pandas is the optional 'data' extra
         import pandas as pd
     except ImportError as err:
         raise ExperimentError(
             "load_table needs pandas: pip install 'geosyn[data]' (or read data/*.csv)"
         ) from err
-    from geosyn.experiments.loader import load_config
-
     run_dir = Path(run_dir)
     labels: list[str] = []
     if (run_dir / "config.yaml").is_file():

@@ -4,20 +4,28 @@ A sweep directory (`geosyn.experiments.sweep`) holds ``sweep.yaml`` (source, gri
 seeds) and one run directory per grid point and seed. `report_sweep` re-reads every
 complete run's ``summary.json``, rewrites ``sweep_summary.json``/``.md`` (mean ± std
 over seeds, with units), prints the table, and draws ``sweep_<axis>.png`` for each grid
-axis: the standard metrics of `geosyn.experiments.metrics` present in the summaries
+axis: the standard metrics of `geosyn.experiments.run.run_metrics` present in the summaries
 (mean ± std over seeds) against the axis values, one line per summary row (controller)
 and per combination of the other axes' values.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 from typing import Any
 
 import yaml
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
 
 from geosyn.experiments.errors import ExperimentError
+from geosyn.experiments.results.aggregate import aggregate, point_name, write_aggregate
+from geosyn.experiments.results.plots import COLORS, figure, save
+from geosyn.experiments.results.summary import fmt
+from geosyn.experiments.run.run_metrics import unit_of
 
 #: Metrics drawn per grid axis, in this order (those the summaries have).
 PLOTTED = (
@@ -46,9 +54,6 @@ def axis_plot(
     Returns:
         The file, or None when no plotted metric is in the summaries.
     """
-    from geosyn.experiments.metrics import unit_of
-    from geosyn.experiments.plots import COLORS, figure, save
-
     keys = list(dict.fromkeys(k for r in rows for k in r["metrics"]))
     names = [m for m in PLOTTED if any(k.rsplit(".", 1)[-1] == m for k in keys)]
     if not names:
@@ -99,15 +104,11 @@ def report_sweep(out: str | Path, quiet: bool = False) -> list[dict[str, Any]]:
     """Rewrite a sweep directory's tables and draw one plot per grid axis.
 
     Returns:
-        The aggregate rows (see `geosyn.experiments.sweep.aggregate`).
+        The aggregate rows (see `geosyn.experiments.results.aggregate.aggregate`).
 
     Raises:
         ExperimentError: not a sweep directory, or none of its runs is complete.
     """
-    import itertools
-
-    from geosyn.experiments.sweep import _write_aggregate, aggregate
-
     out = Path(out)
     spec_file = out / "sweep.yaml"
     if not spec_file.is_file():
@@ -119,7 +120,7 @@ def report_sweep(out: str | Path, quiet: bool = False) -> list[dict[str, Any]]:
     if not any(r["n_runs"] for r in rows):
         raise ExperimentError(f"sweep_dir {str(out)!r} has no complete run yet")
     name = Path(str(spec["source"])).stem
-    _write_aggregate(out, name, rows)
+    write_aggregate(out, name, rows)
     for axis in grid:
         axis_plot(out, axis, grid, rows)
     if not quiet:
@@ -128,14 +129,6 @@ def report_sweep(out: str | Path, quiet: bool = False) -> list[dict[str, Any]]:
 
 
 def _print(name: str, rows: list[dict[str, Any]]) -> None:
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.table import Table
-
-    from geosyn.experiments.metrics import unit_of
-    from geosyn.experiments.report import fmt
-    from geosyn.experiments.sweep import point_name
-
     table = Table(title=f"sweep {name}: mean ± std over seeds")
     table.add_column("metric")
     for r in rows:

@@ -1,7 +1,7 @@
 """Videos of a run directory's motions, for every experiment kind.
 
 `run_motions` finds what a run moved: every closed-loop run stored by
-`geosyn.experiments.build.sim_arrays` (``{prefix}__t``, ``{prefix}__q``, ``{prefix}__q_ref``),
+`geosyn.experiments.run.build.sim_arrays` (``{prefix}__t``, ``{prefix}__q``, ``{prefix}__q_ref``),
 or, for a kind that simulates nothing, every stored path (``{name}__t`` with
 ``{name}__q`` of the robot's size: geodesics, transported synergies, ...). `write_videos`
 renders one video per motion (`geosyn.sim.Clip`: the controller's name, time stamps, the
@@ -25,8 +25,12 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from geosyn.experiments.run.build import build_disturbances
+from geosyn.experiments.run.scene import BuiltScene, build_run_scene
 from geosyn.experiments.schema import ExperimentConfig
 from geosyn.robots import Robot
+from geosyn.sim import Clip, Motion
+from geosyn.sim.render_scene import Marker
 
 #: Results key of the fixed points drawn in every video of a run, (M, 3) [m].
 MARKERS = "video_markers"
@@ -104,8 +108,6 @@ def run_motions(results: dict[str, np.ndarray], nq: int) -> list[RunMotion]:
 
 def _markers(motion: RunMotion, fixed: np.ndarray | None) -> list[Any]:
     """The balls of a motion's video: the run's fixed points, the motion's moving target."""
-    from geosyn.sim.render_scene import Marker
-
     out = []
     if fixed is not None:
         for point in np.asarray(fixed, dtype=np.float64).reshape(-1, 3):
@@ -115,33 +117,37 @@ def _markers(motion: RunMotion, fixed: np.ndarray | None) -> list[Any]:
     return out
 
 
-def _clip(
-    cfg: ExperimentConfig, robot: Robot, motion: RunMotion, fixed: np.ndarray | None = None
+def motion_clip(
+    cfg: ExperimentConfig, scene: BuiltScene, motion: RunMotion, fixed: np.ndarray | None = None
 ) -> Any:
-    from geosyn.experiments import build as B
-    from geosyn.sim import Clip, Motion
-
+    """The `geosyn.sim.Clip` of one motion in the run's scene (``fixed``: (K, 3) marker
+    points [m]); ``outputs`` sets its size, frame rate and trail."""
     o = cfg.outputs
     # A stored run's ticks end one control period before the run: film up to its end.
     end = motion.t[-1] + cfg.simulation.control_dt if motion.simulated else None
     return Clip(
         Motion(motion.t, motion.q, motion.q_ref, end),
-        robot,
+        scene.robot,
         o.fps,
         min(o.width, 1280),
         min(o.height, 960),
-        payloads=B.build_payloads(cfg, robot),
-        obstacles=B.build_obstacles(cfg),
+        payloads=scene.payloads,
+        obstacles=scene.obstacles,
         trail=o.trail,
-        disturbances=B.build_disturbances(cfg) if motion.simulated else (),
+        disturbances=build_disturbances(cfg) if motion.simulated else (),
         label=motion.name,
-        plant=cfg.robot.plant,
+        plant=scene.plant,
         markers=_markers(motion, fixed),
     )
 
 
 def write_videos(
-    cfg: ExperimentConfig, robot: Robot, results: dict[str, np.ndarray], out_dir: Path
+    cfg: ExperimentConfig,
+    robot: Robot,
+    results: dict[str, np.ndarray],
+    out_dir: Path,
+    *,
+    scene: BuiltScene | None = None,
 ) -> dict[str, Any]:
     """Render ``video_{name}.{gif|mp4}`` for every motion of a run; never raises.
 
@@ -150,6 +156,8 @@ def write_videos(
         robot: the robot of the run.
         results: the run's arrays.
         out_dir: where the videos go.
+        scene: the run's world (`geosyn.experiments.run.scene`); built from the config
+            when not given.
 
     Returns:
         ``{"files": [names written], "frames": F, "seconds_per_frame": s, "error": None or
@@ -165,12 +173,13 @@ def write_videos(
             f" '<name>__q' arrays with {robot.nq} joints), so there is nothing to film"
         )
         return record
+    scene = build_run_scene(cfg, robot) if scene is None else scene
     t0 = time.perf_counter()
     clip = None
     for motion in motions:
         path = out_dir / f"video_{motion.name}.{cfg.outputs.video_format}"
         try:
-            clip = _clip(cfg, robot, motion, results.get(MARKERS))
+            clip = motion_clip(cfg, scene, motion, results.get(MARKERS))
             clip.save(path)
         except Exception as err:  # a failed video never throws the finished run away
             path.unlink(missing_ok=True)
@@ -188,4 +197,4 @@ def write_videos(
     return record
 
 
-__all__ = ["MARKERS", "RunMotion", "run_motions", "write_videos"]
+__all__ = ["MARKERS", "RunMotion", "motion_clip", "run_motions", "write_videos"]

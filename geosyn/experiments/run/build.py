@@ -1,5 +1,6 @@
-"""Building library objects from a validated config: robot, metric, synergies, reference,
-controllers, disturbances, simulations. Each config ``type`` maps to a builder through a
+"""Building library objects from a validated config: metric, synergies, reference,
+controllers, disturbances, simulations (the robot and the world: `geosyn.experiments.run.scene`,
+whose builders are re-exported here). Each config ``type`` maps to a builder through a
 registry dict (no string if/elif factories, no code in configs); a section's settings
 reach their class as `Section.kwargs` (the fields named like the class's parameters).
 """
@@ -15,15 +16,27 @@ from geosyn.controllers import (
     ComputedTorque,
     Controller,
     GeodesicMPC,
-    GeodesicReference,
     QPController,
     RiemannianPD,
 )
 from geosyn.controllers.mpc.ddp_clearance import find_obstacle_terms
 from geosyn.core.errors import InvalidArgument
 from geosyn.experiments import schema as S
+from geosyn.experiments.run.references import (
+    build_reference,
+    reference_geodesic,
+    tracked_reference,
+)
+from geosyn.experiments.run.scene import (
+    OBSTACLES,
+    BuiltScene,
+    build_obstacles,
+    build_payloads,
+    build_robot,
+    build_run_scene,
+)
 from geosyn.metrics import KineticEnergyMetric, Metric
-from geosyn.metrics.geodesic import Geodesic, exp, log
+from geosyn.metrics.geodesic import exp
 from geosyn.metrics.shaping import (
     JointLimitTerm,
     LoadTerm,
@@ -31,7 +44,7 @@ from geosyn.metrics.shaping import (
     ObstacleTerm,
     ShapedMetric,
 )
-from geosyn.robots import Robot, load_robot
+from geosyn.robots import Robot
 from geosyn.sim import (
     Disturbance,
     Latency,
@@ -44,62 +57,44 @@ from geosyn.sim import (
     Wrench,
 )
 from geosyn.sim.log import ARRAY_FIELDS, RUN_META
-from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies, pga
-from geosyn.world import Box, Capsule, HalfSpace, Payload, Shape, Sphere, rotation_from_rpy
+from geosyn.synergies import GeodesicSynergy, orthonormal_synergies, pga
+from geosyn.world import Payload, Shape
 
 
-def build_robot(cfg: S.ExperimentConfig) -> Robot:
-    """The robot of the config (``load_robot(name, **options)``)."""
-    return load_robot(cfg.robot.name, **cfg.robot.options.model_dump(exclude_none=True))
-
-
-def build_payloads(cfg: S.ExperimentConfig, robot: Robot) -> list[Payload]:
-    """Payloads of the scene as `geosyn.world.Payload` (frame defaults to the robot's end
-    effector)."""
-    return [
-        Payload(**(p.kwargs() | {"frame": p.frame or robot.ee_frame})) for p in cfg.scene.payloads
-    ]
-
-
-OBSTACLES: dict[str, Callable[[Any], Shape]] = {
-    "sphere": lambda o: Sphere(tuple(o.center), o.radius),
-    "box": lambda o: Box(
-        tuple(o.center), tuple(o.half_extents), tuple(map(tuple, rotation_from_rpy(o.rpy)))
-    ),
-    "capsule": lambda o: Capsule(tuple(o.p0), tuple(o.p1), o.radius),
-    "halfspace": lambda o: HalfSpace(tuple(o.normal), o.offset),
-}
-
-
-def build_obstacles(cfg: S.ExperimentConfig) -> list[Shape]:
-    """Obstacles of the scene as `geosyn.world` shapes."""
-    return [OBSTACLES[o.type](o) for o in cfg.scene.obstacles]
-
-
-def _load_term(t: S.LoadTermConfig, cfg: S.ExperimentConfig, robot: Robot) -> MetricTerm:
+def _load_term(t: S.LoadTermConfig, scene: BuiltScene) -> MetricTerm:
     if t.payload is not None:
-        return LoadTerm.from_payload(build_payloads(cfg, robot)[t.payload])
-    return LoadTerm(**(t.kwargs() | {"frame": t.frame or robot.ee_frame}))
+        return LoadTerm.from_payload(scene.payloads[t.payload])
+    return LoadTerm(**(t.kwargs() | {"frame": t.frame or scene.robot.ee_frame}))
 
 
-TERMS: dict[str, Callable[[Any, S.ExperimentConfig, Robot], MetricTerm]] = {
+TERMS: dict[str, Callable[[Any, BuiltScene], MetricTerm]] = {
     "load": _load_term,
-    "obstacle": lambda t, cfg, robot: ObstacleTerm(
-        build_obstacles(cfg), capacity=max(1, len(cfg.scene.obstacles)), **t.kwargs()
+    "obstacle": lambda t, scene: ObstacleTerm(
+        list(scene.obstacles), capacity=max(1, len(scene.obstacles)), **t.kwargs()
     ),
-    "joint_limit": lambda t, cfg, robot: JointLimitTerm(**t.kwargs()),
+    "joint_limit": lambda t, scene: JointLimitTerm(**t.kwargs()),
 }
+"""Registry of metric-term builders by config ``type``: (section, scene) -> term."""
 
 
 def build_metric(
-    cfg: S.ExperimentConfig, robot: Robot, terms: Sequence[S.TermConfig] | None = None
+    cfg: S.ExperimentConfig,
+    robot: Robot,
+    terms: Sequence[S.TermConfig] | None = None,
+    *,
+    scene: BuiltScene | None = None,
 ) -> Metric:
-    """The kinetic-energy metric, shaped by ``terms`` (default: the config's terms)."""
+    """The kinetic-energy metric, shaped by ``terms`` (default: the config's terms).
+
+    The obstacle and load terms read the run's ``scene`` (`build_run_scene`; built from
+    the config when not given).
+    """
     base = KineticEnergyMetric(robot)
     terms = cfg.metric.terms if terms is None else terms
     if not terms:
         return base
-    return ShapedMetric(base, [TERMS[t.type](t, cfg, robot) for t in terms])
+    scene = build_run_scene(cfg, robot) if scene is None else scene
+    return ShapedMetric(base, [TERMS[t.type](t, scene) for t in terms])
 
 
 def _explicit(
@@ -152,50 +147,6 @@ def build_synergies(cfg: S.ExperimentConfig, metric: Metric, robot: Robot) -> li
     if cfg.synergies is None:
         return []
     return SYNERGIES[cfg.synergies.type](cfg.synergies, metric, robot, cfg.seed)
-
-
-def reference_geodesic(
-    ref: S.ReferenceConfig, metric: Metric, synergies: Sequence[GeodesicSynergy]
-) -> Geodesic:
-    """The geodesic of a reference section over ``ref.duration`` (before time scaling)."""
-    if ref.type == "goals" or ref.type == "planned":
-        from geosyn.experiments.errors import ProcedureFailed
-
-        raise ProcedureFailed(f"a {ref.type!r} reference is built by kind tracking")
-    if ref.type == "combination":
-        q_start = None if ref.q_start is None else np.array(ref.q_start)
-        syn = combine(list(synergies), ref.weights, q_start)
-        return syn.trajectory(ref.duration, ref.steps)
-    v0 = log(metric, np.array(ref.q_start), np.array(ref.goal), steps=ref.steps) / ref.duration
-    return exp(metric, np.array(ref.q_start), v0, ref.duration, ref.steps)
-
-
-def build_reference(
-    cfg: S.ExperimentConfig, metric: Metric, synergies: Sequence[GeodesicSynergy]
-) -> tuple[GeodesicReference, Geodesic]:
-    """(the tracked reference, its geodesic) of the config's reference section."""
-    if cfg.reference is None:
-        from geosyn.experiments.errors import ProcedureFailed
-
-        raise ProcedureFailed(f"experiment {cfg.name!r} has no reference section")
-    geo = reference_geodesic(cfg.reference, metric, synergies)
-    ref = tracked_reference(geo, metric, cfg.reference.time_scale, cfg.reference.rest_to_rest)
-    return ref, geo
-
-
-def tracked_reference(
-    geo: Geodesic, metric: Metric, time_scale: float = 1.0, rest_to_rest: bool = False
-) -> GeodesicReference:
-    """The reference a controller tracks along ``geo`` (``rest_to_rest``: the quintic
-    rest-to-rest time law of `GeodesicReference`).
-
-    Accelerations are the metric's exact geodesic accelerations at the samples, interpolated
-    between them: a shaped metric's exact geodesic acceleration is too costly to evaluate at
-    every control tick.
-    """
-    return GeodesicReference(
-        geo, metric, time_scale=time_scale, rest_to_rest=rest_to_rest, exact_acceleration=False
-    )
 
 
 CONTROLLERS: dict[str, Callable[[Any, Robot, Metric, float], Controller]] = {
@@ -274,18 +225,24 @@ def simulate(
     disturbances: Sequence[Disturbance] | None = None,
     payloads: Sequence[Payload] | None = None,
     obstacles: Sequence[Shape] | None = None,
+    scene: BuiltScene | None = None,
 ) -> SimResult:
-    """Run one closed-loop simulation with the config's simulation settings and seed."""
+    """Run one closed-loop simulation with the config's simulation settings and seed.
+
+    The world is the run's ``scene`` (`build_run_scene`; built from the config when not
+    given); ``payloads`` and ``obstacles`` replace its own when given.
+    """
     sim = cfg.simulation
+    scene = build_run_scene(cfg, robot) if scene is None else scene
     s = Simulation(
         robot,
         controller,
-        payloads=build_payloads(cfg, robot) if payloads is None else payloads,
-        obstacles=build_obstacles(cfg) if obstacles is None else obstacles,
+        payloads=scene.payloads if payloads is None else payloads,
+        obstacles=scene.obstacles if obstacles is None else obstacles,
         disturbances=build_disturbances(cfg) if disturbances is None else disturbances,
         seed=cfg.seed,
-        plant=cfg.robot.plant,
-        contact=cfg.scene.contact,
+        plant=scene.plant,
+        contact=scene.contact,
         **sim.kwargs(),
     )
     return s.run(q0, v0, sim.duration if duration is None else duration, reference)
@@ -338,6 +295,7 @@ __all__ = [
     "build_payloads",
     "build_reference",
     "build_robot",
+    "build_run_scene",
     "build_synergies",
     "effort",
     "pga_demonstrations",
@@ -345,4 +303,5 @@ __all__ = [
     "sim_arrays",
     "sim_view",
     "simulate",
+    "tracked_reference",
 ]

@@ -186,7 +186,7 @@ def standard_metrics(
 
     Args:
         run: a `geosyn.sim.SimResult`, or a mapping of its arrays by field name (what
-            `geosyn.experiments.build.sim_view` gives for a stored run).
+            `geosyn.experiments.run.build.sim_view` gives for a stored run).
         control_dt: control period [s].
         windows: the disturbance windows (`disturbance_windows`).
         threshold: error threshold of the recovery times [rad].

@@ -16,6 +16,8 @@ import warnings
 from collections.abc import Iterator
 from pathlib import Path
 
+from geosyn import __version__
+
 
 class RunLog:
     """Lines of a run's ``run.log``, written as they come.
@@ -53,8 +55,6 @@ class RunLog:
 
 def geosyn_version() -> str:
     """The installed geosyn version."""
-    from geosyn import __version__
-
     return str(__version__)
 
 

@@ -12,7 +12,7 @@ signature (`python_defaults`), so a YAML default is the Python default.
 Joint-space vectors (``q0``, ``goal``, per-joint gains, ...) are checked against the
 robot's number of degrees of freedom: the loader validates ``robot`` first, loads the
 robot and passes ``{"nv": robot.nv}`` as the pydantic validation context (see
-`geosyn.experiments.loader`). Without a context only the types are checked.
+`geosyn.experiments.config.loader`). Without a context only the types are checked.
 
 Checks that involve several fields (the number of weights against the number of
 synergies, a payload index against the payloads, ...) are in `consistency_errors`.

@@ -136,12 +136,13 @@ def _default(field: FieldInfo) -> str:
     return str(value)
 
 
-def _models(annotation: Any) -> list[type[BaseModel]]:
+def config_models(annotation: Any) -> list[type[BaseModel]]:
+    """The config models (pydantic) an annotation may hold, unions and containers unpacked."""
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return [annotation]
     out: list[type[BaseModel]] = []
     for a in typing.get_args(annotation):
-        out += _models(a)
+        out += config_models(a)
     return out
 
 
@@ -194,7 +195,7 @@ def walk(model: type[BaseModel], prefix: str = "") -> Iterator[FieldDoc]:
     for name, field in model.model_fields.items():
         path = f"{prefix}{name}"
         yield field_doc(model, name, path)
-        subs = _models(field.annotation)
+        subs = config_models(field.annotation)
         is_list = typing.get_origin(field.annotation) is list or any(
             typing.get_origin(a) is list for a in typing.get_args(field.annotation)
         )

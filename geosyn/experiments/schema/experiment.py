@@ -56,7 +56,7 @@ class SimulationConfig(Section):
 
 class OutputsConfig(Section):
     """What a run writes: plots, per-run CSV tables (``data/<run>.csv``,
-    `geosyn.experiments.data`), and videos (`geosyn.sim.render_video` settings)."""
+    `geosyn.experiments.results.data`), and videos (`geosyn.sim.render_video` settings)."""
 
     builds = (render_video,)
     plots: bool = True

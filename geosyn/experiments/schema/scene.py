@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import math
 from typing import Annotated, Literal
 
@@ -9,6 +10,7 @@ from pydantic import Field, field_validator
 
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
 from geosyn.experiments.schema.values import FiniteFloat, NonNegFloat, PositiveFloat, Vec3
+from geosyn.robots import BUILTINS
 from geosyn.sim import Simulation
 from geosyn.world import Payload
 
@@ -38,12 +40,8 @@ class RobotConfig(Strict):
     @field_validator("name")
     @classmethod
     def _known(cls, name: str) -> str:
-        from geosyn.robots import BUILTINS
-
         if name in BUILTINS or name.lower().endswith((".urdf", ".xml", ".mjcf")):
             return name
-        import difflib
-
         close = difflib.get_close_matches(name, list(BUILTINS), n=3, cutoff=0.6)
         hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ";"
         raise ValueError(

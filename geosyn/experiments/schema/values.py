@@ -1,7 +1,7 @@
 """Value types of config fields: finite numbers, 3-vectors, joint-space vectors and gains.
 
 Joint-space vectors are checked against the robot's number of degrees of freedom when the
-validation context gives it (``{"nv": robot.nv}``, see `geosyn.experiments.loader`).
+validation context gives it (``{"nv": robot.nv}``, see `geosyn.experiments.config.loader`).
 """
 
 from __future__ import annotations

@@ -12,6 +12,8 @@ then SIGKILL. Ray: the address is checked (``local``, ``auto``, ``HOST:PORT``,
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import multiprocessing
 import os
 import re
 import signal
@@ -25,8 +27,8 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from geosyn.core.errors import GeosynError
-from geosyn.experiments import termination
 from geosyn.experiments.errors import ConfigError, ProcedureFailed
+from geosyn.experiments.run import termination
 
 #: A function running one sweep job: ``job -> (run directory, summary)``.
 JobFunction = Callable[[Any], tuple[str, dict[str, float]]]
@@ -47,14 +49,11 @@ def _worker_init(parent: int) -> None:
     """
     termination.install()
     if sys.platform.startswith("linux"):
-        import ctypes
-
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
         if os.getppid() != parent:  # the parent died before prctl took effect
             os._exit(137)
         return
-    import threading
 
     def watch() -> None:
         while os.getppid() == parent:
@@ -111,8 +110,6 @@ def run_local(
             job_fn(job)
             advance()
         return
-    import multiprocessing
-
     # Linux: fork, so workers inherit the already imported pinocchio/casadi/mujoco (a
     # forkserver re-imports them in every sweep; the speed-ups are in benchmarks/RESULTS.md).
     # Workers only run experiments and never use the parent's progress thread. Elsewhere:
@@ -251,7 +248,7 @@ def run_ray(
     job_fn: JobFunction,
 ) -> None:
     """Run ``job_fn(job)`` for each job as Ray tasks (one CPU each); see `_ray_init`."""
-    try:
+    try:  # deferred: ray is the optional 'distributed' extra
         import ray
     except ImportError as err:
         raise ConfigError(

@@ -6,23 +6,21 @@ through `run_experiment`, atomically, as soon as it finishes; a run directory ho
 one) skips the complete runs and does only the missing ones. Runs execute in-process
 (``workers=1``), on local processes (``concurrent.futures.ProcessPoolExecutor``) or on Ray
 (``ray_address``: a cluster address, or ``"local"`` to start a local instance; the
-``distributed`` extra); see `geosyn.experiments.executors` (workers die with the sweep).
+``distributed`` extra); see `geosyn.experiments.sweep.executors` (workers die with the sweep).
 At the end ``sweep_summary.json`` and ``sweep_summary.md`` give, per grid point, the mean
 and standard deviation over seeds of every scalar of the runs' ``summary.json`` (metrics
 of failed runs, NaN, left out and counted).
 
 Bounds: a sweep of more than ``max_runs`` runs (default `MAX_RUNS`; ``--max-runs``) is
 refused before anything runs; the size is announced before the runs start. One sweep at a
-time writes a sweep directory (a lock, `geosyn.experiments.rundir`).
+time writes a sweep directory (a lock, `geosyn.experiments.run.rundir`).
 """
 
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import os
-import re
 import shutil
 import sys
 import time
@@ -30,19 +28,20 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
-import numpy as np
 import yaml
 
 from geosyn.core.validation import check_int
-from geosyn.experiments import rundir
+from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import (
     ConfigError,
     OutputNotWritable,
     RunDirectoryExists,
 )
-from geosyn.experiments.executors import check_ray_address, run_local, run_ray
-from geosyn.experiments.loader import load_config
-from geosyn.experiments.report import fmt
+from geosyn.experiments.results.aggregate import aggregate, point_name, write_aggregate
+from geosyn.experiments.run import rundir
+from geosyn.experiments.run.progress import progress_bars
+from geosyn.experiments.run.runner import run_experiment
+from geosyn.experiments.sweep.executors import check_ray_address, run_local, run_ray
 
 #: Default largest number of runs (grid points x seeds) of a sweep; raise with ``max_runs``.
 MAX_RUNS = 1000
@@ -114,18 +113,8 @@ def parse_grid(items: Iterable[str]) -> dict[str, list[str]]:
     return grid
 
 
-def point_name(point: dict[str, str]) -> str:
-    """Directory name of a grid point, ``key=value__key=value`` with unsafe characters replaced."""
-    if not point:
-        return "base"
-    text = "__".join(f"{k}={v}" for k, v in point.items())
-    return re.sub(r"[^A-Za-z0-9_.=,\-]", "_", text)[:200]
-
-
 def run_job(job: SweepJob) -> tuple[str, dict[str, float]]:
     """Run one sweep job (in this process); returns (run dir, summary)."""
-    from geosyn.experiments.runner import run_experiment
-
     cfg, _ = load_config(job.source, job.overrides)
     outcome = run_experiment(cfg, job.out, progress=False, quiet=True)
     return str(outcome.path), outcome.summary
@@ -138,71 +127,6 @@ def _job_by_name(job: SweepJob) -> tuple[str, dict[str, float]]:
 
 def _is_complete(run_dir: Path) -> bool:
     return (run_dir / "summary.json").is_file()
-
-
-def aggregate(out: Path, points: Sequence[dict[str, str]], seeds: int) -> list[dict[str, Any]]:
-    """Mean and std (over seeds) of each summary scalar, per grid point.
-
-    NaN values (metrics of runs that did not complete, see
-    `geosyn.experiments.report.clean_summary`) are left out of the mean and std; ``n`` per
-    metric says how many runs entered them, ``n_failed`` per point how many runs had a
-    failed (diverged, stopped) controller run.
-    """
-    rows = []
-    for point in points:
-        summaries = []
-        for s in range(seeds):
-            path = out / point_name(point) / f"seed{s}" / "summary.json"
-            if path.is_file():
-                summaries.append(json.loads(path.read_text()))
-        keys = list(dict.fromkeys(k for summ in summaries for k in summ))
-        metrics = {}
-        for k in keys:
-            vals = np.array([float(summ[k]) for summ in summaries if k in summ])
-            vals = vals[~np.isnan(vals)]  # NaN: not measured (a failed run), left out
-            with np.errstate(invalid="ignore"):  # inf values (never recovered): std is nan
-                metrics[k] = {
-                    "mean": float(np.mean(vals)) if vals.size else math.nan,
-                    "std": float(np.std(vals)) if vals.size else math.nan,
-                    "n": int(vals.size),
-                }
-        n_failed = sum(1 for summ in summaries if float(summ.get("failed_runs", 0.0)) > 0)
-        rows.append(
-            {"point": point, "n_runs": len(summaries), "n_failed": n_failed, "metrics": metrics}
-        )
-    return rows
-
-
-def _write_aggregate(out: Path, name: str, rows: list[dict[str, Any]]) -> None:
-    from geosyn.experiments.metrics import unit_of
-
-    (out / "sweep_summary.json").write_text(json.dumps(rows, indent=1, allow_nan=True) + "\n")
-    keys = list(dict.fromkeys(k for r in rows for k in r["metrics"]))
-    lines = [
-        f"# sweep: {name}",
-        "",
-        "mean ± std over seeds per grid point; runs that failed (diverged, stopped) do not"
-        " enter the metrics they did not measure",
-        "",
-    ]
-    lines.append(
-        "| metric | "
-        + " | ".join(
-            point_name(r["point"]) + f" (n={r['n_runs']}, failed={r.get('n_failed', 0)})"
-            for r in rows
-        )
-        + " |"
-    )
-    lines.append("|---|" + "---|" * len(rows))
-    for k in keys:
-        cells = []
-        for r in rows:
-            m = r["metrics"].get(k)
-            cells.append("" if m is None else f"{fmt(m['mean'])} ± {fmt(m['std'])}")
-        unit = unit_of(k.rsplit(".", 1)[-1])
-        lines.append(f"| {k} [{unit}] | " if unit else f"| {k} | ")
-        lines[-1] += " | ".join(cells) + " |"
-    (out / "sweep_summary.md").write_text("\n".join(lines) + "\n")
 
 
 def sweep(
@@ -251,51 +175,19 @@ def sweep(
     if workers is None:
         workers = (os.cpu_count() or 1) if ray_address == "local" else 1
     workers = check_int(workers, "workers", low=1, high=MAX_WORKERS)
-    n_runs = math.prod(len(v) for v in grid.values()) * seeds
-    if n_runs > max_runs:
-        raise ConfigError(
-            "--grid",
-            None,
-            f"the sweep has {n_runs} runs ({n_runs // seeds} grid point(s) x {seeds} seed(s)),"
-            f" more than the limit of {max_runs}; raise it with --max-runs {n_runs}"
-            " (max_runs=) if that is what you want",
-        )
+    _check_size(grid, seeds, max_runs)
     if ray_address is not None:
         ray_address = check_ray_address(ray_address)
     base_cfg, path = load_config(source, overrides)
     path = path.resolve()  # workers (Ray) may run in another directory
-    if n_runs > 50:  # validation takes a while: say what is going on
-        print(
-            f"sweep {base_cfg.name}: {n_runs} run(s) ({n_runs // seeds} grid point(s) x"
-            f" {seeds} seed(s)); validating their configs",
-            file=sys.stderr,
-            flush=True,
-        )
     keys = list(grid)
     points = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grid.values())]
-    jobs_all: list[SweepJob] = []
-    out = (
-        Path(out)
-        if out is not None
-        else Path("runs") / f"sweep-{base_cfg.name}-{time.strftime('%Y%m%d-%H%M%S', time.gmtime())}"
-    )
-    out = out.resolve()
-    for point in points:
-        for s in range(seeds):
-            ov = (*overrides, *(f"{k}={v}" for k, v in point.items()), f"seed={base_cfg.seed + s}")
-            try:
-                load_config(path, ov)  # validate every run before running any
-            except ConfigError as err:
-                raise ConfigError(
-                    err.file, err.field, f"{err.reason} (grid point {point_name(point)})"
-                ) from None
-            jobs_all.append(SweepJob(str(path), ov, str(out / point_name(point) / f"seed{s}")))
-    spec = {
-        "source": str(path.resolve()),
-        "grid": grid,
-        "seeds": seeds,
-        "overrides": list(overrides),
-    }
+    if out is None:
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+        out = Path("runs") / f"sweep-{base_cfg.name}-{stamp}"
+    out = Path(out).resolve()
+    jobs_all = _validated_jobs(path, base_cfg.name, base_cfg.seed, points, seeds, overrides, out)
+    spec = {"source": str(path), "grid": grid, "seeds": seeds, "overrides": list(overrides)}
     created = not out.exists()
     try:
         with rundir.claim(out, force=True):  # one sweep at a time into ``out``
@@ -316,15 +208,69 @@ def sweep(
                     raise OutputNotWritable(out, err) from err
                 raise
     except BaseException:
-        # a failed precondition (Ray unreachable, ...) leaves no empty sweep directory
-        if (
-            created
-            and out.is_dir()
-            and not any(out.rglob("summary.json"))
-            and not any(rundir.is_locked(p.with_name(p.name[1:-5])) for p in out.rglob(".*.lock"))
-        ):  # (never while a run, e.g. a Ray task, still writes into it)
-            shutil.rmtree(out, ignore_errors=True)
+        if created:  # a failed precondition (Ray unreachable, ...) leaves no empty directory
+            _remove_if_empty(out)
         raise
+
+
+def _check_size(grid: dict[str, list[str]], seeds: int, max_runs: int) -> None:
+    """Refuse a sweep of more than ``max_runs`` runs (`ConfigError` naming ``--max-runs``)."""
+    n_runs = math.prod(len(v) for v in grid.values()) * seeds
+    if n_runs > max_runs:
+        raise ConfigError(
+            "--grid",
+            None,
+            f"the sweep has {n_runs} runs ({n_runs // seeds} grid point(s) x {seeds} seed(s)),"
+            f" more than the limit of {max_runs}; raise it with --max-runs {n_runs}"
+            " (max_runs=) if that is what you want",
+        )
+
+
+def _validated_jobs(
+    path: Path,
+    name: str,
+    seed: int,
+    points: list[dict[str, str]],
+    seeds: int,
+    overrides: Sequence[str],
+    out: Path,
+) -> list[SweepJob]:
+    """One `SweepJob` per grid point and seed, each config validated before any runs.
+
+    Raises:
+        ConfigError: a run's config does not validate (the grid point named).
+    """
+    n_runs = len(points) * seeds
+    if n_runs > 50:  # validation takes a while: say what is going on
+        print(
+            f"sweep {name}: {n_runs} run(s) ({len(points)} grid point(s) x"
+            f" {seeds} seed(s)); validating their configs",
+            file=sys.stderr,
+            flush=True,
+        )
+    jobs: list[SweepJob] = []
+    for point in points:
+        for s in range(seeds):
+            ov = (*overrides, *(f"{k}={v}" for k, v in point.items()), f"seed={seed + s}")
+            try:
+                load_config(path, ov)  # validate every run before running any
+            except ConfigError as err:
+                raise ConfigError(
+                    err.file, err.field, f"{err.reason} (grid point {point_name(point)})"
+                ) from None
+            jobs.append(SweepJob(str(path), ov, str(out / point_name(point) / f"seed{s}")))
+    return jobs
+
+
+def _remove_if_empty(out: Path) -> None:
+    """Remove a sweep directory this call created when no run completed in it and no run
+    (e.g. a Ray task) still writes into it."""
+    if (
+        out.is_dir()
+        and not any(out.rglob("summary.json"))
+        and not any(rundir.is_locked(p.with_name(p.name[1:-5])) for p in out.rglob(".*.lock"))
+    ):
+        shutil.rmtree(out, ignore_errors=True)
 
 
 def _remove_partials(run_dir: Path) -> None:
@@ -375,9 +321,7 @@ def _sweep_claimed(
             file=sys.stderr,
             flush=True,
         )
-    from geosyn.experiments.runner import _progress
-
-    with _progress(progress) as factory:
+    with progress_bars(progress) as factory:
         advance = factory(f"sweep {name}", len(todo))
         try:
             if ray_address is not None:
@@ -393,8 +337,8 @@ def _sweep_claimed(
                         _remove_partials(Path(job.out))
             raise
     rows = aggregate(out, points, seeds)
-    _write_aggregate(out, name, rows)
+    write_aggregate(out, name, rows)
     return SweepResult(out, len(todo), len(jobs_all) - len(todo), rows)
 
 
-__all__ = ["SweepJob", "SweepResult", "aggregate", "parse_grid", "point_name", "run_job", "sweep"]
+__all__ = ["MAX_RUNS", "MAX_WORKERS", "SweepJob", "SweepResult", "parse_grid", "run_job", "sweep"]

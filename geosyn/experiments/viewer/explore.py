@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from geosyn.core.validation import check_int, check_vector
 from geosyn.experiments.viewer.server import (
     RUN_COLORS,
     Player,
@@ -22,6 +23,10 @@ from geosyn.experiments.viewer.server import (
     polyline_segments,
     start_server,
 )
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.robots import load_robot
+from geosyn.robots.kinematics import frame_positions
+from geosyn.synergies import combine, orthonormal_synergies
 
 #: Range of each weight slider.
 WEIGHT_RANGE = (-2.0, 2.0)
@@ -54,12 +59,6 @@ def explore_robot(
         GeosynError: unknown robot, bad ``q0`` or ``k``.
         ViewerUnavailable: viser is not installed, or the port is taken.
     """
-    from geosyn.core.validation import check_int, check_vector
-    from geosyn.metrics import KineticEnergyMetric
-    from geosyn.robots import load_robot
-    from geosyn.robots.kinematics import frame_positions
-    from geosyn.synergies import combine, orthonormal_synergies
-
     robot = load_robot(name)
     k = check_int(k, "k", low=1, high=robot.nv)
     start = robot.neutral() if q0 is None else check_vector(q0, robot.nq, "q0 [rad]")

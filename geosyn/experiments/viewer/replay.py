@@ -1,6 +1,6 @@
 """``geosyn view RUN_DIR``: replay a run directory in the browser.
 
-Each stored motion (`geosyn.experiments.video.run_motions`: one per controller, or the
+Each stored motion (`geosyn.experiments.results.run_video.run_motions`: one per controller, or the
 computed paths of a kind that simulates nothing) is a copy of the robot in its colour,
 shown or hidden by a checkbox to compare controllers; its end-effector path is a line of
 the same colour, the reference path a green one; pushes and wrenches are red arrows while
@@ -14,7 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
+from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import ExperimentError
+from geosyn.experiments.results.report import load_results
+from geosyn.experiments.results.run_video import run_motions
+from geosyn.experiments.run import build as B
+from geosyn.experiments.run.scene import build_run_scene
 from geosyn.experiments.viewer.server import (
     REF_COLOR,
     RUN_COLORS,
@@ -24,6 +29,7 @@ from geosyn.experiments.viewer.server import (
     frame_camera,
     start_server,
 )
+from geosyn.robots.kinematics import frame_positions
 
 
 def view_run(
@@ -42,12 +48,6 @@ def view_run(
         ExperimentError: not a run directory, or it stores no motion of the robot.
         ViewerUnavailable: viser is not installed, or the port is taken.
     """
-    from geosyn.experiments import build as B
-    from geosyn.experiments.loader import load_config
-    from geosyn.experiments.report import load_results
-    from geosyn.experiments.video import run_motions
-    from geosyn.robots.kinematics import frame_positions
-
     run_dir = Path(run_dir)
     if not (run_dir / "config.yaml").is_file():
         runs = sorted(p.parent.name for p in run_dir.glob("*/config.yaml"))[:5]
@@ -57,7 +57,8 @@ def view_run(
         )
     cfg, _ = load_config(run_dir / "config.yaml")
     results = load_results(run_dir)
-    robot = B.build_robot(cfg)
+    scene = build_run_scene(cfg)
+    robot = scene.robot
     motions = run_motions(results, robot.nq)
     if not motions:
         raise ExperimentError(
@@ -66,7 +67,7 @@ def view_run(
     server = start_server(host, port, fast)
     server.gui.add_markdown(f"**{cfg.name}** ({cfg.kind}, robot {robot.name})")
     server.scene.add_grid("/floor", width=3.0, height=3.0, cell_size=0.1)
-    payloads, obstacles = B.build_payloads(cfg, robot), B.build_obstacles(cfg)
+    payloads, obstacles = scene.payloads, scene.obstacles
     disturbances = B.build_disturbances(cfg)
     ghosts: list[RobotGhost] = []
     for i, m in enumerate(motions):

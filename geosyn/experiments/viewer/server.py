@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import socket
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -13,6 +14,8 @@ import numpy as np
 
 from geosyn.experiments.errors import ExperimentError
 from geosyn.robots import Robot
+from geosyn.sim.camera import auto_camera
+from geosyn.sim.render_scene import FrameScene, force_now, point_in_body
 from geosyn.world import Payload
 
 
@@ -32,15 +35,13 @@ def start_server(host: str, port: int, fast: bool = False) -> Any:
     Raises:
         ViewerUnavailable: viser is missing (install the ``viewer`` extra) or the port is in use.
     """
-    try:
+    try:  # deferred: viser is the optional 'viewer' extra
         import viser
     except ImportError as err:
         raise ViewerUnavailable(
             "the browser viewer needs viser: pip install 'geosyn[viewer]'"
         ) from err
     if port == 0:
-        import socket
-
         with socket.socket() as s:
             s.bind((host, 0))
             port = int(s.getsockname()[1])
@@ -63,7 +64,7 @@ def start_server(host: str, port: int, fast: bool = False) -> Any:
 
 def _geom_mesh(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices (V, 3) [m], faces (F, 3)) of geom ``g`` in its own frame; None for planes."""
-    import trimesh
+    import trimesh  # deferred: trimesh comes with the optional 'viewer' extra
 
     kind, size = int(model.geom_type[g]), model.geom_size[g]
     T = mujoco.mjtGeom
@@ -113,8 +114,6 @@ class RobotGhost:
         obstacles: Sequence[Any] = (),
         with_world: bool = True,
     ) -> None:
-        from geosyn.sim.render_scene import FrameScene
-
         self.frames = FrameScene(robot, payloads, obstacles if with_world else ())
         self.robot, self.server, self.name = robot, server, name
         self.extras: list[Any] = []
@@ -160,8 +159,6 @@ class RobotGhost:
     def bind_forces(self, disturbances: Sequence[Any]) -> None:
         """Draw the pushes and wrenches among ``disturbances`` as red arrows while they act
         (as the videos do); `show_forces` updates them."""
-        from geosyn.sim.render_scene import point_in_body
-
         scene = self.frames.scene
         self.forces = [
             (d, scene.resolve_body(d.body), point_in_body(scene, d))
@@ -171,8 +168,6 @@ class RobotGhost:
 
     def show_forces(self, t: float, length: float = 0.25) -> list[str]:
         """Arrows of the forces acting at ``t`` [s] (pose first); returns their descriptions."""
-        from geosyn.sim.render_scene import force_now
-
         data, arrows, text = self.frames.data, [], []
         for d, bid, point in self.forces:
             f = force_now(d, t)
@@ -275,7 +270,7 @@ class Viewer:
 
     def serve_forever(self) -> None:
         """Block until interrupted, then close: Ctrl-C returns, SIGTERM (under the CLI's
-        `geosyn.experiments.termination.sigterm_exits`) exits after closing."""
+        `geosyn.experiments.run.termination.sigterm_exits`) exits after closing."""
         try:
             while True:
                 time.sleep(0.5)
@@ -308,8 +303,6 @@ def frame_camera(
         payloads: payloads framed too.
         obstacles: obstacles framed too.
     """
-    from geosyn.sim.camera import auto_camera
-
     view = auto_camera(robot, np.atleast_2d(q), payloads, obstacles)
     az, el = np.deg2rad(view.azimuth), np.deg2rad(view.elevation)
     forward = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])

@@ -1,0 +1,1 @@
+"""Reading an experiment's YAML: the loader, every problem of a file, resource limits."""

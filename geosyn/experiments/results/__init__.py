@@ -1,0 +1,1 @@
+"""What a run leaves: summaries, reports, tables, plots, videos."""

@@ -1,0 +1,1 @@
+"""One run: build its parts from the config, claim its directory, simulate, log."""

@@ -1,0 +1,95 @@
+"""The scene of a run, built once from its config: robot, obstacles, payloads, contact,
+cameras.
+
+`build_run_scene` turns the config's ``robot`` and ``scene`` sections into `geosyn.world`
+objects once per run (the runner calls it); the same `BuiltScene` is handed to the metric
+builder (obstacle and load terms), the controllers (an MPC's clearance), the simulation
+and the videos, so no consumer rebuilds its own slice from the YAML. `build_obstacles`
+and `build_payloads` are the only places a config obstacle or payload becomes a shape.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from geosyn.experiments import schema as S
+from geosyn.robots import Robot, load_robot
+from geosyn.sim import CameraView
+from geosyn.world import Box, Capsule, HalfSpace, Payload, Shape, Sphere, rotation_from_rpy
+
+OBSTACLES: dict[str, Callable[[Any], Shape]] = {
+    "sphere": lambda o: Sphere(tuple(o.center), o.radius),
+    "box": lambda o: Box(
+        tuple(o.center), tuple(o.half_extents), tuple(map(tuple, rotation_from_rpy(o.rpy)))
+    ),
+    "capsule": lambda o: Capsule(tuple(o.p0), tuple(o.p1), o.radius),
+    "halfspace": lambda o: HalfSpace(tuple(o.normal), o.offset),
+}
+"""Registry of obstacle builders by config ``type``: section -> `geosyn.world` shape."""
+
+
+def build_robot(cfg: S.ExperimentConfig) -> Robot:
+    """The robot of the config (``load_robot(name, **options)``)."""
+    return load_robot(cfg.robot.name, **cfg.robot.options.model_dump(exclude_none=True))
+
+
+def build_obstacles(cfg: S.ExperimentConfig) -> list[Shape]:
+    """Obstacles of the scene as `geosyn.world` shapes."""
+    return [OBSTACLES[o.type](o) for o in cfg.scene.obstacles]
+
+
+def build_payloads(cfg: S.ExperimentConfig, robot: Robot) -> list[Payload]:
+    """Payloads of the scene as `geosyn.world.Payload` (frame defaults to the robot's end
+    effector)."""
+    return [
+        Payload(**(p.kwargs() | {"frame": p.frame or robot.ee_frame})) for p in cfg.scene.payloads
+    ]
+
+
+@dataclass(frozen=True)
+class BuiltScene:
+    """The world of one run, built once (`build_run_scene`) and shared by its consumers.
+
+    Attributes:
+        robot: the robot (``robot`` section).
+        obstacles: the obstacles as `geosyn.world` shapes (``scene.obstacles``), in order.
+        payloads: the payloads welded to the robot (``scene.payloads``), in order.
+        contact: the obstacles collide with the robot in MuJoCo (``scene.contact``).
+        plant: ``"model"`` (geosyn's rebuilt model) or ``"file"`` (the robot's own MJCF).
+        cameras: fixed RGB-D cameras of the scene (none unless a procedure places them,
+            e.g. ``perception_reach`` from its ``params.cameras``).
+    """
+
+    robot: Robot
+    obstacles: tuple[Shape, ...] = ()
+    payloads: tuple[Payload, ...] = ()
+    contact: bool = False
+    plant: str = "model"
+    cameras: tuple[CameraView, ...] = ()
+
+
+def build_run_scene(cfg: S.ExperimentConfig, robot: Robot | None = None) -> BuiltScene:
+    """The `BuiltScene` of a config (``robot``: an already loaded robot of the config).
+
+    Cost: loads the robot (when not given) and builds the shapes; no MuJoCo model.
+    """
+    robot = build_robot(cfg) if robot is None else robot
+    return BuiltScene(
+        robot=robot,
+        obstacles=tuple(build_obstacles(cfg)),
+        payloads=tuple(build_payloads(cfg, robot)),
+        contact=cfg.scene.contact,
+        plant=cfg.robot.plant,
+    )
+
+
+__all__ = [
+    "OBSTACLES",
+    "BuiltScene",
+    "build_obstacles",
+    "build_payloads",
+    "build_robot",
+    "build_run_scene",
+]
