@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -41,8 +42,14 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
-from geosyn.metrics.planning.errors import InCollision, NoPathFound, OutsideJointLimits
+from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.rrt import rrt_connect, shortcut
+from geosyn.metrics.planning.verify import (
+    REPAIR_STEP,
+    check_end,
+    exact_check,
+    planning_geometry,
+)
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world.shapes import Shape
@@ -68,6 +75,14 @@ class Plan(NamedTuple):
         wall_time: wall-clock time of the query [s].
         attempts: one line per method tried.
         fine_clearance: the same, checked at most ``check_step`` apart in joint space.
+        exact_clearance: smallest signed distance [m] between the robot's own collision
+            geometry (its file's meshes and primitives, `geosyn.world.exact_clearance`)
+            and the obstacles along the path, linear between samples, checked at most
+            ``exact_resolution`` apart (joint max-norm); never negative for a returned
+            plan; NaN when the robot has no file geometry (``attempts`` says so).
+        exact_resolution: that joint-space resolution [rad].
+        first_feasible_time: when the query's first plan passing every check was found,
+            from the query's start [s].
     """
 
     result: CollocationResult
@@ -76,6 +91,9 @@ class Plan(NamedTuple):
     wall_time: float
     attempts: tuple[str, ...]
     fine_clearance: float = math.nan
+    exact_clearance: float = math.nan
+    exact_resolution: float = math.nan
+    first_feasible_time: float = math.nan
 
     @property
     def q(self) -> np.ndarray:
@@ -97,7 +115,13 @@ class Planner:
     Args:
         metric: velocity-independent metric with a ``robot`` (e.g. `KineticEnergyMetric`).
         capacity: obstacle slots, >= 1.
-        spheres: robot collision spheres; None uses ``robot.collision_spheres()``.
+        spheres: robot collision spheres; None: spheres fitted to the robot file's own
+            collision geometry (`geosyn.robots.collision_spheres.file_spheres`, cached on
+            disk; those on the fixed base left out: their clearance cannot change, and
+            the exact check covers them), or ``robot.collision_spheres()`` for a robot
+            built in code.
+        exact_resolution: joint-space step (max-norm) [rad] of the exact verification of
+            every returned plan against the file's geometry, > 0.
         margin: node clearance of the collocation [m], >= 0.
         nodes: segments of the collocation, >= 2.
         check_factor: refinement of the between-node check, >= 1.
@@ -141,6 +165,7 @@ class Planner:
         hessian: str = "exact",
         tol: float = 1e-8,
         softmin: float | None = 1000.0,
+        exact_resolution: float = 0.005,
     ) -> None:
         t0 = time.perf_counter()
         self.metric = check_metric(metric)
@@ -148,6 +173,10 @@ class Planner:
         if robot is None:
             raise InvalidArgument("metric: the planner needs a metric with a robot")
         self.robot = robot
+        self.exact_resolution = check_positive(exact_resolution, "exact_resolution", "rad")
+        spheres, self.exact, self.geometry_note = planning_geometry(robot, spheres)
+        if self.geometry_note:  # said once, at build: every plan of this planner is so
+            warnings.warn(f"Planner: {self.geometry_note}", UserWarning, stacklevel=2)
         self.term = ObstacleTerm((), capacity=capacity, spheres=spheres, distance=distance)
         self.term.bind(robot)
         self.margin = check_float(margin, "margin", low=0.0)
@@ -203,20 +232,20 @@ class Planner:
     """Fraction of the path over which the coarse clearance bound rises from the start's
     (goal's) own clearance to ``coarse_margin``."""
 
-    def coarse_bounds(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-        """(P, m) clearance bounds [m] of the coarse collocation at its points.
+    def bounds(self, col: Collocation, q0: np.ndarray, q1: np.ndarray, level: float) -> np.ndarray:
+        """(P, m) clearance bounds [m] of the collocation ``col`` at its points.
 
-        Per constraint, ``coarse_margin``, lowered near the ends to the start's (goal's)
-        clearance plus ``coarse_margin`` times the fraction of `COARSE_RAMP` travelled,
-        and capped (never below ``margin``) where a robot sphere keeps the same clearance
-        to an obstacle at start, goal and halfway (e.g. a base sphere above a floor: no
-        path could raise it).
+        Per constraint, ``level``, lowered near the ends to the start's (goal's)
+        clearance plus ``level`` times the fraction of `COARSE_RAMP` travelled (the
+        sphere model is conservative: an end may sit inside it while clear of the
+        robot's exact geometry, which `verify` checks), and capped (never below
+        ``margin``) where a robot sphere keeps the same clearance to an obstacle at
+        start, goal and halfway (e.g. a base sphere above a floor: no path could raise it).
         """
-        col = self.collocation(self.coarse_nodes, self.coarse_subdivisions)
         t = col.point_times[:, None]
         c0, c1 = col.slot_clearances(q0)[None], col.slot_clearances(q1)[None]
-        k = self.coarse_margin / self.COARSE_RAMP
-        bounds = np.minimum(np.minimum(c0 + k * t, c1 + k * (1.0 - t)), self.coarse_margin)
+        k = max(level, self.margin) / self.COARSE_RAMP
+        bounds = np.minimum(np.minimum(c0 + k * t, c1 + k * (1.0 - t)), level)
         n_obs, cap = len(self.term.obstacles), self.term.capacity
         if n_obs:
             C = np.stack([self.term.clearances(q) for q in (q0, q1, 0.5 * (q0 + q1))])
@@ -227,6 +256,20 @@ class Planner:
             per_row = caps.min(axis=0) if self.softmin is not None else caps.ravel()
             bounds = np.minimum(bounds, np.maximum(per_row[None], self.margin))
         return bounds
+
+    def coarse_bounds(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
+        """(P, m) clearance bounds [m] of the coarse collocation (`bounds` at
+        ``coarse_margin``)."""
+        col = self.collocation(self.coarse_nodes, self.coarse_subdivisions)
+        return self.bounds(col, q0, q1, self.coarse_margin)
+
+    def solve(
+        self, col: Collocation, q0: np.ndarray, q1: np.ndarray, **options: object
+    ) -> CollocationResult:
+        """``col.solve`` with the clearance `bounds` at ``margin`` (or ``options["lower"]``)."""
+        if "lower" not in options:
+            options["lower"] = self.bounds(col, q0, q1, self.margin)
+        return col.solve(q0, q1, **options)  # type: ignore[arg-type]
 
     def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
                         attempts: list[str]) -> tuple[CollocationResult, np.ndarray]:  # fmt: skip
@@ -245,34 +288,13 @@ class Planner:
         times = np.linspace(0.0, 1.0, len(seed.nodes))
         init = interpolate_path(seed.nodes, times, self.nodes, self.metric.n)
         left = max(budget - (time.perf_counter() - t0), 1e-3)
-        res = self.collocation(self.nodes).solve(q0, q1, init=init, budget=left,
-                                                 mu_init=self.seeded_mu_init)  # fmt: skip
+        res = self.solve(self.collocation(self.nodes), q0, q1, init=init, budget=left,
+                         mu_init=self.seeded_mu_init)  # fmt: skip
         attempts.append(f"collocation from the coarse path: {res.message}")
         return res, init
 
     def _check_end(self, q: np.ndarray, which: str) -> None:
-        bad = np.flatnonzero((q < self.robot.q_min - 1e-9) | (q > self.robot.q_max + 1e-9))
-        if bad.size:
-            j = int(bad[0])
-            raise OutsideJointLimits(
-                f"{which}: joint {j} ({self.robot.joint_names[j]}) = {q[j]:.4f} rad is outside "
-                f"its limits [{self.robot.q_min[j]:.4f}, {self.robot.q_max[j]:.4f}] rad",
-                which,
-                tuple(int(i) for i in bad),
-            )
-        if not self.term.obstacles:
-            return
-        c = self.term.clearances(q)  # (spheres, obstacles)
-        s, o = np.unravel_index(int(np.argmin(c)), c.shape)
-        if c[s, o] < 0.0:
-            sphere = self.term.spheres[s]
-            raise InCollision(
-                f"{which} is in collision: robot sphere {s} (on joint {sphere.joint!r}, radius "
-                f"{sphere.radius:g} m) is {-c[s, o]:.4f} m inside obstacle {o} "
-                f"({self.term.obstacles[o]!r}); move the {which} configuration or the "
-                "obstacle, or use a robot sphere model that fits the links more tightly",
-                which, int(o), int(s), sphere.joint, float(c[s, o]),
-            )  # fmt: skip
+        check_end(self.robot, self.term, self.exact, q, which)
 
     def plan(
         self,
@@ -313,6 +335,7 @@ class Planner:
         self._check_end(q0, "start")
         self._check_end(q1, "goal")
         attempts: list[str] = []
+        first = [math.nan]  # when the first plan passed every check [s]
 
         def left() -> float:
             return budget - (time.perf_counter() - t0)
@@ -324,18 +347,26 @@ class Planner:
             seed ``init`` along `REFINEMENTS` (within the first ``share`` of the budget)
             until one does. Not from ``res``: where a thin obstacle lies between two
             constrained points, a finer NLP started there keeps the crossing (measured)."""
-            previous = -math.inf
+            previous, extra = -math.inf, 0.0
             for level, (_, sub) in enumerate(((1, 1), *REFINEMENTS)):
                 coarse, fine = self.check(res.q)
-                check = min(coarse, fine)
+                check, what = min(coarse, fine), "the fine check"
+                exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution)
+                if self.exact is not None:  # the robot's own geometry decides
+                    check, what = exact.clearance, f"the exact check ({exact.link})"
                 if check >= 0.0:
                     wall = time.perf_counter() - t0
-                    return Plan(res, seed_name, coarse, wall, tuple(attempts), fine)
+                    if math.isnan(first[0]):
+                        first[0] = wall
+                    return Plan(res, seed_name, coarse, wall, tuple(attempts), fine,
+                                exact.clearance, self.exact_resolution, first[0])  # fmt: skip
                 attempts.append(
                     f"{res.kind} path ({len(res.nodes) - 1} segments, {sub} constrained "
-                    f"point(s) inside each) crosses an obstacle on the fine check "
+                    f"point(s) inside each) crosses an obstacle on {what} "
                     f"(clearance {check:.4f} m)"
                 )
+                if self.exact is not None:  # repair: a larger sphere margin, and more points
+                    extra += -check + REPAIR_STEP
                 if level == len(REFINEMENTS):
                     return None
                 if level >= 2 and check <= 0.5 * previous:  # after more nodes, too
@@ -346,9 +377,9 @@ class Planner:
                     attempts.append("no time left to refine it")
                     return None
                 nodes, sub = self.nodes * REFINEMENTS[level][0], REFINEMENTS[level][1]
-                res = self.collocation(nodes, sub).solve(
-                    q0, q1, init=init, budget=left() - (1.0 - share) * budget
-                )
+                col = self.collocation(nodes, sub)
+                res = self.solve(col, q0, q1, init=init, budget=left() - (1.0 - share) * budget,
+                                 lower=self.bounds(col, q0, q1, self.margin + extra))  # fmt: skip
                 if not res.success:
                     attempts.append(f"collocation ({nodes} segments, {sub} constrained "
                                     f"point(s) inside each): {res.message}")  # fmt: skip
@@ -373,7 +404,7 @@ class Planner:
             attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
             if left() <= 0:
                 return None
-            res = self.collocation(self.nodes).solve(q0, q1, init=path, budget=left())
+            res = self.solve(self.collocation(self.nodes), q0, q1, init=path, budget=left())
             attempts.append(f"collocation from the {name} path: {res.message}")
             return finish(res, path, name.lower(), 1.0) if res.success else None
 
@@ -383,7 +414,8 @@ class Planner:
             if res.success and (plan := finish(res, init, "straight line", 0.6)) is not None:
                 plans.append(plan)
         if not plans:
-            res = self.collocation(self.nodes).solve(q0, q1, budget=max(0.5 * left(), 1e-3))
+            res = self.solve(self.collocation(self.nodes), q0, q1,
+                             budget=max(0.5 * left(), 1e-3))  # fmt: skip
             attempts.append(f"collocation from the straight line: {res.message}")
             if res.success and (plan := finish(res, None, "straight line", 0.75)) is not None:
                 plans.append(plan)

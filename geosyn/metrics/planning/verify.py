@@ -1,0 +1,115 @@
+"""The planner's collision geometry and the exact verification of its plans.
+
+`planning_geometry` chooses what `Planner` constrains (spheres fitted to the robot file's
+own collision meshes, `geosyn.robots.collision_spheres`, unless the user gives spheres)
+and what it verifies against (`geosyn.world.exact_clearance.ExactClearance`: coal
+distances to the file's meshes and primitives). `exact_check` verifies one path; a plan
+that fails it is solved again with a sphere margin larger by the penetration plus
+`REPAIR_STEP` (and more constrained points), or refused: never returned as free.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from geosyn.metrics.planning.errors import InCollision, OutsideJointLimits
+from geosyn.metrics.shaping.obstacle import ObstacleTerm
+from geosyn.robots.errors import RobotFileError
+from geosyn.robots.robot import CollisionSphere, Robot
+from geosyn.world.exact_clearance import ExactClearance, PathClearance
+from geosyn.world.shapes import Shape
+
+__all__ = ["REPAIR_STEP", "check_end", "exact_check", "planning_geometry"]
+
+REPAIR_STEP = 0.005
+"""Added to the sphere margin [m], beyond the exact penetration, when a plan fails the
+exact check and is solved again."""
+
+
+def planning_geometry(
+    robot: Robot, spheres: Sequence[CollisionSphere] | None
+) -> tuple[tuple[CollisionSphere, ...], ExactClearance | None, str]:
+    """The spheres the planner constrains, the exact checker (None without file
+    geometry) and a note for the plans' ``attempts`` ("" when nothing is to be said).
+
+    Args:
+        robot: the robot.
+        spheres: the user's spheres, or None for the file's fitted spheres (those on
+            the fixed base left out).
+    """
+    try:
+        exact: ExactClearance | None = ExactClearance(robot)
+    except RobotFileError as err:
+        exact = None
+        why = str(err)
+    if spheres is not None:
+        note = "" if exact else f"plans checked on the given spheres only ({why})"
+        return tuple(spheres), exact, note
+    if exact is None:
+        return (
+            robot.collision_spheres(),
+            None,
+            (f"plans checked on the robot's capsule spheres only ({why})"),
+        )
+    from geosyn.robots.collision_spheres import file_spheres
+
+    model = file_spheres(robot)
+    moving = tuple(s for s in model.spheres if s.joint != "universe")
+    return moving, exact, ""
+
+
+def exact_check(
+    exact: ExactClearance | None,
+    path: np.ndarray,
+    obstacles: Sequence[Shape],
+    resolution: float,
+) -> PathClearance:
+    """The smallest exact clearance of ``path`` (T, n) [rad] to ``obstacles`` (NaN
+    clearance without an exact checker)."""
+    if exact is None:
+        return PathClearance(math.nan, 0.0, "", -1, 0, resolution)
+    exact.set_obstacles(obstacles)
+    return exact.path_clearance(path, resolution)
+
+
+def check_end(
+    robot: Robot, term: ObstacleTerm, exact: ExactClearance | None, q: np.ndarray, which: str
+) -> None:
+    """Raise if ``q`` (n,) [rad], the ``which`` end of a query, is outside the joint
+    limits or in collision (the exact geometry decides when there is one, else the
+    spheres of ``term``, whose obstacles are set)."""
+    bad = np.flatnonzero((q < robot.q_min - 1e-9) | (q > robot.q_max + 1e-9))
+    if bad.size:
+        j = int(bad[0])
+        raise OutsideJointLimits(
+            f"{which}: joint {j} ({robot.joint_names[j]}) = {q[j]:.4f} rad is outside "
+            f"its limits [{robot.q_min[j]:.4f}, {robot.q_max[j]:.4f}] rad",
+            which,
+            tuple(int(i) for i in bad),
+        )
+    if not term.obstacles:
+        return
+    if exact is not None:  # the robot's own geometry decides
+        exact.set_obstacles(term.obstacles)
+        d, link, hit = exact.clearance(q)
+        if d < 0.0:
+            raise InCollision(
+                f"{which} is in collision: link {link!r} of the robot's own collision "
+                f"geometry is {-d:.4f} m inside obstacle {hit} ({term.obstacles[hit]!r}); "
+                f"move the {which} configuration or the obstacle", which, hit, -1, link, d,
+            )  # fmt: skip
+        return
+    c = term.clearances(q)  # (spheres, obstacles)
+    s, o = np.unravel_index(int(np.argmin(c)), c.shape)
+    if c[s, o] < 0.0:
+        sphere = term.spheres[s]
+        raise InCollision(
+            f"{which} is in collision: robot sphere {s} (on joint {sphere.joint!r}, radius "
+            f"{sphere.radius:g} m) is {-c[s, o]:.4f} m inside obstacle {o} "
+            f"({term.obstacles[o]!r}); move the {which} configuration or the "
+            "obstacle, or use a robot sphere model that fits the links more tightly",
+            which, int(o), int(s), sphere.joint, float(c[s, o]),
+        )  # fmt: skip

@@ -1,0 +1,208 @@
+"""Exact clearance of a robot's own collision geometry to the world's shapes (coal).
+
+Every collision object of the robot's file (`geosyn.robots.collision_geometry`: URDF
+meshes and primitives read by Pinocchio, MJCF geoms compiled by MuJoCo) becomes a coal
+shape: a mesh its convex hull (what MuJoCo collides for an MJCF; for a URDF mesh exact
+when the mesh is convex, as the Panda's collision meshes are, and conservative
+otherwise), a primitive itself. Obstacles (`geosyn.world.shapes`) become coal's sphere,
+box, capsule, cylinder and half-space. Distances are coal's signed distances (GJK, EPA
+inside): negative is penetration depth.
+
+`ExactClearance.path_clearance` checks a piecewise-linear joint path at configurations at
+most ``resolution`` apart (joint-space max-norm) and returns the smallest clearance. A
+per-link bounding ball (a lower bound of the exact distance) skips the far pairs; pairs
+nearer than ``near`` get coal's distance.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from geosyn.core.validation import check_positive
+from geosyn.robots.collision_geometry import CollisionObject, collision_objects
+from geosyn.robots.robot import Robot
+from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere, check_shape
+
+__all__ = ["ExactClearance", "PathClearance", "coal_shape"]
+
+
+class PathClearance(NamedTuple):
+    """The smallest exact clearance along a path.
+
+    Attributes:
+        clearance: smallest signed distance [m] between a collision object of the robot
+            and an obstacle over the checked configurations (negative: penetration;
+            ``near`` or more when every pair stays farther than ``near``).
+        where: which checked configuration, as a path parameter in [0, 1].
+        link: the robot link of the closest pair.
+        obstacle: index of the obstacle of the closest pair (-1 if none is near).
+        checked: number of configurations checked.
+        resolution: largest joint-space step between checked configurations (max-norm) [rad].
+    """
+
+    clearance: float
+    where: float
+    link: str
+    obstacle: int
+    checked: int
+    resolution: float
+
+
+def _obstacle_geometry(shape: Shape) -> tuple[Any, np.ndarray]:
+    """(coal geometry, (4, 4) world pose) of an obstacle."""
+    import coal
+
+    T = np.eye(4)
+    if isinstance(shape, Sphere):
+        T[:3, 3] = shape.center
+        return coal.Sphere(shape.radius), T
+    if isinstance(shape, Box):
+        T[:3, :3], T[:3, 3] = np.asarray(shape.rotation), shape.center
+        return coal.Box(*(2.0 * np.asarray(shape.half_extents))), T
+    if isinstance(shape, Cylinder):
+        T[:3, :3], T[:3, 3] = np.asarray(shape.rotation), shape.center
+        return coal.Cylinder(shape.radius, 2.0 * shape.half_length), T
+    if isinstance(shape, Capsule):
+        p0, p1 = np.asarray(shape.p0), np.asarray(shape.p1)
+        axis, length = p1 - p0, float(np.linalg.norm(p1 - p0))
+        if length > 0.0:
+            z = axis / length
+            x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+            x /= np.linalg.norm(x)
+            T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+        T[:3, 3] = 0.5 * (p0 + p1)
+        return coal.Capsule(shape.radius, length), T
+    if isinstance(shape, HalfSpace):  # coal's half-space is n . x <= d, as ours
+        return coal.Halfspace(np.asarray(shape.normal, dtype=float), float(shape.offset)), T
+    raise TypeError(f"unknown shape {type(shape).__name__}")  # check_shape ran before
+
+
+def coal_shape(obj: CollisionObject) -> Any:
+    """The coal geometry of a robot collision object (a mesh: its convex hull)."""
+    import coal
+
+    s = obj.size
+    if obj.kind == "mesh":
+        pts = coal.StdVec_Vec3s()
+        pts.extend([np.asarray(v, dtype=float) for v in obj.vertices])
+        return coal.Convex.convexHull(pts, False, None)
+    if obj.kind == "box":
+        return coal.Box(*(2.0 * s))
+    if obj.kind == "sphere":
+        return coal.Sphere(float(s[0]))
+    if obj.kind == "capsule":
+        return coal.Capsule(float(s[0]), 2.0 * float(s[1]))
+    if obj.kind == "cylinder":
+        return coal.Cylinder(float(s[0]), 2.0 * float(s[1]))
+    return coal.Ellipsoid(*s)
+
+
+class ExactClearance:
+    """Exact distances between a robot's collision geometry and obstacles.
+
+    Args:
+        robot: a robot loaded from a URDF or MJCF file.
+        near: pairs whose bounding balls are farther apart than this [m] are not measured
+            exactly (their clearance is then known to be > ``near``), > 0.
+
+    Builds coal shapes once (allocates); `clearance` and `path_clearance` only evaluate.
+
+    Raises:
+        geosyn.robots.RobotFileError: no readable collision geometry.
+    """
+
+    def __init__(self, robot: Robot, *, near: float = 0.05) -> None:
+        import coal
+
+        self.robot = robot
+        self.near = check_positive(near, "near", "m")
+        self.objects = collision_objects(robot)
+        self._geoms = [coal_shape(o) for o in self.objects]
+        self._joint = [
+            robot.joint_id(o.joint) if o.joint != "universe" else 0 for o in self.objects
+        ]
+        self._place = [pin.SE3(o.placement) for o in self.objects]
+        # bounding ball of each object in its joint frame (centre, radius)
+        self._ball = []
+        for o, g in zip(self.objects, self._geoms, strict=True):
+            g.computeLocalAABB()
+            c_local = np.asarray(g.aabb_center)
+            c = o.placement[:3, :3] @ c_local + o.placement[:3, 3]
+            self._ball.append((c, float(g.aabb_radius)))
+        self._request = coal.DistanceRequest()
+        self._data = robot.model.createData()
+        self._obstacles: list[tuple[object, object, np.ndarray, Shape]] = []
+
+    def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
+        """Replace the obstacles (shapes of `geosyn.world`)."""
+        import coal
+
+        self._obstacles = []
+        for i, ob in enumerate(obstacles):
+            ob = check_shape(ob, f"obstacles[{i}]")
+            geom, T = _obstacle_geometry(ob)
+            obj = coal.CollisionObject(geom, coal.Transform3s(T[:3, :3], T[:3, 3]))
+            self._obstacles.append((geom, obj, T, ob))
+
+    def _ball_distance(self, c: np.ndarray, r: float, o: int) -> float:
+        """Lower bound of the distance from the ball (c, r) to obstacle ``o``."""
+        from geosyn.world.distance import signed_distance
+
+        return float(signed_distance(self._obstacles[o][3], c)[0]) - r
+
+    def clearance(self, q: np.ndarray) -> tuple[float, str, int]:
+        """Smallest exact clearance [m] at ``q`` (n,) [rad], its link and obstacle
+        (``(inf, "", -1)`` without obstacles; ``near`` or more when none is near)."""
+        import coal
+
+        if not self._obstacles:
+            return math.inf, "", -1
+        model, data = self.robot.model, self._data
+        pin.forwardKinematics(model, data, np.asarray(q, dtype=float))
+        best, link, which = math.inf, "", -1
+        for k, (geom, jid, place) in enumerate(
+            zip(self._geoms, self._joint, self._place, strict=True)
+        ):
+            oMg = data.oMi[jid] * place if jid else place
+            c_j, r = self._ball[k]
+            oMj = data.oMi[jid] if jid else pin.SE3.Identity()
+            c = oMj.rotation @ c_j + oMj.translation
+            tf = None
+            for o in range(len(self._obstacles)):
+                if self._ball_distance(c, r, o) >= min(best, self.near):
+                    continue  # the exact distance is at least this lower bound
+                if tf is None:
+                    tf = coal.CollisionObject(geom, coal.Transform3s(oMg.rotation, oMg.translation))
+                res = coal.DistanceResult()
+                d = float(coal.distance(tf, self._obstacles[o][1], self._request, res))
+                if d < best:
+                    best, link, which = d, self.objects[k].link, o
+        if which < 0:
+            return self.near, "", -1
+        return best, link, which
+
+    def path_clearance(self, path: np.ndarray, resolution: float = 0.005) -> PathClearance:
+        """Smallest exact clearance of the linear interpolation of ``path`` (T, n) [rad],
+        checked at configurations at most ``resolution`` [rad] apart (max-norm)."""
+        resolution = check_positive(resolution, "resolution", "rad")
+        path = np.asarray(path, dtype=float)
+        seg = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
+        steps = np.maximum(1, np.ceil(seg / resolution).astype(int))
+        pts = [path[:1]]
+        for a, b, k in zip(path[:-1], path[1:], steps, strict=True):
+            s = np.arange(1, k + 1)[:, None] / k
+            pts.append(a + s * (b - a))
+        Q = np.vstack(pts)
+        best = PathClearance(math.inf, 0.0, "", -1, len(Q), resolution)
+        for i, q in enumerate(Q):
+            c, link, o = self.clearance(q)
+            if c < best.clearance:
+                best = best._replace(
+                    clearance=c, where=i / max(len(Q) - 1, 1), link=link, obstacle=o
+                )
+        return best
