@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from geosyn.core.errors import GeosynError
 from geosyn.experiments.cli import (
     experiment_commands,
+    export_commands,
     schema_commands,
     viewer_commands,
 )
@@ -29,6 +30,7 @@ COMMANDS: dict[str, Command] = {
         *experiment_commands.COMMANDS,
         *schema_commands.COMMANDS,
         *viewer_commands.COMMANDS,
+        *export_commands.COMMANDS,
     )
 }
 
