@@ -149,39 +149,40 @@ class ExactClearance:
             obj = coal.CollisionObject(geom, coal.Transform3s(T[:3, :3], T[:3, 3]))
             self._obstacles.append((geom, obj, T, ob))
 
-    def _ball_distance(self, c: np.ndarray, r: float, o: int) -> float:
-        """Lower bound of the distance from the ball (c, r) to obstacle ``o``."""
-        from geosyn.world.distance import signed_distance
-
-        return float(signed_distance(self._obstacles[o][3], c)[0]) - r
-
     def clearance(self, q: np.ndarray) -> tuple[float, str, int]:
         """Smallest exact clearance [m] at ``q`` (n,) [rad], its link and obstacle
         (``(inf, "", -1)`` without obstacles; ``near`` or more when none is near)."""
         import coal
 
+        from geosyn.world.distance import signed_distance
+
         if not self._obstacles:
             return math.inf, "", -1
         model, data = self.robot.model, self._data
         pin.forwardKinematics(model, data, np.asarray(q, dtype=float))
+        oMj = [data.oMi[j] if j else pin.SE3.Identity() for j in self._joint]
+        centres = np.array(
+            [M.rotation @ c + M.translation for M, (c, _) in zip(oMj, self._ball, strict=True)]
+        )
+        radii = np.array([r for _, r in self._ball])
+        # lower bounds of every (object, obstacle) distance: the objects' bounding balls
+        bound = (
+            np.column_stack([signed_distance(ob[3], centres) for ob in self._obstacles])
+            - radii[:, None]
+        )
         best, link, which = math.inf, "", -1
-        for k, (geom, jid, place) in enumerate(
-            zip(self._geoms, self._joint, self._place, strict=True)
-        ):
-            oMg = data.oMi[jid] * place if jid else place
-            c_j, r = self._ball[k]
-            oMj = data.oMi[jid] if jid else pin.SE3.Identity()
-            c = oMj.rotation @ c_j + oMj.translation
-            tf = None
-            for o in range(len(self._obstacles)):
-                if self._ball_distance(c, r, o) >= min(best, self.near):
-                    continue  # the exact distance is at least this lower bound
-                if tf is None:
-                    tf = coal.CollisionObject(geom, coal.Transform3s(oMg.rotation, oMg.translation))
-                res = coal.DistanceResult()
-                d = float(coal.distance(tf, self._obstacles[o][1], self._request, res))
-                if d < best:
-                    best, link, which = d, self.objects[k].link, o
+        for k, o in zip(*np.nonzero(bound < self.near), strict=True):
+            if bound[k, o] >= best:
+                continue  # the exact distance is at least this lower bound
+            oMg = oMj[k] * self._place[k]
+            tf = coal.CollisionObject(
+                self._geoms[k], coal.Transform3s(oMg.rotation, oMg.translation)
+            )
+            d = float(
+                coal.distance(tf, self._obstacles[o][1], self._request, coal.DistanceResult())
+            )
+            if d < best:
+                best, link, which = d, self.objects[k].link, int(o)
         if which < 0:
             return self.near, "", -1
         return best, link, which

@@ -1,15 +1,30 @@
 """The NLP of `geosyn.metrics.geodesic.collocation.Collocation`: its per-node functions
 (compiled or not) and their assembly into IPOPT's objective, constraints and
 hand-made derivatives over the nodes.
+
+Building the per-node functions' expression graphs (forward kinematics, every sphere's
+distance to every obstacle slot, their structured derivatives) takes ~10 s for a Panda
+with ~45 spheres; reading them back takes < 1 s. For a `KineticEnergyMetric` they are
+therefore kept, serialized by CasADi, under ``$GEOSYN_CACHE_DIR/nlp`` (else
+``~/.cache/geosyn/nlp``), keyed by a hash of the robot model, the spheres, the obstacle
+capacity and distance, the settings, CasADi's version and the source of every module that
+builds them, and shared in a process by every collocation of the same key
+(`clear_node_function_cache` empties both).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import tempfile
+import warnings
+from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
 
-from geosyn.core.codegen import compile_library
+from geosyn.core.codegen import compile_library, default_cache_dir
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
 from geosyn.metrics.geodesic.collocation_parts import node_functions
@@ -17,7 +32,99 @@ from geosyn.metrics.geodesic.collocation_parts import node_functions
 if TYPE_CHECKING:
     from geosyn.metrics.shaping.obstacle import ObstacleTerm
 
-__all__ = ["CollocationNLP", "assemble_nlp", "per_node_functions"]
+__all__ = [
+    "CollocationNLP",
+    "assemble_nlp",
+    "clear_node_function_cache",
+    "node_function_key",
+    "per_node_functions",
+]
+
+_SOURCES = (
+    "metrics/geodesic/collocation_parts.py",
+    "metrics/geodesic/collocation_clearance.py",
+    "metrics/geodesic/collocation_nlp.py",
+    "metrics/kinetic.py",
+    "metrics/base.py",
+    "metrics/shaping/obstacle.py",
+    "world/distance.py",
+    "world/smooth.py",
+    "world/shapes.py",
+)
+_MEMORY: dict[str, tuple[ca.Function, ...]] = {}
+
+
+def _cache_dir() -> Path:
+    return default_cache_dir().parent / "nlp"
+
+
+def clear_node_function_cache() -> int:
+    """Forget the per-node functions kept in this process and on disk; returns the number
+    of files removed."""
+    _MEMORY.clear()
+    removed = 0
+    if _cache_dir().is_dir():
+        for f in _cache_dir().glob("nodefuns_*.json"):
+            f.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
+def node_function_key(
+    metric: Metric, clearance: ObstacleTerm | None, constraint_hessian: bool, softmin: float | None
+) -> str | None:
+    """The cache key of the per-node functions (hex), or None where the metric is not a
+    plain `KineticEnergyMetric` (its graph is then not determined by the robot model)."""
+    from geosyn.metrics.kinetic import KineticEnergyMetric
+
+    if type(metric) is not KineticEnergyMetric:
+        return None
+    root = Path(__file__).resolve().parents[2]
+    h = hashlib.sha256()
+    h.update(metric.robot.model.saveToString().encode())
+    for rel in (
+        *_SOURCES,
+        *sorted(str(p.relative_to(root)) for p in (root / "robots" / "symbolic").glob("*.py")),
+    ):
+        h.update((root / rel).read_bytes())
+    if clearance is not None:
+        h.update(json.dumps([clearance.capacity, clearance.distance,
+                             [(s.joint, list(s.center), s.radius) for s in clearance.spheres]]).encode())  # fmt: skip
+    h.update(f"{constraint_hessian}|{softmin!r}|{ca.CasadiMeta.version()}".encode())
+    return h.hexdigest()[:32]
+
+
+def _node_functions_cached(
+    metric: Metric, clearance: ObstacleTerm | None, constraint_hessian: bool, softmin: float | None
+) -> tuple[ca.Function, ...]:
+    """`node_functions` plus the structured clearance Jacobian (last), from memory, the
+    disk cache, or built (then stored)."""
+    key = node_function_key(metric, clearance, constraint_hessian, softmin)
+    if key is not None and key in _MEMORY:
+        return _MEMORY[key]
+    path = None if key is None else _cache_dir() / f"nodefuns_{key}.json"
+    if path is not None and path.is_file():
+        try:
+            funcs = tuple(ca.Function.deserialize(x) for x in json.loads(path.read_text()))
+            _MEMORY[key] = funcs  # type: ignore[index]
+            return funcs
+        except (OSError, ValueError, RuntimeError):
+            pass  # a damaged entry is built again and overwritten
+    funcs = node_functions(metric, clearance, constraint_hessian, softmin)
+    if clearance is not None and softmin is not None:
+        funcs = (*funcs, clearance_jacobian(clearance, softmin))
+    if key is not None and path is not None:
+        _MEMORY[key] = funcs
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".nodefuns_", suffix=".tmp")
+            with os.fdopen(fd, "w") as f:
+                json.dump([fn.serialize() for fn in funcs], f)
+            os.replace(tmp, path)
+        except OSError as err:
+            warnings.warn(f"could not write the node-function cache {path}: {err}",
+                          RuntimeWarning, 2)  # fmt: skip
+    return funcs
 
 
 def per_node_functions(
@@ -31,7 +138,9 @@ def per_node_functions(
     (`geosyn.metrics.geodesic.collocation.COMPILE`), with the clearances' Jacobian by its
     structure where that applies: ``(segment energy, its derivatives, clearances, their
     Jacobian[, their multiplier-weighted Hessian])``."""
-    funcs = node_functions(metric, clearance, constraint_hessian, softmin)
+    cached = _node_functions_cached(metric, clearance, constraint_hessian, softmin)
+    structured = clearance is not None and softmin is not None
+    funcs = cached[:-1] if structured else cached
     if compile_mode != "none":
         # jac_<f> in the same library: first derivatives of f and g for CasADi's own
         # Lagrangian gradient (the hand-made derivatives of `assemble_nlp` serve IPOPT).
@@ -47,7 +156,7 @@ def per_node_functions(
     if clearance is not None and softmin is not None and compile_mode != "first-order":
         # the clearances' Jacobian by its structure (half the graph of the automatic
         # one, which "first-order" keeps from the library above), in a library of its own
-        jac = clearance_jacobian(clearance, softmin)
+        jac = cached[-1]
         if compile_mode == "all":
             jac = compile_library("geosyn_collocation_jacobian", [jac])[jac.name()]
         funcs = (*funcs[:3], jac, *funcs[4:])
