@@ -65,7 +65,8 @@ option                  selects
 ``max_solve_time``      the wall-time budget of one solve (IPOPT stops at it; a longer
                         fatrop or DDP solve is discarded); over it, the controller
                         falls back.
-``obstacles``           `geosyn.world` shapes kept ``clearance_margin`` [m] away (DDP).
+``obstacles``           `geosyn.world` shapes kept ``clearance_margin`` [m] away (DDP;
+                        YAML: the scene's obstacles, passed by the experiment builder).
 ======================  ===============================================================
 
 Build time. The compiled stage functions are looked up by a recipe (the serialised robot
