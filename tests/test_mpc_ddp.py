@@ -292,8 +292,8 @@ def test_clearance_margin_needs_ddp_and_obstacle_terms() -> None:
 
 def test_yaml_mpc_clearance_keeps_clear_of_the_scene_even_on_a_colliding_reference(tmp_path):
     """The built-in obstacle experiment with the DDP MPC and ``clearance_margin: 0.02``
-    instead of computed torque: its metric has no obstacle term, so the MPC keeps clear of
-    the scene's sphere (`clearance_metric`). The unshaped reference runs 13 cm into the
+    instead of computed torque: the MPC keeps clear of the scene's sphere (the experiment
+    builder hands it the scene's obstacles). The unshaped reference runs 13 cm into the
     sphere, yet neither run touches it in MuJoCo (contact on): executed clearance > 1 cm,
     zero contact force, no fallback."""
     import json
@@ -325,7 +325,11 @@ def test_yaml_mpc_clearance_keeps_clear_of_the_scene_even_on_a_colliding_referen
 
 
 def test_yaml_mpc_clearance_without_obstacles_is_refused_by_name() -> None:
-    from geosyn.experiments.run.build import clearance_metric
+    from geosyn.experiments.run.build import build_controller
+    from geosyn.experiments.schema import MPCConfig
 
+    section = MPCConfig.model_validate(
+        {"type": "mpc", "control": "torque", "solver": "ddp", "clearance_margin": 0.02}
+    )
     with pytest.raises(InvalidArgument, match="scene.obstacles"):
-        clearance_metric(get_metric("panda"), [])
+        build_controller(section, get_robot("panda"), get_metric("panda"), 1e-3, [])
