@@ -263,7 +263,7 @@ def test_clearance_margin_keeps_the_world_obstacle_away() -> None:
         0.004 < min(term.min_clearance(ref.sample(x).q) for x in np.linspace(0, 1.5, 151)) < 0.006
     )
     runs = {}
-    guarded = {"clearance_margin": 0.03, "obstacles": [ball]}
+    guarded: dict = {"clearance_margin": 0.03, "obstacles": [ball]}
     for label, kw in (("plain", {}), ("guarded", guarded)):
         mpc = GeodesicMPC(
             robot, K, horizon=10, dt=0.02, control="torque", solver="ddp",

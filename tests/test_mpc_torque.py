@@ -64,8 +64,11 @@ def test_first_torques_equal_ipopt_and_the_plan_obeys_the_dynamics(
     robot = get_robot("panda")
     # 0.05 rad off the reference, at rest: the torques are far from the reference's.
     q, v = Q0 + 0.05, np.zeros(7)
-    options = {"tol": 1e-10, "max_iter": 300}
-    fast_options = DDPOptions(**options) if solver == "ddp" else NLPOptions(solver, **options)
+    fast_options = (
+        DDPOptions(tol=1e-10, max_iter=300)
+        if solver == "ddp"
+        else NLPOptions(solver, tol=1e-10, max_iter=300)
+    )
     fast = _mpc(solver=fast_options, **costs)
     # The reference solve has no wall-time budget to race (a loaded machine is slow).
     tight = _mpc(solver=NLPOptions("ipopt", tol=1e-12, max_iter=500), max_solve_time=60.0, **costs)
