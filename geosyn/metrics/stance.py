@@ -5,7 +5,8 @@ the configurations to the submanifold
 
 .. math:: \\mathcal{S} = \\{ q \\in SE(3) \\times R^n : T_{world,f_i}(q) = T_i^0,\\ i = 1..k \\}
 
-of dimension nv - 6k, the nonlinear generalisation of the linear couplings
+of dimension nv - 6k (a quadruped's point feet hold positions only, ``points=True``:
+``p_f_i(q) = p_i^0``, dimension nv - 3k), the nonlinear generalisation of the linear couplings
 ``q = S z + c``. Its tangent space at q is the null space of the stacked frame Jacobians
 ``J(q)`` (6k, nv) (local frames), and its metric is the one induced by the kinetic
 energy: ``<u, w> = u^T M(q) w`` for tangent u, w; in a basis ``N(q)`` of the null space,
@@ -43,6 +44,7 @@ __all__ = ["Stance"]
 _RANK_TOL = 1e-9  # smallest accepted singular value of J, relative to the largest
 _NEWTON_TOL = 1e-13  # pose residual at which the return to the submanifold stops
 _TANGENT_TOL = 1e-9  # |J v0| accepted as tangent [m/s, rad/s]
+_ALIGNED = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 class Stance:
@@ -53,11 +55,14 @@ class Stance:
         frames: names of the frames held (6-D each: position and orientation), at least
             one, no repeats.
         q_ref: (nq,) configuration whose frame poses are held.
+        points: hold only the frames' positions (point feet of a quadruped: 3
+            constraints per frame, world axes) instead of their full poses (6).
 
     Raises:
         StanceError: no frames, repeated frames, or a stance that over-constrains the
-            robot at ``q_ref`` (6k >= nv, or dependent constraints: J(q_ref) has rank
-            < 6k; the message gives the rank and the frames).
+            robot at ``q_ref`` (ck >= nv with c = 6, or 3 for points, or dependent
+            constraints: J(q_ref) has rank < ck; the message gives the rank and the
+            frames).
         UnknownFrame: a frame that is not in the robot (the message lists them).
         FloatingBaseError: ``q_ref``'s quaternion is not unit.
 
@@ -65,10 +70,18 @@ class Stance:
         metric: the metric.
         frames: the frame names.
         targets: the held world poses (`pinocchio.SE3`), one per frame.
-        dimension: dimension of the submanifold, nv - 6k.
+        points: whether only positions are held.
+        dimension: dimension of the submanifold, nv - 6k (nv - 3k for points).
     """
 
-    def __init__(self, metric: FloatingKineticEnergyMetric, frames: Sequence[str], q_ref: Vector):
+    def __init__(
+        self,
+        metric: FloatingKineticEnergyMetric,
+        frames: Sequence[str],
+        q_ref: Vector,
+        *,
+        points: bool = False,
+    ):
         if not isinstance(metric, FloatingKineticEnergyMetric):
             raise StanceError(
                 f"a stance holds frames of a floating-base robot: metric must be a"
@@ -80,20 +93,22 @@ class Stance:
         self.metric = metric
         self.robot = metric.robot
         self.frames = tuple(frames)
+        self.points = bool(points)
+        self._rows = 3 if self.points else 6
         self._ids = [self.robot.frame_id(f) for f in frames]  # UnknownFrame lists them
         self._model = self.robot.model
         self._data = self._model.createData()
         q_ref = self.robot.check_q(q_ref, "q_ref")
         pin.framesForwardKinematics(self._model, self._data, q_ref)
         self.targets = tuple(pin.SE3(self._data.oMf[i]) for i in self._ids)
-        k, nv = 6 * len(frames), self.robot.nv
+        k, nv = self._rows * len(frames), self.robot.nv
         self.dimension = nv - k
         s = np.linalg.svd(self.jacobian(q_ref), compute_uv=False)
         rank = int(np.sum(s > _RANK_TOL * s[0]))
         if k >= nv or rank < k:
             raise StanceError(
                 f"stance {list(frames)} over-constrains robot {self.robot.name!r}: {k}"
-                f" constraints (6 per frame) of rank {rank} on nv = {nv} velocities; hold"
+                f" constraints ({self._rows} per frame) of rank {rank} on nv = {nv} velocities; hold"
                 " fewer frames, frames on different bodies, or frames not aligned in a"
                 " singular configuration"
             )
@@ -103,12 +118,20 @@ class Stance:
 
     # -- the constraint --------------------------------------------------------------
     def residual(self, q: Vector) -> Vector:
-        """(6k,) pose errors ``log6(T_i^0^-1 T_f_i(q))`` [m, rad], zero on the stance."""
+        """(6k,) pose errors ``log6(T_i^0^-1 T_f_i(q))`` [m, rad], zero on the stance;
+        (3k,) position errors ``p_i(q) - p_i^0`` [m] for ``points``."""
         q = self.robot.check_q(q)
         pin.framesForwardKinematics(self._model, self._data, q)
         return self._residual()
 
     def _residual(self) -> Vector:
+        if self.points:  # world-frame position errors
+            return np.concatenate(
+                [
+                    self._data.oMf[i].translation - t.translation
+                    for t, i in zip(self.targets, self._ids, strict=True)
+                ]
+            )
         return np.concatenate(
             [
                 pin.log6(t.actInv(self._data.oMf[i])).vector
@@ -117,13 +140,18 @@ class Stance:
         )
 
     def jacobian(self, q: Vector) -> Matrix:
-        """(6k, nv) the held frames' Jacobians in their local frames (linear rows first)."""
+        """(6k, nv) the held frames' Jacobians in their local frames (linear rows first);
+        (3k, nv) the points' linear Jacobians in world axes for ``points``."""
         q = self.robot.check_q(q)
         pin.computeJointJacobians(self._model, self._data, q)
         pin.updateFramePlacements(self._model, self._data)
         return self._jacobian()
 
     def _jacobian(self) -> Matrix:
+        if self.points:
+            return np.vstack(
+                [pin.getFrameJacobian(self._model, self._data, i, _ALIGNED)[:3] for i in self._ids]
+            )
         return np.vstack(
             [
                 pin.getFrameJacobian(self._model, self._data, i, pin.ReferenceFrame.LOCAL)
@@ -148,12 +176,20 @@ class Stance:
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         J = self._jacobian()
-        bias = np.concatenate(
-            [
-                pin.getFrameAcceleration(model, data, i, pin.ReferenceFrame.LOCAL).vector
-                for i in self._ids
-            ]
-        )
+        if self.points:  # classical acceleration of the points, world axes
+            bias = np.concatenate(
+                [
+                    pin.getFrameClassicalAcceleration(model, data, i, _ALIGNED).linear
+                    for i in self._ids
+                ]
+            )
+        else:
+            bias = np.concatenate(
+                [
+                    pin.getFrameAcceleration(model, data, i, pin.ReferenceFrame.LOCAL).vector
+                    for i in self._ids
+                ]
+            )
         return np.array(pin.crba(model, data, q)), J, bias
 
     def acceleration(self, q: Vector, v: Vector) -> Vector:
