@@ -1,8 +1,9 @@
 """Controllers: ``compute(t, q, v) -> tau`` behind one interface, no simulator inside.
 
 Computed torque, a passivity-based Riemannian PD, an inverse-dynamics QP with limits, a
-geodesic-tracking MPC, geodesic references and replanning, and a Pinocchio plant for
-simulator-free tests.
+geodesic-tracking MPC, geodesic references and replanning, a whole-body QP for
+floating-base robots standing on their feet, and a Pinocchio plant for simulator-free
+tests.
 """
 
 if not __name__.startswith("geosyn."):  # the folder imported as a top-level package
@@ -24,6 +25,8 @@ from geosyn.controllers.reference import (
 )
 from geosyn.controllers.replan import replan_geodesic
 from geosyn.controllers.riemannian_pd import RiemannianPD
+from geosyn.controllers.whole_body import WholeBodyController
+from geosyn.controllers.whole_body_reference import StanceSynergyReference
 
 __all__ = [
     "ComputedTorque",
@@ -44,5 +47,7 @@ __all__ = [
     "RiemannianPD",
     "Rollout",
     "SolverFailed",
+    "StanceSynergyReference",
+    "WholeBodyController",
     "replan_geodesic",
 ]

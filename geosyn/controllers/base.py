@@ -14,6 +14,7 @@ import time
 import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -94,13 +95,17 @@ class Controller(ABC):
     """
 
     saturation_tol: float = 1e-6
+    #: Whether the controller handles a floating base (nq = nv + 1, torque 0 on the base
+    #: twist); the fixed-base controllers refuse one by name.
+    accepts_floating_base: ClassVar[bool] = False
 
     def __init__(
         self, robot: Robot, reference: Reference | None = None, metric: Metric | None = None
     ) -> None:
         if not isinstance(robot, Robot):
             raise InvalidArgument(f"robot must be a geosyn Robot, got {type(robot).__name__}")
-        robot.require_fixed_base(f"{type(self).__name__} (joint torques, q + v dt references)")
+        if not self.accepts_floating_base:
+            robot.require_fixed_base(f"{type(self).__name__} (joint torques, q + v dt references)")
         self.robot = robot
         self.nv = robot.nv
         if metric is not None and getattr(metric, "n", None) != self.nv:
