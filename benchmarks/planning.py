@@ -40,6 +40,7 @@ from planning_geodex import check_mass_matrix, geodex_run, geodex_sphere_model  
 
 from geosyn.metrics import KineticEnergyMetric, shaping  # noqa: E402
 from geosyn.robots import CollisionSphere, Robot, load_robot  # noqa: E402
+from geosyn.world.exact_clearance import ExactClearance  # noqa: E402
 
 try:  # the shapes live in geosyn.world since the issue-9 layout, in shaping before it
     from geosyn import world as shapes  # noqa: E402
@@ -100,46 +101,30 @@ CAPACITY = max(len(s.obstacles) for s in ps.SCENES)
 
 
 class GeosynSetup:
-    """What geosyn builds once per robot and obstacle capacity, before any query.
-
-    A `geosyn.metrics.planning.Planner` on the panda's `KineticEnergyMetric` (armature 0)
-    with `CAPACITY` obstacle slots and the given collision spheres (the benchmark passes
-    geodex's 59, so both planners avoid the same robot geometry): its collocation NLP with
-    obstacle poses as parameters, the per-node functions compiled to C (disk cache,
-    ``compile="all"``; the clearances' Hessian in a library of its own), the coarse
-    collocation of the coarse-to-fine solve (``coarse_nodes`` segments; 0: none), the NLPs
-    that constrain more points (the between-node refinement), and the free-metric shooting
-    functions of the geodesic refinement (built by warm-up queries, one with a far
-    obstacle). ``build_time`` [s] is the first-use cost, reported apart.
-    """
+    """The geosyn `Planner` a user gets: ``Planner(KineticEnergyMetric(robot))`` with
+    every default (8 obstacle slots; spheres fitted to the Panda URDF's collision
+    meshes, cached on disk; per-node functions cached on disk; no C compile; every plan
+    verified against the URDF meshes by coal). ``build_time`` [s] is the planner's
+    creation; ``spheres`` / ``margin`` / ``coarse_nodes`` / ``alternatives`` override the
+    defaults only when given (the tuned variants of earlier rounds)."""
 
     def __init__(
         self,
         robot: Robot,
         spheres: tuple[CollisionSphere, ...] | None = None,
         *,
-        margin: float = 0.005,
-        nodes: int = 24,
-        compile: bool | str = "all",
-        alternatives: int = 0,
-        coarse_nodes: int = 4,
+        margin: float | None = None,
+        alternatives: int | None = None,
+        coarse_nodes: int | None = None,
     ) -> None:
         from geosyn.metrics.planning import Planner
-        from geosyn.metrics.planning.planner import REFINEMENTS
 
+        options: dict = {"spheres": spheres, "margin": margin, "alternatives": alternatives,
+                         "coarse_nodes": coarse_nodes}  # fmt: skip
         t0 = time.perf_counter()
         self.robot = robot
-        self.metric = KineticEnergyMetric(robot, compile=True)
-        self.planner = Planner(
-            self.metric, capacity=CAPACITY, spheres=spheres, margin=margin, nodes=nodes,
-            compile=compile, alternatives=alternatives, coarse_nodes=coarse_nodes,
-        )  # fmt: skip
-        for factor, sub in REFINEMENTS:  # the NLPs of the between-node refinement
-            self.planner.collocation(factor * nodes, sub)
-        q0 = np.asarray(ps.PANDA_HOME)
-        self.planner.plan(q0, q0 + 0.05, [], budget=30.0)  # builds the shooting functions
-        far = shapes.Sphere((5.0, 0.0, 0.0), 0.1)  # runs the coarse-to-fine solve once
-        self.planner.plan(q0, q0 + 0.05, [far], budget=30.0)
+        self.metric = KineticEnergyMetric(robot)
+        self.planner = Planner(self.metric, **{k: v for k, v in options.items() if v is not None})
         self.build_time = time.perf_counter() - t0
 
 
@@ -178,6 +163,8 @@ def solve_geosyn(scene: ps.Scene, setup: GeosynSetup, budget: float) -> PlannerR
             "geodesic_residual": res.geodesic_residual,
             "active_constraints": res.active,
             "check_clearance": plan.check_clearance,
+            "exact_clearance": plan.exact_clearance,
+            "first_feasible_time": plan.first_feasible_time,
             "attempts": list(plan.attempts),
         },
     )
@@ -190,6 +177,7 @@ class PathScore(NamedTuple):
     length: float  # metric length under geosyn's panda, armature 0 [sqrt(kg) m]
     clearance_geosyn: float  # min clearance, geosyn's 15 spheres [m]
     clearance_geodex: float  # min clearance, geodex's 59 spheres [m]
+    clearance_mesh: float  # min exact distance to the URDF collision meshes (coal) [m]
     geodex_collision_free: bool | None  # geodex's checker on the resampled path
     points: int
 
@@ -242,19 +230,24 @@ def main(argv: list[str] | None = None) -> None:
         default=1e-3,
         help="resampling step of every path for lengths and checks [rad]",
     )
-    p.add_argument("--margin", type=float, default=0.005, help="geosyn node clearance [m]")
-    p.add_argument("--nodes", type=int, default=24, help="geosyn collocation segments")
+    p.add_argument("--margin", type=float, default=None, help="geosyn node clearance [m]")
+    p.add_argument(
+        "--geodex-spheres",
+        action="store_true",
+        help="geosyn plans with geodex's 59 spheres (a tuned variant; default: the Planner's "
+        "own spheres fitted to the URDF meshes)",
+    )
     p.add_argument(
         "--alternatives",
         type=int,
-        default=0,
+        default=None,
         help="geosyn: RRT-Connect seeds tried after a constrained straight-line plan "
         "(other homotopy classes; the lowest-energy plan wins)",
     )
     p.add_argument(
         "--coarse-nodes",
         type=int,
-        default=4,
+        default=None,
         help="geosyn: segments of the coarse collocation seeding the full one (0: none, "
         "the full collocation from the straight line)",
     )
@@ -287,6 +280,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     term_geosyn = shaping.ObstacleTerm((), capacity=CAPACITY).bind(robot)
     term_geodex = shaping.ObstacleTerm((), capacity=CAPACITY, spheres=gdx_spheres).bind(robot)
+    mesh = ExactClearance(robot)
 
     geodex_run("scenes", "--out", str(work / "scenes.json"), "--check-step", str(args.check_step))
     checks = json.loads((work / "scenes.json").read_text())
@@ -304,13 +298,15 @@ def main(argv: list[str] | None = None) -> None:
         ends = np.array([sc.q_start, sc.q_goal])
         c["end_clearance_geosyn"] = [min_clearance(term_geosyn, q[None]) for q in ends]
         c["end_clearance_geodex"] = [min_clearance(term_geodex, q[None]) for q in ends]
+        mesh.set_obstacles(obstacles)
+        c["end_clearance_mesh"] = [mesh.clearance(q)[0] for q in ends]
         print(
             f"  {sc.name:18s} start {'free' if c['start_valid'] else 'IN COLLISION'}, "
             f"goal {'free' if c['goal_valid'] else 'IN COLLISION'}; line: {line} "
             f"({100 * c['line_invalid_fraction']:.0f} % of it){flag}; clearance "
             + " / ".join(
                 ", ".join(_fmt(x, ".3f") for x in c[k])
-                for k in ("end_clearance_geosyn", "end_clearance_geodex")
+                for k in ("end_clearance_geosyn", "end_clearance_geodex", "end_clearance_mesh")
             )
         )
 
@@ -347,13 +343,14 @@ def main(argv: list[str] | None = None) -> None:
 
     build_time = None
     if not args.skip_geosyn:
-        print("geosyn: building the shaped metric (first use) ...", flush=True)
+        print("geosyn: creating the default Planner ...", flush=True)
         setup = GeosynSetup(
-            robot, gdx_spheres, margin=args.margin, nodes=args.nodes,
+            robot, gdx_spheres if args.geodex_spheres else None, margin=args.margin,
             alternatives=args.alternatives, coarse_nodes=args.coarse_nodes,
         )  # fmt: skip
         build_time = setup.build_time
-        print(f"geosyn: build {build_time:.1f} s; solving ...", flush=True)
+        print(f"geosyn: Planner created in {build_time:.1f} s "
+              f"({len(setup.planner.term.spheres)} spheres); solving ...", flush=True)  # fmt: skip
         for sc in scenes:
             r = solve_geosyn(sc, setup, args.budget)
             runs[sc.name]["geosyn"] = r
@@ -378,6 +375,7 @@ def main(argv: list[str] | None = None) -> None:
         obstacles = [to_geosyn(ob) for ob in sc.obstacles]
         term_geosyn.set_obstacles(obstacles)
         term_geodex.set_obstacles(obstacles)
+        mesh.set_obstacles(obstacles)
         start_goal = max(np.abs(path[0] - sc.q_start).max(), np.abs(path[-1] - sc.q_goal).max())
         if start_goal > 1e-3:
             print(f"  WARNING {key}: path ends {start_goal:.1e} rad from start/goal")
@@ -385,22 +383,25 @@ def main(argv: list[str] | None = None) -> None:
             metric_length(metric, path),
             min_clearance(term_geosyn, path),
             min_clearance(term_geodex, path),
+            mesh.path_clearance(path, args.check_step).clearance,
             gcheck[key]["collision_free"],
             int(path.shape[0]),
         )
 
     print(
         "\n(lengths under geosyn's panda, armature 0 [sqrt(kg) m]; clearances by exact "
-        "sphere-obstacle distance [m] with geosyn's 15 / geodex's 59 spheres; 'own cost' = "
+        "sphere-obstacle distance [m] with geosyn's 15 capsule / geodex's 59 spheres, 'mesh' = "
+        "coal's exact distance to the URDF collision meshes; 'own cost' = "
         "geodex's PlanResult.cost under its own M(q); "
         "'geodex chk' = geodex's checker on the path resampled every "
         f"{args.check_step:g} rad)"
     )
     if build_time is not None:
-        print(f"geosyn first-use build (compile, cached on disk afterwards): {build_time:.1f} s")
+        print(f"geosyn Planner creation (this process): {build_time:.1f} s")
     hdr = (
         f"{'scene':18s} {'planner':7s} {'solved':6s} {'wall [s]':>8s} {'length':>8s} "
-        f"{'own cost':>8s} {'clr geosyn':>10s} {'clr geodex':>10s} {'geodex chk':>10s}"
+        f"{'own cost':>8s} {'clr geosyn':>10s} {'clr geodex':>10s} {'clr mesh':>9s} "
+        f"{'geodex chk':>10s}"
     )
     print(hdr)
     print("-" * len(hdr))
@@ -413,7 +414,8 @@ def main(argv: list[str] | None = None) -> None:
                 f"{r.wall_time:8.2f} {_fmt(s and s.length, '8.4f'):>8s} "
                 f"{_fmt(r.extra.get('geodex_cost'), '8.4f'):>8s} "
                 f"{_fmt(s and s.clearance_geosyn, '10.4f'):>10s} "
-                f"{_fmt(s and s.clearance_geodex, '10.4f'):>10s} {chk:>10s}"
+                f"{_fmt(s and s.clearance_geodex, '10.4f'):>10s} "
+                f"{_fmt(s and s.clearance_mesh, '9.4f'):>9s} {chk:>10s}"
             )
 
     out = Path(args.out)

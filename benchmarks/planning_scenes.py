@@ -206,6 +206,43 @@ def _shelf() -> tuple[Obstacle, ...]:
     return tuple(boards)
 
 
+def _shelf_compartments() -> tuple[Obstacle, ...]:
+    # Open towards the robot (-x), 0.35 m deep from x = 0.40 m, two floors and a divider:
+    # four compartments 0.28 m wide and 0.27 m high.
+    x0, depth, hw, t = 0.40, 0.35, 0.30, 0.01
+    xc = x0 + depth / 2
+    return (
+        Box((xc, 0.0, 0.20), (depth / 2, hw, t), name="bottom board"),
+        Box((xc, 0.0, 0.48), (depth / 2, hw, t), name="middle board"),
+        Box((xc, 0.0, 0.76), (depth / 2, hw, t), name="top board"),
+        Box((x0 + depth + t, 0.0, 0.48), (t, hw, 0.29), name="back wall"),
+        Box((xc, 0.0, 0.48), (depth / 2, t, 0.28), name="divider"),
+        Box((xc, hw + t, 0.48), (depth / 2, t, 0.29), name="left side"),
+        Box((xc, -hw - t, 0.48), (depth / 2, t, 0.29), name="right side"),
+    )
+
+
+def _window() -> tuple[Obstacle, ...]:
+    # a 2 cm wall at x = 0.5 m with a 0.30 m x 0.36 m window (y in [-0.15, 0.15],
+    # z in [0.44, 0.70])
+    return (
+        Box((0.50, -0.40, 0.50), (0.01, 0.25, 0.50), name="wall left"),
+        Box((0.50, 0.40, 0.50), (0.01, 0.25, 0.50), name="wall right"),
+        Box((0.50, 0.0, 0.22), (0.01, 0.15, 0.22), name="sill"),
+        Box((0.50, 0.0, 0.85), (0.01, 0.15, 0.15), name="lintel"),
+    )
+
+
+def _cluttered_table() -> tuple[Obstacle, ...]:
+    return (
+        Box((0.55, 0.0, 0.15), (0.25, 0.45, 0.02), name="table top"),
+        Cylinder((0.50, -0.12, 0.25), 0.035, 0.08, name="bottle"),
+        Box((0.62, 0.05, 0.22), (0.04, 0.06, 0.05), name="box"),
+        Sphere((0.45, 0.12, 0.21), 0.04, name="ball"),
+        Cylinder((0.68, -0.22, 0.27), 0.03, 0.10, name="tall bottle"),
+    )
+
+
 SCENES: tuple[Scene, ...] = (
     Scene(
         name="quickstart",
@@ -288,6 +325,60 @@ SCENES: tuple[Scene, ...] = (
         # TCP (0.45, -0.35, 0.35) -> (0.45, 0.35, 0.35), hand pointing down
         q_start=(-0.359, 0.053, -0.308, -1.947, 0.018, 1.998, 0.112),
         q_goal=(0.359, 0.053, 0.308, -1.947, -0.018, 1.998, 1.459),
+    ),
+    # -- issue 22: constrained scenes; both ends >= 15 mm from the URDF collision meshes
+    # (coal), the straight joint line through an obstacle (found by a seeded pose IK on
+    # the hand TCP, rounded to 1 mrad)
+    Scene(
+        name="shelf_compartments",
+        description="own: shelf of four compartments, lower right to upper left, hand forward",
+        obstacles=_shelf_compartments(),
+        # TCP (0.55, -0.15, 0.30) -> (0.55, 0.15, 0.60), hand pointing +x
+        q_start=(-0.619, -0.028, 0.258, -2.553, 2.708, 2.139, 1.037),
+        q_goal=(-1.023, -0.863, 1.12, -2.073, 2.521, 3.026, 2.158),
+    ),
+    Scene(
+        name="window",
+        description="own: wall with a window, from in front of the wall through the window",
+        obstacles=_window(),
+        # TCP (0.35, -0.30, 0.45) -> (0.62, 0.0, 0.55), hand pointing +x
+        q_start=(0.55, -1.347, -1.32, -2.337, -2.896, 3.366, -0.694),
+        q_goal=(0.88, -0.312, -0.833, -2.054, -2.896, 2.847, 0.321),
+    ),
+    Scene(
+        name="cluttered_table",
+        description="own: table with two bottles, a box and a ball, across the clutter",
+        obstacles=_cluttered_table(),
+        # TCP (0.45, -0.28, 0.25) -> (0.55, 0.25, 0.24), hand pointing down
+        q_start=(0.386, 0.071, -0.95, -2.231, 0.075, 2.271, 0.174),
+        q_goal=(0.723, 0.271, -0.314, -1.962, 0.104, 2.218, 1.142),
+    ),
+    Scene(
+        name="pillar",
+        description="own: floor-to-ceiling pillar (r 0.07 m) in front, from one side to the other",
+        obstacles=(Cylinder((0.50, 0.0, 0.5), 0.07, 0.5, name="pillar"),),
+        # TCP (0.45, -0.30, 0.35) -> (0.45, 0.30, 0.35), hand pointing down
+        q_start=(-0.785, -0.037, 0.195, -2.054, 0.008, 2.017, 0.191),
+        q_goal=(-0.229, -0.053, 0.804, -2.054, 0.042, 2.017, 1.342),
+    ),
+    Scene(
+        name="low_bar",
+        description="own: horizontal bar at 0.36 m, from above it to reaching under it",
+        obstacles=(Capsule((0.56, -0.5, 0.36), (0.56, 0.5, 0.36), 0.02, name="bar"),),
+        # TCP (0.55, 0.20, 0.62) hand down -> (0.68, 0.0, 0.20) hand pointing +x
+        q_start=(0.018, 0.324, 0.492, -0.889, -0.163, 1.182, 1.211),
+        q_goal=(1.174, 1.045, -1.153, -2.16, -2.896, 2.19, 1.579),
+    ),
+    Scene(
+        name="slot",
+        description="own: 0.17 m horizontal slot between two blocks, into the slot",
+        obstacles=(
+            Box((0.65, 0.0, 0.25), (0.15, 0.30, 0.10), name="lower block"),
+            Box((0.65, 0.0, 0.62), (0.15, 0.30, 0.10), name="upper block"),
+        ),
+        # TCP (0.30, -0.40, 0.70) -> (0.60, 0.0, 0.435), hand pointing +x
+        q_start=(0.873, -1.762, -0.784, -2.126, -1.129, 2.373, -2.468),
+        q_goal=(1.604, -1.762, -1.35, -2.428, -2.868, 2.233, -1.155),
     ),
 )
 """The benchmark suite, in table order."""

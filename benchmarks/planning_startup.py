@@ -1,0 +1,71 @@
+"""Benchmark: what a user waits for before the first plan (issue 22, deliver 3).
+
+Runs, each in a fresh Python process, ``Planner(KineticEnergyMetric(load_robot("panda")))``
+(every default) and its first query (a scene of ``planning_scenes.py``): first with an
+empty cache folder (``GEOSYN_CACHE_DIR`` a new temporary folder: the spheres are fitted
+to the URDF meshes and the per-node functions built), then ``--repeat`` times with that
+cache warm. Prints wall and CPU time of the import, the planner's creation and the first
+plan.
+
+Run: ``.venv/bin/python benchmarks/planning_startup.py [--scene quickstart] [--repeat 2]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+CHILD = """
+import json, sys, time
+w0, c0 = time.perf_counter(), time.process_time()
+import numpy as np
+sys.path.insert(0, {bench!r})
+import planning_scenes as ps
+from planning import to_geosyn
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.planning import Planner
+from geosyn.robots import load_robot
+w1, c1 = time.perf_counter(), time.process_time()
+planner = Planner(KineticEnergyMetric(load_robot("panda", armature=0.0)))
+w2, c2 = time.perf_counter(), time.process_time()
+sc = ps.scene_by_name({scene!r})
+plan = planner.plan(np.array(sc.q_start), np.array(sc.q_goal),
+                    [to_geosyn(o) for o in sc.obstacles], budget=30.0)
+w3, c3 = time.perf_counter(), time.process_time()
+print(json.dumps({{"import": [w1 - w0, c1 - c0], "create": [w2 - w1, c2 - c1],
+                  "plan": [w3 - w2, c3 - c2], "exact": plan.exact_clearance,
+                  "spheres": len(planner.term.spheres)}}))
+"""
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description="geosyn Planner: first use and new-process times")
+    p.add_argument("--scene", default="quickstart")
+    p.add_argument("--repeat", type=int, default=2, help="new processes with the warm cache")
+    args = p.parse_args(argv)
+    bench = str(Path(__file__).resolve().parent)
+    code = CHILD.format(bench=bench, scene=args.scene)
+    print(f"load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores, shared machine)")
+    with tempfile.TemporaryDirectory(prefix="geosyn-cache-") as cache:
+        env = {**os.environ, "GEOSYN_CACHE_DIR": cache}
+        for i in range(1 + args.repeat):
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                                 text=True, check=True)  # fmt: skip
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            what = "empty cache" if i == 0 else f"warm cache, new process {i}"
+            print(
+                f"{what:28s} import {r['import'][0]:5.2f} s (cpu {r['import'][1]:5.2f}), "
+                f"Planner() {r['create'][0]:5.2f} s (cpu {r['create'][1]:5.2f}), "
+                f"first plan {r['plan'][0]:5.2f} s (cpu {r['plan'][1]:5.2f}); "
+                f"creation + first plan {r['create'][0] + r['plan'][0]:5.2f} s; "
+                f"{r['spheres']} spheres, exact clearance {r['exact']:.4f} m"
+            )
+
+
+if __name__ == "__main__":
+    main()
