@@ -13,19 +13,14 @@ from __future__ import annotations
 import argparse
 import json
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from geosyn.metrics import CoupledMetric, KineticEnergyMetric
-from geosyn.metrics.geodesic import exp
-from geosyn.metrics.geodesic.energy import distance
-from geosyn.synergies import pca_synergies, pga
+from geosyn.metrics import KineticEnergyMetric
 from geosyn.synergies.human import mocap_ik as ik
-from geosyn.synergies.human import segments as sg
+from geosyn.synergies.human import study as st
 from geosyn.synergies.human.data import climb_sequences
-from geosyn.synergies.human.myoarm import load_myoarm
 
 
 def _clock() -> tuple[float, float]:
@@ -36,49 +31,31 @@ def _since(t0: tuple[float, float]) -> str:
     return f"{time.perf_counter() - t0[0]:.1f} s wall, {time.process_time() - t0[1]:.1f} s CPU"
 
 
-def _arms(seqs):
-    warnings.simplefilter("ignore")
-    base = load_myoarm().robot
-    groups: dict[tuple, list[int]] = {}
-    for i, s in enumerate(seqs):
-        key = tuple(round(v, 3) for v in ik.segment_lengths(s.positions).values())
-        groups.setdefault(key, []).append(i)
-    arms = {}
-    for members in groups.values():
-        factors = ik.scale_factors([seqs[i] for i in members], base)
-        arm = load_myoarm(scale=factors)
-        for i in members:
-            arms[i] = (arm, factors, members[0])
-    return arms
+def _subjects(seqs):
+    return st.scaled_arms(seqs)
 
 
 def stage_ik(out: Path) -> None:
     t0 = _clock()
     seqs, prov = climb_sequences()
-    arms = _arms(seqs)
+    subjects = _subjects(seqs)
+    fits = st.fit_capture(seqs, subjects)
     report = {"provenance": prov._asdict(), "sequences": []}
-    all_res, all_raw, limits = [], [], []
-    for i, seq in enumerate(seqs):
-        arm, factors, group = arms[i]
-        t1 = _clock()
-        calib = ik.calibrate(arm.robot, ik.local_keypoints(seq.positions), frames=120, rounds=6)
-        fit = ik.fit_sequence(arm.robot, seq, calib)
+    for i, (seq, fit) in enumerate(zip(seqs, fits, strict=True)):
+        sub = st.subject_of(subjects, i)
         np.savez(out / f"{seq.name}.npz", t=fit.t, z=fit.z, z_raw=fit.z_raw,
-                 residual=fit.residual, residual_raw=fit.residual_raw, group=group)  # fmt: skip
-        all_res.append(fit.residual)
-        all_raw.append(fit.residual_raw)
-        limits.append(fit.at_limit)
+                 residual=fit.residual, residual_raw=fit.residual_raw)  # fmt: skip
         entry = {
-            "name": seq.name, "frames": len(fit.t), "scale": factors, "group": group,
-            "calibration_rms_m": calib.rms,
+            "name": seq.name, "frames": len(fit.t), "scale": sub.arm.scale,
+            "subject": sub.members[0],
             "median_m": float(np.median(fit.residual)), "worst_m": float(fit.residual.max()),
             "median_per_keypoint_m": dict(zip(ik.FITTED, np.median(fit.residual, 0).tolist(),
                                               strict=True)),
-            "time": _since(t1),
         }  # fmt: skip
         report["sequences"].append(entry)
         print(json.dumps(entry))
-    res, raw = np.concatenate(all_res), np.concatenate(all_raw)
+    res = np.concatenate([f.residual for f in fits])
+    raw = np.concatenate([f.residual_raw for f in fits])
     report["all"] = {
         "frames": int(len(res)),
         "median_m": float(np.median(res)),
@@ -86,27 +63,30 @@ def stage_ik(out: Path) -> None:
         "p95_m": float(np.percentile(res, 95)),
         "median_raw_m": float(np.median(raw)),
         "median_per_keypoint_m": dict(zip(ik.FITTED, np.median(res, axis=0).tolist(), strict=True)),
-        "frames_with_a_coordinate_at_a_limit": float(np.concatenate(limits).mean()),
+        "frames_with_a_coordinate_at_a_limit": float(
+            np.concatenate([f.at_limit for f in fits]).mean()
+        ),
         "time": _since(t0),
     }
     print(json.dumps(report["all"], indent=1))
     (out / "ik.json").write_text(json.dumps(report, indent=1))
 
 
+def _fits(out: Path, seqs) -> list:
+    """The stored IK results as ArmFit records (only t and z are used downstream)."""
+    fits = []
+    for seq in seqs:
+        d = np.load(out / f"{seq.name}.npz")
+        empty = np.zeros((0,))
+        fits.append(ik.ArmFit(seq.name, d["t"], d["z"], d["z_raw"], empty, d["residual"],
+                              d["residual_raw"], empty))  # fmt: skip
+    return fits
+
+
 def stage_segments(out: Path) -> None:
     t0 = _clock()
     seqs, _ = climb_sequences()
-    arms = _arms(seqs)
-    metrics = {}
-    rows = []
-    for i, seq in enumerate(seqs):
-        arm, _, group = arms[i]
-        if group not in metrics:
-            metrics[group] = CoupledMetric(KineticEnergyMetric(arm.robot), arm.robot.coupling)
-        z = np.load(out / f"{seq.name}.npz")["z"]
-        hand, speed = sg.hand_speed(arm.robot, z, seq.fps)
-        for a, b in sg.split(speed, hand, seq.fps):
-            rows.append(sg.compare_segment(metrics[group], arm.robot, z, seq.name, a, b))
+    rows = st.segment_capture(seqs, _subjects(seqs), _fits(out, seqs))
     geo = np.array([r.geodesic_dev for r in rows])
     line = np.array([r.line_dev for r in rows])
     hg = np.array([r.geodesic_hand_dev for r in rows])
@@ -133,39 +113,14 @@ def stage_segments(out: Path) -> None:
 def stage_pga(out: Path, n_configs: int, kmax: int, evals: int, steps: int) -> None:
     t0 = _clock()
     seqs, _ = climb_sequences()
-    arms = _arms(seqs)
-    arm = arms[0][0]
-    group = [i for i in range(len(seqs)) if arms[i][2] == arms[0][2]]
-    Z = np.concatenate([np.load(out / f"{seqs[i].name}.npz")["z"] for i in group])
+    sub = _subjects(seqs)[0]
+    Z = np.concatenate([np.load(out / f"{seqs[i].name}.npz")["z"] for i in sub.members])
     X = Z[np.linspace(0, len(Z) - 1, n_configs).astype(int)]
-    metric = CoupledMetric(KineticEnergyMetric(arm.robot), arm.robot.coupling)
-    pca = pca_synergies(X, kmax)
-    rows = []
-    for k in range(1, kmax + 1):
-        t1 = _clock()
-        res = pga(metric, X, k, exact=True, steps=steps, exact_max_evals=evals)
-        G = metric.G(res.mean)
-        C = res.log_vectors @ G @ res.V
-        X_pga = np.array([exp(metric, res.mean, res.V @ c, steps=steps).q[-1] for c in C])
-        P = pca.components[:, :k]
-        X_pca = pca.mean + (X - pca.mean) @ P @ P.T
-        d_pca = [distance(metric, a, b, steps=steps) for a, b in zip(X_pca, X, strict=True)]
-        row = {
-            "k": k,
-            "pga_metric": float(res.reconstruction_error[-1]),
-            "pca_metric": float(np.mean(d_pca)),
-            "pga_plain_rad": float(np.mean(np.linalg.norm(X_pga - X, axis=1))),
-            "pca_plain_rad": float(pca.reconstruction_error[k - 1]),
-            "pga_variance_ratio": float(res.explained_variance_ratio.sum()),
-            "pca_variance_ratio": float(pca.explained_variance_ratio[:k].sum()),
-            "exact_cost_before_after": list(res.exact_cost or (np.nan, np.nan)),
-            "mean_iterations": res.mean_iterations,
-            "time": _since(t1),
-        }
-        rows.append(row)
-        print(json.dumps(row))
+    rows = st.pga_vs_pca_rows(sub.metric, X, kmax, evals=evals, steps=steps)
+    for r in rows:
+        print(json.dumps(r._asdict()))
     summary = {"configurations": n_configs, "exact_max_evals": evals, "steps": steps,
-               "rows": rows, "time": _since(t0)}  # fmt: skip
+               "rows": [r._asdict() for r in rows], "time": _since(t0)}  # fmt: skip
     (out / "pga.json").write_text(json.dumps(summary, indent=1))
 
 
@@ -195,99 +150,56 @@ ROBOTS = {
 }
 
 
-def _human_axes(arm) -> np.ndarray:
-    """Columns forward, left, up of the human arm model (forward: the forearm at 90 deg)."""
-    robot = arm.robot
-    lo, hi = ik.z_box(robot)
-    z = np.clip(np.zeros(robot.coupling.nz), lo, hi)
-    z[3] = np.pi / 2  # elbow flexion
-    kp = ik.model_keypoints(robot, robot.coupling.q(z), ("RightForeArm", "RightHand"))
-    up = np.array([0.0, 0.0, 1.0])
-    fwd = kp[1] - kp[0]
-    fwd = fwd - (fwd @ up) * up
-    fwd /= np.linalg.norm(fwd)
-    return np.column_stack([fwd, np.cross(up, fwd), up])
-
-
 def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> None:
     from geosyn.controllers import ComputedTorque, GeodesicReference
     from geosyn.metrics.geodesic.exp_map import Geodesic
     from geosyn.sim import Push, Simulation
     from geosyn.synergies.human import transfer as tr
+    from geosyn.synergies.human.segments import Segment
 
     t0 = _clock()
     seqs, _ = climb_sequences()
-    arms = _arms(seqs)
-    arm = arms[0][0]
-    group = [i for i in range(len(seqs)) if arms[i][2] == arms[0][2]]
-    rows = json.loads((out / "segments.json").read_text())["rows"]
+    sub = _subjects(seqs)[0]
+    rows = [Segment(**r) for r in json.loads((out / "segments.json").read_text())["rows"]]
     loader, home, shoulder = ROBOTS[robot_name]
     robot = loader()
     metric = KineticEnergyMetric(robot)
-    q_home = np.array(home)
-    wrist, gh, per_seq = [], [], {}
-    for i in group:
-        z = np.load(out / f"{seqs[i].name}.npz")["z"]
-        kp = np.array([ik.model_keypoints(arm.robot, arm.robot.coupling.q(zz),
-                                          ("RightArm", "RightHand")) for zz in z])  # fmt: skip
-        per_seq[seqs[i].name] = kp[:, 1]
-        wrist.append(kp[:, 1])
-        gh.append(kp[:, 0])
-    hmap = tr.hand_map(robot, q_home, shoulder, np.concatenate(wrist), np.concatenate(gh),
-                       _human_axes(arm))  # fmt: skip
-    results, tracked = [], []
-    examples: dict[str, np.ndarray] = {}
-    fps = seqs[0].fps
-    kin_cache = {}
-    for r in rows:
-        if r["sequence"] not in per_seq:
-            continue
-        seq = r["sequence"]
-        if seq not in kin_cache:
-            kin_cache[seq] = tr.kinematic_retarget(robot, hmap(per_seq[seq]), q_home)
-        q_all, err = kin_cache[seq]
-        a, b = r["start"], r["stop"]
-        t = np.arange(b - a + 1) / fps
-        res = tr.transfer_segment(metric, robot, t, hmap(per_seq[seq][a : b + 1]), q_all[a : b + 1])
-        results.append({"sequence": seq, "start": a, "stop": b,
-                        "hand_dev_kinematic_m": res.hand_dev_kinematic,
-                        "hand_dev_geodesic_m": res.hand_dev_geodesic,
-                        "energy_kinematic": res.energy_kinematic,
-                        "energy_geodesic": res.energy_geodesic,
-                        "kinematic_ik_error_median_m": float(np.median(err[a : b + 1])),
-                        "pieces": res.pieces})  # fmt: skip
-        if not examples:
-            hands = [np.array([tr.hand_position(robot, q) for q in Q])
-                     for Q in (res.q_kinematic, res.q_geodesic)]  # fmt: skip
-            examples = {"target": res.target, "kinematic": hands[0], "geodesic": hands[1]}
-            np.savez(out / f"transfer_{robot_name}_example.npz", **examples)
-        if len(tracked) < n_track:
-            ref = GeodesicReference(Geodesic(res.t, res.q_geodesic, res.v_geodesic), metric)
-            ctl = ComputedTorque(robot, 400.0, 40.0, reference=ref)
-            duration = float(res.t[-1])
-            kick = Push(robot.ee_frame, [push, 0.0, 0.0], start=duration / 3, duration=0.1)
-            sim = Simulation(robot, ctl, disturbances=[kick])
-            out_sim = sim.run(res.q_geodesic[0], res.v_geodesic[0], duration=duration)
-            e = out_sim.tracking_error
-            tracked.append({"segment": len(results) - 1, "duration_s": duration,
-                            "rms_rad": float(np.sqrt(np.mean(e**2))),
-                            "max_rad": float(np.abs(e).max()),
-                            "saturated_ticks": float(out_sim.saturated.any(axis=1).mean()),
-                            "pieces": res.pieces,
-                            "ref_speed_max_rad_s": float(np.abs(res.v_geodesic).max())})  # fmt: skip
-    hk = np.array([x["hand_dev_kinematic_m"] for x in results])
-    hg = np.array([x["hand_dev_geodesic_m"] for x in results])
-    ek = np.array([x["energy_kinematic"] for x in results])
-    eg = np.array([x["energy_geodesic"] for x in results])
+    hmap, moved = st.transfer_capture(robot, metric, np.array(home), shoulder, seqs, sub,
+                                      _fits(out, seqs), rows)  # fmt: skip
+    res0 = moved[0]
+    hands = [np.array([tr.hand_position(robot, q) for q in Q])
+             for Q in (res0.q_kinematic, res0.q_geodesic)]  # fmt: skip
+    np.savez(out / f"transfer_{robot_name}_example.npz", target=res0.target,
+             kinematic=hands[0], geodesic=hands[1])  # fmt: skip
+    tracked = []
+    for j, res in enumerate(moved[:n_track]):
+        ref = GeodesicReference(Geodesic(res.t, res.q_geodesic, res.v_geodesic), metric)
+        ctl = ComputedTorque(robot, 400.0, 40.0, reference=ref)
+        duration = float(res.t[-1])
+        kick = Push(robot.ee_frame, [push, 0.0, 0.0], start=duration / 3, duration=0.1)
+        run = Simulation(robot, ctl, disturbances=[kick]).run(
+            res.q_geodesic[0], res.v_geodesic[0], duration=duration
+        )
+        e = run.tracking_error
+        tracked.append({"segment": j, "duration_s": duration,
+                        "rms_rad": float(np.sqrt(np.mean(e**2))),
+                        "max_rad": float(np.abs(e).max()),
+                        "saturated_ticks": float(run.saturated.any(axis=1).mean()),
+                        "pieces": res.pieces,
+                        "ref_speed_max_rad_s": float(np.abs(res.v_geodesic).max())})  # fmt: skip
+    hk = np.array([m.hand_dev_kinematic for m in moved])
+    hg = np.array([m.hand_dev_geodesic for m in moved])
+    ek = np.array([m.energy_kinematic for m in moved])
+    eg = np.array([m.energy_geodesic for m in moved])
     summary = {
-        "robot": robot_name, "segments": len(results), "scale": hmap.scale,
+        "robot": robot_name, "segments": len(moved), "scale": hmap.scale,
         "hand_dev_geodesic_median_m": float(np.median(hg)),
         "hand_dev_geodesic_worst_m": float(hg.max()),
         "hand_dev_kinematic_median_m": float(np.median(hk)),
         "energy_geodesic_below_kinematic": int(np.sum(eg < ek)),
         "energy_ratio_quartiles": np.percentile(eg / ek, [25, 50, 75]).tolist(),
         "energy_ratio_worst": float(np.max(eg / ek)),
-        "pieces_histogram": np.bincount([x["pieces"] for x in results]).tolist(),
+        "pieces_histogram": np.bincount([m.pieces for m in moved]).tolist(),
         "tracked": len(tracked), "push_N": push,
         "tracking_rms_worst_rad": max((x["rms_rad"] for x in tracked), default=float("nan")),
         "tracking_rms_median_rad": float(np.median([x["rms_rad"] for x in tracked]))
@@ -295,8 +207,12 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
         "time": _since(t0),
     }  # fmt: skip
     print(json.dumps(summary, indent=1))
+    rows_out = [{"hand_dev_kinematic_m": m.hand_dev_kinematic,
+                 "hand_dev_geodesic_m": m.hand_dev_geodesic,
+                 "energy_kinematic": m.energy_kinematic, "energy_geodesic": m.energy_geodesic,
+                 "pieces": m.pieces} for m in moved]  # fmt: skip
     (out / f"transfer_{robot_name}.json").write_text(
-        json.dumps({"summary": summary, "rows": results, "tracked": tracked}, indent=1)
+        json.dumps({"summary": summary, "rows": rows_out, "tracked": tracked}, indent=1)
     )
 
 
@@ -324,10 +240,10 @@ def main() -> None:
     p.add_argument("--track", type=int, default=20, help="segments tracked in MuJoCo")
     p.add_argument("--push", type=float, default=50.0, help="push on the hand [N]")
     p.add_argument("--out", type=Path, default=Path("benchmarks/data/human_synergies"))
-    p.add_argument("--configs", type=int, default=40)
+    p.add_argument("--configs", type=int, default=30)
     p.add_argument("--kmax", type=int, default=5)
-    p.add_argument("--evals", type=int, default=10)
-    p.add_argument("--steps", type=int, default=40)
+    p.add_argument("--evals", type=int, default=6)
+    p.add_argument("--steps", type=int, default=30)
     a = p.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     if a.stage in ("ik", "all"):
@@ -337,7 +253,8 @@ def main() -> None:
     if a.stage in ("pga", "all"):
         stage_pga(a.out, a.configs, a.kmax, a.evals, a.steps)
     if a.stage in ("transfer", "all"):
-        stage_transfer(a.out, a.robot, a.track, a.push)
+        for name in ROBOTS if a.stage == "all" else (a.robot,):
+            stage_transfer(a.out, name, a.track, a.push)
     if a.stage in ("figures", "all"):
         stage_figures(a.out, Path("docs"))
 

@@ -28,6 +28,7 @@ def test_there_are_eight_builtins_each_with_a_description():
     assert names == sorted(
         [
             "arm_synergy_combinations",
+            "human_synergies",  # its claims: tests/test_human_experiment.py
             "perception_reach",  # its claims: tests/test_perception_map.py
             "pga_vs_pca",
             "pick_and_place",  # its claims: tests/test_pick_and_place.py

@@ -14,8 +14,8 @@ def test_figures_are_png(tmp_path) -> None:
         fg.ik_residuals(rng.uniform(0, 0.02, (100, 3)), ["RightArm", "RightHand", "RightHandIndex1"],
                         tmp_path / "ik.png"),
         fg.segment_fit(rng.uniform(0.01, 0.1, 20), rng.uniform(0.01, 0.1, 20), tmp_path / "s.png"),
-        fg.pga_vs_pca([{"k": k, "pga_metric": 1 / k, "pca_metric": 2 / k, "pga_plain_rad": 1.0,
-                        "pca_plain_rad": 0.5} for k in (1, 2, 3)], tmp_path / "p.png"),
+        fg.pga_vs_pca([{"k": k, "pga_metric": 1 / k, "pca_metric": 2 / k, "pga_plain": 1.0,
+                        "pca_plain": 0.5} for k in (1, 2, 3)], tmp_path / "p.png"),
         fg.hand_paths(*(rng.normal(size=(10, 3)) for _ in range(3)), tmp_path / "h.png", "t"),
     ]  # fmt: skip
     for p in paths:

@@ -2,6 +2,7 @@
 
 from geosyn.experiments.procedures import (  # noqa: E402,F401  (registers)
     geodesic_vs_euclidean,
+    human_synergies,
     perception_reach,
     pga_vs_pca,
     pick_and_place,

@@ -77,7 +77,7 @@ def pga_vs_pca(rows: Sequence[Mapping[str, float]], path: Path) -> Path:
     k = [int(r["k"]) for r in rows]
     fig = Figure(figsize=(8.0, 3.2))
     for i, (key, label) in enumerate(
-        (("metric", "under the arm's metric"), ("plain_rad", "plain joint coordinates [rad]"))
+        (("metric", "under the arm's metric"), ("plain", "plain joint coordinates [rad]"))
     ):
         ax = fig.add_subplot(1, 2, i + 1)
         ax.plot(k, [r[f"pga_{key}"] for r in rows], "o-", label="exact PGA")
