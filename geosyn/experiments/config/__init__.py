@@ -1,1 +1,5 @@
-"""Reading an experiment's YAML: the loader, every problem of a file, resource limits."""
+"""Reading an experiment's YAML: `loader` (files, ``--set`` overrides, validation in
+stages), `problems` (every problem of a file, with the closest valid names),
+`resource_limits` (encodings, sizes, nesting, run and tick limits)."""
+
+__all__: list[str] = []
