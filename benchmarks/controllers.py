@@ -30,7 +30,7 @@ import numpy as np
 
 from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.mpc import GeodesicMPC, MPCPlan
-from geosyn.controllers.mpc.problem import ShootingNLP, transcribe
+from geosyn.controllers.mpc.nlp.problem import ShootingNLP, transcribe
 from geosyn.controllers.plant import PinocchioPlant
 from geosyn.controllers.qp import QPController
 from geosyn.controllers.reference import GeodesicReference
@@ -67,7 +67,7 @@ def build_naive_ipopt(mpc: GeodesicMPC) -> ShootingNLP:
         "expand": False,
         "print_time": False,
         "error_on_fail": False,
-        "ipopt": {"print_level": 0, "sb": "yes", "tol": mpc.solver_settings.tol},
+        "ipopt": {"print_level": 0, "sb": "yes", "tol": mpc.solver_options.tol},
     }
     solver = ca.nlpsol("mpc_naive", "ipopt", graph.nlp, opts)
     return ShootingNLP.from_problem(problem, graph, solver, None)
