@@ -71,14 +71,17 @@ def main() -> None:
         for name, tree in trees.items():
             got[name].append(measure(tree, a.repeat, a.duration))
     print(f"panda, computed torque, {a.duration:g} s at 1 kHz; median of {a.rounds} rounds")
-    med = {}
+    med, cpu = {}, {}
     for name, rows in got.items():
         med[name] = statistics.median(r["rtf_wall"] for r in rows)
-        cpu = statistics.median(r["rtf_cpu"] for r in rows)
+        cpu[name] = statistics.median(r["rtf_cpu"] for r in rows)
         rms = rows[0]["rms"]
-        print(f"{name:7s} RTF wall {med[name]:6.1f}x  RTF cpu {cpu:6.1f}x  rms {rms:.3e} rad")
+        print(f"{name:7s} RTF wall {med[name]:6.1f}x  RTF cpu {cpu[name]:6.1f}x  rms {rms:.3e} rad")
     if "before" in med:
-        print(f"after / before (wall RTF): {med['after'] / med['before']:.3f}")
+        print(
+            f"after / before: wall RTF {med['after'] / med['before']:.3f},"
+            f" CPU RTF {cpu['after'] / cpu['before']:.3f}"
+        )
 
 
 if __name__ == "__main__":
