@@ -55,3 +55,28 @@ def test_bad_files_are_named(tmp_path) -> None:
     np.savez(tmp_path / "k.npz", a=np.zeros((3, 2)))
     with pytest.raises(InvalidSynergyInput, match="no array 'z'"):
         load_demonstrations(tmp_path / "k.npz", key="z")
+
+
+def test_yaml_pga_synergies_from_recorded_demonstrations(tmp_path) -> None:
+    """``synergies: {type: pga, demonstrations: FILE}`` gives PGA of the file's postures."""
+    from pydantic import ValidationError
+
+    from geosyn.experiments import schema as S
+    from geosyn.experiments.run.build import build_metric, build_robot, build_synergies
+    from geosyn.synergies import pga
+
+    rng = np.random.default_rng(9)
+    trajs = [np.cumsum(rng.normal(0, 0.05, (25, 2)), axis=0) + [0.3, 0.8] for _ in range(2)]
+    np.savez(tmp_path / "demos.npz", a=trajs[0], b=trajs[1])
+    base = {"name": "x", "kind": "synergy_combinations", "robot": {"name": "planar2"}}
+    syn = {"type": "pga", "k": 1, "demonstrations": str(tmp_path / "demos.npz")}
+    cfg = S.ExperimentConfig.model_validate({**base, "synergies": syn}, context={"nv": 2})
+    robot = build_robot(cfg)
+    metric = build_metric(cfg, robot)
+    (synergy,) = build_synergies(cfg, metric, robot)
+    ref = pga(metric, trajs, 1)  # the library call on the arrays themselves
+    np.testing.assert_allclose(synergy.q0, ref.mean, atol=1e-12)
+    np.testing.assert_allclose(synergy.v0, ref.V[:, 0], atol=1e-12)
+    for bad in ({**syn, "q0": [0.0, 0.0]}, {"type": "pga", "k": 1}):
+        with pytest.raises(ValidationError, match="exactly one of q0"):
+            S.ExperimentConfig.model_validate({**base, "synergies": bad}, context={"nv": 2})

@@ -58,6 +58,7 @@ from geosyn.sim import (
 )
 from geosyn.sim.log import ARRAY_FIELDS, RUN_META
 from geosyn.synergies import GeodesicSynergy, orthonormal_synergies, pga
+from geosyn.synergies.human.demonstrations import load_demonstrations
 from geosyn.world import Payload, Shape
 
 
@@ -129,8 +130,14 @@ def pga_demonstrations(
 
 
 def _pga(s: S.PGASynergies, metric: Metric, robot: Robot, seed: int) -> list[GeodesicSynergy]:
-    q0 = np.array(s.q0)
-    demos = pga_demonstrations(metric, robot, q0, s.n_demos, s.spread, s.latent, seed)
+    demos: np.ndarray | list[np.ndarray]
+    if s.demonstrations is not None:  # recorded: in z when the metric is the coupled one
+        coupled = robot.coupling is not None and metric.n == robot.coupling.nz
+        names = robot.coupling.independent if coupled else robot.joint_names  # type: ignore[union-attr]
+        demos = load_demonstrations(s.demonstrations, names, key=s.key)
+    else:
+        q0 = np.array(s.q0)
+        demos = pga_demonstrations(metric, robot, q0, s.n_demos, s.spread, s.latent, seed)
     res = pga(metric, demos, s.k)
     return [GeodesicSynergy(metric, res.mean, res.V[:, j]) for j in range(s.k)]
 

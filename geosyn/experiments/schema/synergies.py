@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from geosyn.controllers import GeodesicReference
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
@@ -49,17 +49,31 @@ class DesignedSynergies(Section):
 
 
 class PGASynergies(Strict):
-    """PGA of generated demonstrations: ``n_demos`` endpoints of geodesics from ``q0``
-    with random G-orthonormal-basis velocities of standard deviation ``spread`` over the
-    first ``latent`` designed directions (the config's own generator: its defaults are
-    the config's)."""
+    """PGA of demonstrations: recorded trajectories read from ``demonstrations`` (an NPZ
+    or CSV file, `geosyn.synergies.human.load_demonstrations`), or generated ones:
+    ``n_demos`` endpoints of geodesics from ``q0`` with random G-orthonormal-basis
+    velocities of standard deviation ``spread`` over the first ``latent`` designed
+    directions (the config's own generator: its defaults are the config's). Give exactly
+    one of ``q0`` and ``demonstrations``."""
 
     type: Literal["pga"]
-    q0: JointVector
+    q0: JointVector | None = None
+    demonstrations: str | None = Field(
+        None,
+        description="NPZ or CSV file of recorded trajectories (relative to the working"
+        " directory); CSV columns q[<joint>] or <joint>, an optional trajectory column",
+    )
+    key: str | None = Field(None, description="the NPZ array to read (default: every 2-D one)")
     k: Count
     n_demos: Annotated[int, Field(ge=2, le=500)] = 20
     spread: PositiveFloat = 0.5
     latent: Count = 2
+
+    @model_validator(mode="after")
+    def _one_source(self) -> PGASynergies:
+        if (self.q0 is None) == (self.demonstrations is None):
+            raise ValueError("give exactly one of q0 (generated demonstrations) or demonstrations")
+        return self
 
 
 SynergyConfig = Annotated[
