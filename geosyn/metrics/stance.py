@@ -159,6 +159,30 @@ class Stance:
             ]
         )
 
+    def jacobian_time_variation(self, q: Vector, v: Vector) -> Matrix:
+        """(6k, nv) or (3k, nv): ``d/dt J(q(t))`` along ``q(t) = q exp(t v)`` (Pinocchio's
+        ``getFrameJacobianTimeVariation``, same frames and rows as `jacobian`).
+
+        Args:
+            q: (nq,) configuration.
+            v: (nv,) velocity.
+        """
+        q = self.robot.check_q(q)
+        v = check_vector(v, self.robot.nv, "v")
+        model, data = self._model, self._data
+        pin.computeJointJacobiansTimeVariation(model, data, q, v)
+        pin.updateFramePlacements(model, data)
+        if self.points:
+            return np.vstack(
+                [pin.getFrameJacobianTimeVariation(model, data, i, _ALIGNED)[:3] for i in self._ids]
+            )
+        return np.vstack(
+            [
+                pin.getFrameJacobianTimeVariation(model, data, i, pin.ReferenceFrame.LOCAL)
+                for i in self._ids
+            ]
+        )
+
     def tangent_basis(self, q: Vector) -> Matrix:
         """(nv, nv - 6k) an orthonormal basis of the tangent space (J's null space)."""
         return np.asarray(scipy.linalg.null_space(self.jacobian(q)))
