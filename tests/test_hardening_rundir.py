@@ -150,7 +150,8 @@ def test_failed_runs_are_not_summarised_as_perfect():
     assert math.isnan(summary["geodesic.rms_error"])
     assert math.isnan(summary["geodesic.recovery_time"])
     assert math.isnan(summary["effort_ratio_straight_over_geodesic"])
-    assert summary["geodesic.path_energy"] == 4.0 and summary["geodesic.fallbacks"] == 3.0
+    assert summary["geodesic.path_energy"] == 4.0  # a fact of the plan, not of the run
+    assert math.isnan(summary["geodesic.fallbacks"])  # issue 23: counts of a failed run too
     assert summary["straight.rms_error"] == 0.01
     assert summary["failed_runs"] == 1.0
     assert "failed_runs" not in clean_summary({"energy": 1.0})

@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import inspect
 import re
+import sys
+import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -18,7 +20,9 @@ from typing import Any
 import yaml
 
 from geosyn.core.errors import GeosynError
+from geosyn.experiments.cli import chatter, exit_codes
 from geosyn.experiments.cli.registry import Command
+from geosyn.experiments.errors import ConfigError
 
 
 def cmd_robots(args: argparse.Namespace) -> int:
@@ -90,6 +94,15 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--video", action="store_true", help="also render videos")
     p.add_argument("--force", action="store_true", help="replace an existing run directory")
+    p.add_argument(
+        "--allow-unused",
+        dest="allow_unused",
+        action="store_true",
+        help="run even if the config sets sections its kind does not read (refused by"
+        " default: they would have no effect; the run log names them)",
+    )
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = exit_codes.epilog()
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -97,10 +110,44 @@ def cmd_run(args: argparse.Namespace) -> int:
     from geosyn.experiments.config.loader import load_config
     from geosyn.experiments.run.runner import run_experiment
 
-    cfg, _ = load_config(args.experiment, args.overrides)
-    outcome = run_experiment(cfg, **_keywords(args, run_experiment))
+    with chatter.quiet() as loading:  # the robot file's parser and compiler print
+        try:
+            cfg, _ = load_config(args.experiment, args.overrides, allow_unused=args.allow_unused)
+        except ConfigError as err:
+            failure: ConfigError | None = err
+        else:
+            failure = None
+    if failure is not None:
+        raise ConfigError(failure.file, failure.field, failure.reason + loading.reason()) from (
+            failure
+        )
+    loading.show_own_warnings()
+    with chatter.mujoco_warnings() as mujoco_texts:
+        outcome = run_experiment(cfg, **_keywords(args, run_experiment))
+    _keep_chatter(outcome.path, loading, mujoco_texts)
     print(f"run directory: {outcome.path}  ({outcome.wall_time:.1f} s)")
-    return 0
+    code = exit_codes.run_exit_code(outcome.summary)
+    if code == exit_codes.NO_RUN_SUCCEEDED:
+        print(
+            f"geosyn run: no closed-loop run completed (exit {code}); see {outcome.path / 'run.log'}",
+            file=sys.stderr,
+        )
+    return code
+
+
+def _keep_chatter(run_dir: Path, loading: chatter.Quiet, mujoco_texts: list[str]) -> None:
+    """Third-party output of the loading into ``run.log``, MuJoCo's warnings (of the
+    loading and the run) into the run directory's ``MUJOCO_LOG.TXT``."""
+    lines = loading.log_lines()
+    if lines:
+        stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        with (run_dir / "run.log").open("a", encoding="utf-8") as f:
+            for line in lines:
+                f.write(f"{stamp} while loading the config: {' '.join(line.split())}\n")
+    texts = loading.mujoco + mujoco_texts
+    if texts:
+        with (run_dir / "MUJOCO_LOG.TXT").open("a", encoding="utf-8") as f:
+            f.writelines(f"WARNING: {text}\n" for text in texts)
 
 
 def _sweep_arguments(p: argparse.ArgumentParser) -> None:

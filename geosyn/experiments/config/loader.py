@@ -35,6 +35,7 @@ from geosyn.experiments.config.resource_limits import (
 )
 from geosyn.experiments.errors import ConfigError
 from geosyn.experiments.procedures import PROCEDURES
+from geosyn.experiments.procedures.base import ignored_sections
 from geosyn.experiments.run.scene import build_payloads
 from geosyn.experiments.schema import ExperimentConfig, RobotConfig, consistency_errors
 from geosyn.robots import load_robot
@@ -237,12 +238,30 @@ def scene_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
     return []
 
 
-def validate_config(data: Mapping[str, Any], file: str = "<config>") -> ExperimentConfig:
+def unused_errors(cfg: ExperimentConfig) -> list[tuple[str, str]]:
+    """Sections the config sets that its kind does not read (they would have no effect)."""
+    proc = PROCEDURES[cfg.kind]
+    return [
+        (
+            section,
+            f"kind {cfg.kind!r} does not read this section (it reads:"
+            f" {', '.join(proc.sections or ())}); remove it, or run with --allow-unused"
+            " to run anyway (the run log names it)",
+        )
+        for section in ignored_sections(cfg, proc)
+    ]
+
+
+def validate_config(
+    data: Mapping[str, Any], file: str = "<config>", allow_unused: bool = False
+) -> ExperimentConfig:
     """Validate a config document (see the module doc for the order of checks).
 
     Args:
         data: the parsed YAML mapping (not modified).
         file: name used in error messages.
+        allow_unused: accept sections that the kind does not read (set away from their
+            defaults; they have no effect, and a run logs them); refused by default.
 
     Returns:
         The config; ``params`` holds the procedure's validated parameters with defaults.
@@ -297,17 +316,21 @@ def validate_config(data: Mapping[str, Any], file: str = "<config>") -> Experime
     later += consistency_errors(cfg, robot.nv) if not later else []
     later += PROCEDURES[cfg.kind].check(cfg, params, robot) if not later else []
     later += scene_errors(cfg, robot) if not later else []
+    later += unused_errors(cfg) if not later and not allow_unused else []
     if later:
         raise_problems(file, later)
     return cfg
 
 
-def load_config(source: str | Path, overrides: Iterable[str] = ()) -> tuple[ExperimentConfig, Path]:
+def load_config(
+    source: str | Path, overrides: Iterable[str] = (), allow_unused: bool = False
+) -> tuple[ExperimentConfig, Path]:
     """Read, override and validate an experiment.
 
     Args:
         source: a built-in experiment name or a YAML path.
         overrides: ``key.path=value`` strings applied in order before validation.
+        allow_unused: accept sections the kind does not read (see `validate_config`).
 
     Returns:
         (the validated config, the YAML file it came from).
@@ -327,7 +350,7 @@ def load_config(source: str | Path, overrides: Iterable[str] = ()) -> tuple[Expe
     for text in overrides:
         key, value = parse_override(text)
         apply_override(data, key, value)
-    return validate_config(data, path.name), path
+    return validate_config(data, path.name, allow_unused), path
 
 
 def dump_config(cfg: ExperimentConfig) -> str:
@@ -344,5 +367,6 @@ __all__ = [
     "parse_override",
     "read_yaml",
     "resolve_source",
+    "unused_errors",
     "validate_config",
 ]

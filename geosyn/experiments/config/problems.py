@@ -86,6 +86,31 @@ def _unknown_key(root: type[BaseModel], loc: tuple[Any, ...], data: Any) -> str:
     return f"unknown key {key!r}{hint} valid keys here: {', '.join(valid)}"
 
 
+#: pydantic error types of a value of the wrong type (strict mode: never coerced).
+_STRICT_TYPES = ("float_type", "int_type", "bool_type", "string_type", "int_from_float")
+
+
+def _no_coercion(msg: str, value: Any) -> str:
+    """A wrong-type message that names the value and why it is not converted."""
+    got = f"{msg}, got {type(value).__name__} {_short(value)}"
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return got
+        return f"{got}: a quoted number is text, never converted; write it without quotes"
+    if isinstance(value, bool):
+        return f"{got}: a boolean is not a number (no true -> 1 conversion)"
+    if isinstance(value, float) and msg.endswith("integer"):
+        return f"{got}: write a whole number without a decimal point"
+    return got
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def validation_errors(
     err: ValidationError, data: Any, root: type[BaseModel], prefix: str = ""
 ) -> list[tuple[str, str]]:
@@ -107,6 +132,8 @@ def validation_errors(
             msg = f"unknown type {ctx.get('tag')!r}{hint} allowed: {ctx.get('expected_tags')}"
         elif e["type"] == "union_tag_not_found":
             msg = f"missing 'type'; allowed: {e.get('ctx', {}).get('expected_tags', '')}"
+        elif e["type"] in _STRICT_TYPES and "input" in e:
+            msg = _no_coercion(msg, e["input"])
         if msg.startswith("Value error, "):
             msg = msg[len("Value error, ") :]
         if field in out:  # one reason per field (a union reports one per member)

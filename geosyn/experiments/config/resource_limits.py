@@ -14,6 +14,7 @@ from __future__ import annotations
 import codecs
 import math
 import os
+import re
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -25,8 +26,50 @@ from geosyn.experiments.schema import ExperimentConfig
 
 #: Largest config file [bytes] (a config is a few kB; parsing is bounded by this).
 MAX_CONFIG_BYTES = 256 << 10
-#: libyaml's safe loader when PyYAML has it (8x faster on big files), else PyYAML's own.
-SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_BASE_LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+class UniqueKeyLoader(_BASE_LOADER):
+    """libyaml's safe loader when PyYAML has it (8x faster on big files), else PyYAML's
+    own, refusing a mapping that repeats a key (YAML says keys are unique; PyYAML keeps
+    the last silently). Keys brought in by a ``<<`` merge may be overridden, as YAML says.
+    """
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        if isinstance(node, yaml.MappingNode):
+            seen: dict[Any, Any] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == _MERGE_TAG:
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    first = seen.setdefault(key, key_node)
+                except TypeError:  # an unhashable key: the base class reports it
+                    continue
+                if first is not key_node:
+                    raise yaml.constructor.ConstructorError(
+                        None,
+                        None,
+                        f"duplicate key {key!r} (first on line {first.start_mark.line + 1});"
+                        " a key appears once in a mapping",
+                        key_node.start_mark,
+                    )
+        return super().construct_mapping(node, deep=deep)
+
+
+# YAML 1.2 reads 2e4 and 1.0e7 as numbers; PyYAML follows YAML 1.1, which needs a dot and a
+# sign in the exponent (1.0e+7) and reads the rest as text. Configs are strict (a string
+# is never converted to a number), so the 1.2 spelling is resolved here, as users write it.
+UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+#: The loader of configs and ``--set`` values: safe (plain data only), unique keys,
+#: YAML 1.2 exponents (``2e4``) as numbers.
+SAFE_LOADER = UniqueKeyLoader
 #: Deepest nesting of mappings and lists in a config.
 MAX_DEPTH = 32
 #: Most values (mappings, lists and scalars, YAML aliases expanded) in a config.

@@ -151,7 +151,7 @@ def load_table(run_dir: str | Path) -> pandas.DataFrame:
     run_dir = Path(run_dir)
     labels: list[str] = []
     if (run_dir / "config.yaml").is_file():
-        labels = load_config(run_dir / "config.yaml")[0].controller_labels()
+        labels = load_config(run_dir / "config.yaml", allow_unused=True)[0].controller_labels()
     frames = []
     for run, res in load_runs(run_dir).items():
         T, nv = res.q.shape[0], len(res.joint_names)

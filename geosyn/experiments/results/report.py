@@ -125,7 +125,7 @@ def report(run_dir: str | Path, quiet: bool = False) -> dict[str, float]:
         )
     results = load_results(run_dir)
     try:
-        cfg, _ = load_config(run_dir / "config.yaml")
+        cfg, _ = load_config(run_dir / "config.yaml", allow_unused=True)
     except ConfigError as err:
         raise ConfigError(
             str(run_dir / "config.yaml"),

@@ -115,18 +115,15 @@ def print_summary(
         console.print(table)
 
 
-#: Row metrics that stay meaningful when a row's run did not complete: facts of the plan
-#: (path energies, planned clearance) and counts up to the stop (an obstacle contact
-#: before the stop happened, whatever came after); every other metric of a failed row was
-#: measured on a truncated run and becomes NaN ("not measured").
+#: Row values that stay meaningful when a row's run did not complete: whether it did, its
+#: wall time, and facts of the plan made before the run (path energies, planned
+#: clearance). Every metric of the run itself, counts included (saturations, fallbacks,
+#: contact force and time: counted up to the stop they would read as a clean run), was
+#: measured on a truncated run and becomes NaN ("not measured"; the log has the run).
 KEPT_WHEN_FAILED = frozenset(
     {
         "ok",
         "wall_time",
-        "fallbacks",
-        "saturations",
-        "max_contact_force",
-        "contact_time",
         "path_energy",
         "energy_shaped_metric",
         "energy_unshaped_metric",

@@ -20,6 +20,9 @@ experiment stores in ``results.npz``) to named scalars:
   contacts (when the run logs ``contact_force``; 0 with visual-only obstacles);
 - ``wall_time`` [s] of the run.
 
+A run that did not complete (``ok`` 0: diverged, stopped, its controller failed) has
+every other metric NaN, counts included: a count up to the stop would read as clean.
+
 Recovery, per disturbance window
 --------------------------------
 A disturbance with a time window (a push ``[start, start + duration]``, a wrench
@@ -238,7 +241,25 @@ def standard_metrics(
     wall = _array(run, "wall_time")
     if wall is not None:
         out["wall_time"] = float(wall)
+    if status is not None and str(status) != "ok":
+        return _not_measured(out, e is not None, windows)
     return out
+
+
+def _not_measured(
+    out: dict[str, float], tracked: bool, windows: Sequence[Window]
+) -> dict[str, float]:
+    """The metrics of a run that did not complete: all NaN (counts included: a count up
+    to the stop would read as a clean run), except ``ok`` and ``wall_time``; the
+    tracking metrics are present (as NaN) even when the error went non-finite."""
+    names = set(out)
+    if tracked:
+        names |= {"rms_error", "max_error"}
+        if windows:
+            names |= {"recovery_time", *(f"recovery_time_d{w.disturbance}" for w in windows)}
+    return {
+        name: out[name] if name in ("ok", "wall_time") else float("nan") for name in sorted(names)
+    }
 
 
 def unit_of(metric: str) -> str:

@@ -9,7 +9,15 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from geosyn.experiments.schema.section import Section, python_defaults
-from geosyn.experiments.schema.values import Gain, NonNegFloat, PositiveFloat, Vec3
+from geosyn.experiments.schema.values import (
+    MAX_Q_STD,
+    MAX_TAU_STD,
+    MAX_V_STD,
+    NonNegFloat,
+    PositiveFloat,
+    Vec3,
+    bounded_gain,
+)
 from geosyn.sim import Latency, PayloadChange, Push, SensorNoise, TorqueNoise, Wrench
 
 _PUSH = python_defaults(Push)
@@ -63,20 +71,22 @@ class PayloadChangeConfig(Section):
 
 
 class TorqueNoiseConfig(Section):
-    """`TorqueNoise`: standard deviation ``std`` [N m], one or per joint."""
+    """`TorqueNoise`: standard deviation ``std`` [N m], one or per joint (at most
+    `MAX_TAU_STD`)."""
 
     builds = (TorqueNoise,)
     type: Literal["torque_noise"]
-    std: Gain
+    std: bounded_gain(MAX_TAU_STD)  # type: ignore[valid-type]
 
 
 class SensorNoiseConfig(Section):
-    """`SensorNoise`: standard deviations ``q_std`` [rad] and ``v_std`` [rad/s]."""
+    """`SensorNoise`: standard deviations ``q_std`` [rad] and ``v_std`` [rad/s] (at most
+    `MAX_Q_STD` and `MAX_V_STD`)."""
 
     builds = (SensorNoise,)
     type: Literal["sensor_noise"]
-    q_std: Gain = _SENSOR_NOISE["q_std"]
-    v_std: Gain = _SENSOR_NOISE["v_std"]
+    q_std: bounded_gain(MAX_Q_STD) = _SENSOR_NOISE["q_std"]  # type: ignore[valid-type]
+    v_std: bounded_gain(MAX_V_STD) = _SENSOR_NOISE["v_std"]  # type: ignore[valid-type]
 
 
 class LatencyConfig(Section):

@@ -18,9 +18,14 @@ from pydantic import BaseModel, ConfigDict
 
 
 class Strict(BaseModel):
-    """Base of every config model: unknown keys are errors."""
+    """Base of every config model: unknown keys are errors, and so is every value that
+    only a coercion would make fit (pydantic's strict mode): a string where a number or
+    a boolean belongs (``kp: '900'``), a boolean where a number belongs (``seed: true``),
+    a float where an integer belongs (``substeps: 2.0``). An integer is a valid float.
+    No float field takes ``inf`` or ``nan`` (a field where "never" or "no limit" makes
+    sense says so with ``None``)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
 def python_defaults(*targets: Callable[..., Any], **config_only: Any) -> dict[str, Any]:

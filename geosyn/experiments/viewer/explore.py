@@ -23,6 +23,7 @@ from geosyn.experiments.viewer.server import (
     polyline_segments,
     start_server,
 )
+from geosyn.experiments.viewer.text import markdown_text
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.robots import load_robot
 from geosyn.robots.kinematics import frame_positions
@@ -66,7 +67,7 @@ def explore_robot(
     synergies = list(orthonormal_synergies(metric, start, k, robot=robot).synergies)
     server = start_server(host, port, fast)
     server.gui.add_markdown(
-        f"**{robot.name}**: {k} geodesic synergies at q0; the robot follows their combination"
+        f"**{markdown_text(robot.name)}**: {k} geodesic synergies at q0; the robot follows their combination"
     )
     server.scene.add_grid("/floor", width=3.0, height=3.0, cell_size=0.1)
     ghost = RobotGhost(server, "robot", robot, RUN_COLORS[0])

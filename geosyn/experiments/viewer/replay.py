@@ -29,6 +29,7 @@ from geosyn.experiments.viewer.server import (
     frame_camera,
     start_server,
 )
+from geosyn.experiments.viewer.text import markdown_text
 from geosyn.robots.kinematics import frame_positions
 
 
@@ -55,7 +56,7 @@ def view_run(
         raise ExperimentError(
             f"run_dir {str(run_dir)!r} has no config.yaml; is it a run directory?{hint}"
         )
-    cfg, _ = load_config(run_dir / "config.yaml")
+    cfg, _ = load_config(run_dir / "config.yaml", allow_unused=True)
     results = load_results(run_dir)
     scene = build_run_scene(cfg)
     robot = scene.robot
@@ -65,7 +66,8 @@ def view_run(
             f"run_dir {str(run_dir)!r} (kind {cfg.kind!r}) stores no motion of the robot"
         )
     server = start_server(host, port, fast)
-    server.gui.add_markdown(f"**{cfg.name}** ({cfg.kind}, robot {robot.name})")
+    name, kind, robot_name = (markdown_text(x) for x in (cfg.name, cfg.kind, robot.name))
+    server.gui.add_markdown(f"**{name}** ({kind}, robot {robot_name})")
     server.scene.add_grid("/floor", width=3.0, height=3.0, cell_size=0.1)
     payloads, obstacles = scene.payloads, scene.obstacles
     disturbances = B.build_disturbances(cfg)

@@ -1,0 +1,141 @@
+"""Third-party output kept off the terminal: what native libraries (the URDF parser,
+MuJoCo's compiler) print on the process's stderr, and MuJoCo's warnings (which MuJoCo
+would print and append to ``MUJOCO_LOG.TXT`` in the current directory).
+
+`captured_stderr` redirects file descriptor 2 (C++ and Python writers alike) into a
+temporary file for the duration of a block; `mujoco_warnings` routes MuJoCo's warnings
+into Python warnings (recorded in the run log by the runner) and a list that the CLI
+writes to the run directory's ``MUJOCO_LOG.TXT``. Both restore what they replaced.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import sys
+import tempfile
+import warnings
+from collections.abc import Iterator
+from typing import Any
+
+_SOURCE_LOCATION = re.compile(r"^at line \d+ in \S+$")
+
+
+class Captured:
+    """What a `captured_stderr` block printed (``text`` is set when the block ends)."""
+
+    def __init__(self) -> None:
+        self.text = ""
+
+    def lines(self, limit: int = 3) -> list[str]:
+        """The first ``limit`` non-empty lines, each stripped, without the C++ source
+        locations (``at line 607 in .../joint.cpp``) some parsers print after a line."""
+        kept = [s.strip() for s in self.text.splitlines() if s.strip()]
+        return [s for s in kept if not _SOURCE_LOCATION.match(s)][:limit]
+
+
+@contextlib.contextmanager
+def captured_stderr() -> Iterator[Captured]:
+    """Redirect file descriptor 2 into a temporary file inside the block.
+
+    Yields:
+        A `Captured` whose ``text`` holds the output once the block has ended.
+    """
+    out = Captured()
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield out
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            out.text = tmp.read(1 << 16).decode("utf-8", "replace")
+
+
+class MuJoCoWarning(UserWarning):
+    """A warning MuJoCo raised while a run simulated (its text is MuJoCo's)."""
+
+
+@contextlib.contextmanager
+def mujoco_warnings() -> Iterator[list[str]]:
+    """MuJoCo's warnings as `MuJoCoWarning` (never printed by MuJoCo nor written to the
+    current directory's ``MUJOCO_LOG.TXT``); the previous handler is back after.
+
+    Yields:
+        The list of warning texts, filled while the block runs.
+    """
+    import mujoco  # deferred: the CLI answers --help without MuJoCo
+
+    texts: list[str] = []
+
+    def handler(message: Any) -> None:
+        text = " ".join(str(message).split())
+        texts.append(text)
+        warnings.warn(f"MuJoCo: {text}", MuJoCoWarning, stacklevel=1)
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(handler)
+    try:
+        yield texts
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+class Quiet:
+    """What a `quiet` block left: third-party lines and MuJoCo warnings (for the run
+    log and ``MUJOCO_LOG.TXT``), Python warnings (geosyn's are shown, others logged)."""
+
+    def __init__(self) -> None:
+        self.stderr = Captured()
+        self.mujoco: list[str] = []
+        self.warnings: list[warnings.WarningMessage] = []
+
+    def log_lines(self) -> list[str]:
+        """Every captured item as one run-log line."""
+        lines = [f"third-party stderr: {line}" for line in self.stderr.lines(limit=200)]
+        lines += [f"MuJoCo warning: {text}" for text in self.mujoco]
+        lines += [f"warning: {w.category.__name__}: {w.message}" for w in self.warnings]
+        return lines
+
+    def reason(self) -> str:
+        """The first third-party lines, to append to geosyn's error ('' if none)."""
+        said = self.stderr.lines() + self.mujoco[:2]
+        return f" (third-party output: {' | '.join(said)})" if said else ""
+
+    def show_own_warnings(self) -> None:
+        """Show geosyn's own warnings as usual (the others stay in the run log)."""
+        for w in self.warnings:
+            if _is_geosyn(w):
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+
+
+def _is_geosyn(w: warnings.WarningMessage) -> bool:
+    module = getattr(w.category, "__module__", "")
+    return module.startswith("geosyn.") and w.category is not MuJoCoWarning
+
+
+@contextlib.contextmanager
+def quiet() -> Iterator[Quiet]:
+    """`captured_stderr`, `mujoco_warnings` and recorded Python warnings in one block."""
+    out = Quiet()
+    with contextlib.ExitStack() as stack:
+        out.stderr = stack.enter_context(captured_stderr())
+        out.mujoco = stack.enter_context(mujoco_warnings())
+        out.warnings = stack.enter_context(warnings.catch_warnings(record=True))
+        warnings.simplefilter("always")
+        yield out
+
+
+__all__ = [
+    "Captured",
+    "MuJoCoWarning",
+    "Quiet",
+    "captured_stderr",
+    "mujoco_warnings",
+    "quiet",
+]
