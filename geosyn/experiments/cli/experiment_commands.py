@@ -20,8 +20,9 @@ from typing import Any
 import yaml
 
 from geosyn.core.errors import GeosynError
-from geosyn.experiments.cli import chatter, exit_codes
+from geosyn.experiments.cli import exit_codes
 from geosyn.experiments.cli.registry import Command
+from geosyn.experiments.config import chatter
 from geosyn.experiments.errors import ConfigError
 
 

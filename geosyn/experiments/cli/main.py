@@ -3,7 +3,7 @@
 Every subcommand is a `Command` listed by its module (`experiment_commands`,
 `schema_commands`, `viewer_commands`) and assembled in `COMMANDS`; a `GeosynError` raised by any of
 them is printed as one line on stderr and exits with code 2 (bad input), never as a
-traceback.
+traceback; ``--help`` lists every exit code (`exit_codes`).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 from geosyn.core.errors import GeosynError
 from geosyn.experiments.cli import (
+    exit_codes,
     experiment_commands,
     export_commands,
     schema_commands,
@@ -40,6 +41,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="geosyn",
         description="Geodesic synergies, shaped metrics and torque controllers.",
+        epilog=exit_codes.epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, cmd in COMMANDS.items():

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -24,9 +25,11 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from geosyn.core.errors import GeosynError
+from geosyn.experiments.config.chatter import captured_stderr
 from geosyn.experiments.config.problems import raise_problems, validation_errors
 from geosyn.experiments.config.resource_limits import (
     SAFE_LOADER,
+    DuplicateKey,
     check_nesting,
     check_structure,
     nesting_error,
@@ -115,6 +118,8 @@ def parse_override(text: str) -> tuple[str, Any]:
         raise nesting_error("--set", key) from None
     except (ValueError, TypeError, OverflowError) as err:
         raise ConfigError("--set", key, f"invalid YAML value: {err}") from None
+    except DuplicateKey as err:  # YAML, but a wrong one: not a plain string either
+        raise ConfigError("--set", key, f"invalid YAML value: {err.problem}") from None
     except yaml.YAMLError:
         check_nesting(value, "--set", key)
         parsed = value
@@ -281,11 +286,20 @@ def validate_config(
     else:
         try:
             robot_cfg = RobotConfig.model_validate(data["robot"])
-            robot = load_robot(robot_cfg.name, **robot_cfg.options.model_dump(exclude_none=True))
+            with captured_stderr() as parser_output:  # the URDF parser prints its errors
+                try:
+                    robot = load_robot(
+                        robot_cfg.name, **robot_cfg.options.model_dump(exclude_none=True)
+                    )
+                except GeosynError as err:
+                    problems["robot"] = str(err)
         except ValidationError as err:
             problems.update(validation_errors(err, data["robot"], RobotConfig, "robot"))
-        except GeosynError as err:
-            problems["robot"] = str(err)
+        else:
+            if "robot" in problems:  # the parser's own words, in geosyn's one line
+                problems["robot"] += parser_output.said()
+            elif parser_output.text:  # a success's chatter stays on stderr, as printed
+                sys.stderr.write(parser_output.text)
     context = {"nv": robot.nv} if robot is not None else None
     cfg = None
     try:

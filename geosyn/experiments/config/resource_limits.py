@@ -30,6 +30,10 @@ _BASE_LOADER: Any = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
+class DuplicateKey(yaml.constructor.ConstructorError):
+    """A YAML mapping repeats a key."""
+
+
 class UniqueKeyLoader(_BASE_LOADER):
     """libyaml's safe loader when PyYAML has it (8x faster on big files), else PyYAML's
     own, refusing a mapping that repeats a key (YAML says keys are unique; PyYAML keeps
@@ -48,7 +52,7 @@ class UniqueKeyLoader(_BASE_LOADER):
                 except TypeError:  # an unhashable key: the base class reports it
                     continue
                 if first is not key_node:
-                    raise yaml.constructor.ConstructorError(
+                    raise DuplicateKey(
                         None,
                         None,
                         f"duplicate key {key!r} (first on line {first.start_mark.line + 1});"
@@ -272,6 +276,7 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_VALUES",
     "SAFE_LOADER",
+    "DuplicateKey",
     "check_structure",
     "limit",
     "read_text",

@@ -34,6 +34,11 @@ class Captured:
         kept = [s.strip() for s in self.text.splitlines() if s.strip()]
         return [s for s in kept if not _SOURCE_LOCATION.match(s)][:limit]
 
+    def said(self) -> str:
+        """The first lines, to append to geosyn's error ('' if nothing was printed)."""
+        lines = self.lines()
+        return f" (third-party output: {' | '.join(lines)})" if lines else ""
+
 
 @contextlib.contextmanager
 def captured_stderr() -> Iterator[Captured]:
@@ -104,8 +109,8 @@ class Quiet:
 
     def reason(self) -> str:
         """The first third-party lines, to append to geosyn's error ('' if none)."""
-        said = self.stderr.lines() + self.mujoco[:2]
-        return f" (third-party output: {' | '.join(said)})" if said else ""
+        lines = self.stderr.lines() + self.mujoco[:2]
+        return f" (third-party output: {' | '.join(lines)})" if lines else ""
 
     def show_own_warnings(self) -> None:
         """Show geosyn's own warnings as usual (the others stay in the run log)."""
