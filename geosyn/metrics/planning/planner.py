@@ -18,8 +18,15 @@ One query, within a stated time budget:
    constrained straight-line result, from that many RRT-Connect seeds (other homotopy
    classes round the obstacles), keeping the lowest-energy plan;
 4. checks the result between the nodes (``check_factor`` times finer and at most
-   ``check_step`` apart, linear between nodes); a path that touches an obstacle there is
-   solved again with more constrained points (`REFINEMENTS`) until one passes.
+   ``check_step`` apart, linear between nodes) and, for a robot with a file, against its
+   exact collision geometry (`geosyn.metrics.planning.verify`: coal distances to the
+   file's meshes every ``exact_resolution`` rad, which then decide); a path that touches
+   an obstacle is solved again with more constrained points (`REFINEMENTS`) and, after an
+   exact failure, a sphere margin larger by the penetration plus `REPAIR_STEP`, until one
+   passes, or refused.
+
+Default spheres: fitted to the file's meshes (`geosyn.robots.collision_spheres`); they
+and the NLP's per-node functions are cached on disk (`collocation_nlp`).
 
 A query that cannot succeed raises `NoPathFound` once the budget is spent, listing what
 was tried. The NLPs are built once (their obstacle poses are parameters), so every scene
@@ -373,12 +380,12 @@ class Planner:
                     attempts.append("refining does not help: the path tunnels through")
                     return None
                 previous = max(previous, check)
-                if left() - (1.0 - share) * budget <= 0:
+                nodes, sub = self.nodes * REFINEMENTS[level][0], REFINEMENTS[level][1]
+                col = self.collocation(nodes, sub)  # its first use builds it: then the clock
+                if (share_left := left() - (1.0 - share) * budget) <= 0:
                     attempts.append("no time left to refine it")
                     return None
-                nodes, sub = self.nodes * REFINEMENTS[level][0], REFINEMENTS[level][1]
-                col = self.collocation(nodes, sub)
-                res = self.solve(col, q0, q1, init=init, budget=left() - (1.0 - share) * budget,
+                res = self.solve(col, q0, q1, init=init, budget=share_left,
                                  lower=self.bounds(col, q0, q1, self.margin + extra))  # fmt: skip
                 if not res.success:
                     attempts.append(f"collocation ({nodes} segments, {sub} constrained "
@@ -402,9 +409,9 @@ class Planner:
                 return None
             path = shortcut(self.valid, path, budget=0.05 * left(), seed=seed + index)
             attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
-            if left() <= 0:
+            if (remaining := left()) <= 0:
                 return None
-            res = self.solve(self.collocation(self.nodes), q0, q1, init=path, budget=left())
+            res = self.solve(self.collocation(self.nodes), q0, q1, init=path, budget=remaining)
             attempts.append(f"collocation from the {name} path: {res.message}")
             return finish(res, path, name.lower(), 1.0) if res.success else None
 
