@@ -5,7 +5,9 @@ C API: create, destroy, nq, reset, set_reference, compute, error), the CasADi-ge
 of the controller's rigid-body terms, a hand-written C driver, ``libgeosyn_controller.so``
 and ``.a`` (libc and libm only), a CMake package config, a README with the numbers it
 was built with, and ``loop.c``, a closed-loop program against the robot's MJCF in
-MuJoCo's C library. Exportable: `ComputedTorque`, `RiemannianPD`.
+MuJoCo's C library. Exportable: `ComputedTorque`, `RiemannianPD`, and the torque-level
+box-DDP MPC (``GeodesicMPC(solver="ddp", control="torque")``, no obstacles;
+`geosyn.export.mpc_law`).
 """
 
 if not __name__.startswith("geosyn."):  # the folder imported as a top-level package

@@ -8,6 +8,7 @@ import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
+from geosyn.core.codegen import LARGE_SOURCE_CHARS, LARGE_SOURCE_FLAGS
 from geosyn.export.errors import ExportError
 
 LIB_NAME = "geosyn_controller"
@@ -50,16 +51,27 @@ def run(command: Sequence[str], cwd: Path) -> None:
         )
 
 
-def compile_library(out_dir: Path, compiler: str, flags: Sequence[str]) -> tuple[Path, Path]:
-    """Compile the sources in ``out_dir`` into ``lib{LIB_NAME}.so`` and ``.a``.
+def source_flags(path: Path, flags: Sequence[str]) -> tuple[str, ...]:
+    """``flags``, or for a generated source of megabytes (the MPC's Riccati step)
+    geosyn.core.codegen's LARGE_SOURCE_FLAGS, as the Python solver compiles it (far
+    shorter compile, little slower code)."""
+    large = path.stat().st_size >= LARGE_SOURCE_CHARS
+    return tuple(LARGE_SOURCE_FLAGS) if large else tuple(flags)
+
+
+def compile_library(
+    out_dir: Path, compiler: str, flags: Sequence[str], sources: Sequence[str] = OBJECT_SOURCES
+) -> tuple[Path, Path]:
+    """Compile ``sources`` in ``out_dir`` into ``lib{LIB_NAME}.so`` and ``.a``.
 
     Returns:
         (shared library, static library).
     """
     objects = []
-    for source in OBJECT_SOURCES:
+    for source in sources:
         obj = Path(source).with_suffix(".o").name
-        run([compiler, *flags, *BASE_FLAGS, "-c", source, "-o", obj], out_dir)
+        own = source_flags(out_dir / source, flags)
+        run([compiler, *own, *BASE_FLAGS, "-c", source, "-o", obj], out_dir)
         objects.append(obj)
     shared, static = out_dir / f"lib{LIB_NAME}.so", out_dir / f"lib{LIB_NAME}.a"
     run([compiler, "-shared", "-o", shared.name, *objects, "-lm"], out_dir)
@@ -99,12 +111,25 @@ set(geosyn_controller_FOUND TRUE)
 """
 
 
-def makefile(mujoco_dir: Path | None, flags: Sequence[str]) -> str:
+def makefile(
+    mujoco_dir: Path | None,
+    flags: Sequence[str],
+    sources: Sequence[str] = OBJECT_SOURCES,
+    out_dir: Path | None = None,
+) -> str:
     """Text of the export's ``Makefile``: ``make lib`` rebuilds the libraries, ``make
     loop`` the closed-loop program against MuJoCo (``MUJOCO_DIR`` holds ``include/`` and
-    ``libmujoco.so*``; default: the ``mujoco`` wheel found at export time)."""
+    ``libmujoco.so*``; default: the ``mujoco`` wheel found at export time). ``sources``:
+    the library's C files; a large one in ``out_dir`` gets `source_flags`."""
     mj = str(mujoco_dir) if mujoco_dir else "/path/to/mujoco"
     cflags = " ".join([*flags, *BASE_FLAGS])
+    objects = " ".join(str(Path(s).with_suffix(".o")) for s in sources)
+    large = "".join(
+        f"{Path(s).with_suffix('.o')}: CFLAGS = "
+        f"{' '.join([*source_flags(out_dir / s, flags), *BASE_FLAGS])}\n"
+        for s in sources
+        if out_dir is not None and source_flags(out_dir / s, flags) != tuple(flags)
+    )
     return f"""\
 # Written by geosyn.export. make lib: the libraries; make loop: the MuJoCo closed loop.
 CC ?= cc
@@ -114,14 +139,17 @@ MUJOCO_LIB ?= $(firstword $(wildcard $(MUJOCO_DIR)/libmujoco.so*) $(wildcard $(M
 
 lib: libgeosyn_controller.so libgeosyn_controller.a
 
-geosyn_law.o: geosyn_law.c geosyn_law.h
-\t$(CC) $(CFLAGS) -c geosyn_law.c -o $@
-geosyn_controller.o: geosyn_controller.c geosyn_controller.h geosyn_controller_config.h geosyn_law.h
-\t$(CC) $(CFLAGS) -c geosyn_controller.c -o $@
-libgeosyn_controller.so: geosyn_law.o geosyn_controller.o
+%.o: %.c $(wildcard *.h)
+\t$(CC) $(CFLAGS) -c $< -o $@
+{large}
+libgeosyn_controller.so: {objects}
 \t$(CC) -shared -o $@ $^ -lm
-libgeosyn_controller.a: geosyn_law.o geosyn_controller.o
+libgeosyn_controller.a: {objects}
 \tar rcs $@ $^
+
+# The export ships the libraries without their objects: intermediate files, rebuilt only
+# when a source is newer than the libraries.
+.SECONDARY: {objects}
 
 loop: loop.c libgeosyn_controller.a
 \t$(CC) -O2 -std=c99 -D_POSIX_C_SOURCE=199309L -I. -I$(MUJOCO_DIR)/include loop.c \\

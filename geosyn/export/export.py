@@ -17,6 +17,7 @@ from geosyn.core.validation import check_int
 from geosyn.export import build, sources
 from geosyn.export.errors import ExportError
 from geosyn.export.laws import control_law
+from geosyn.export.mpc_law import MPC_FUNCTIONS
 from geosyn.export.readme import export_readme
 from geosyn.export.samples import ReferenceSamples, SamplingError, sample_reference, sampling_error
 from geosyn.robots import load_robot
@@ -164,7 +165,8 @@ def export_controller(
 
     Args:
         robot: the controller's robot, or its name.
-        controller: a `ComputedTorque` or `RiemannianPD` (see `geosyn.export.laws.LAWS`).
+        controller: a `ComputedTorque`, `RiemannianPD` or ``GeodesicMPC(solver="ddp",
+            control="torque")`` (see `geosyn.export.laws.LAWS`).
         out_dir: export directory (created; must be empty unless ``overwrite``).
         reference: the built-in reference; default ``controller.reference``.
         sample_dt: sample spacing of the built-in reference [s], > 0.
@@ -198,14 +200,19 @@ def export_controller(
     cc = build.find_c_compiler(compiler)
     path = _prepare_dir(out_dir, overwrite)
     model_xml, push = _write_model(rob, path, push or LoopPush())
-    sources.copy_templates(path, [*sources.DRIVER_FILES, "geosyn_controller_ext.h", "loop.c"])
+    templates = [*sources.DRIVER_FILES, "geosyn_controller_ext.h", "loop.c", *law.c_files]
+    sources.copy_templates(path, templates)
     sources.generate_law(law.function, path)
+    objects = [*build.OBJECT_SOURCES, *(f for f in law.c_files if f.endswith(".c"))]
+    if law.generated:
+        sources.generate_law(law.generated, path, MPC_FUNCTIONS)
+        objects.append(f"{MPC_FUNCTIONS}.c")
     cfg = sources.config_header(law, rob.nv, samples, max_samples)
     (path / sources.CONFIG_HEADER).write_text(cfg)
     (path / "loop_config.h").write_text(_loop_config(rob, samples.q[0], push, model_xml.name))
     mj_dir = Path(mujoco.__file__).resolve().parent
-    (path / "Makefile").write_text(build.makefile(mj_dir, flags))
-    shared, static = build.compile_library(path, cc, flags)
+    (path / "Makefile").write_text(build.makefile(mj_dir, flags, objects, path))
+    shared, static = build.compile_library(path, cc, flags, objects)
     (path / "geosyn_controllerConfig.cmake").write_text(build.cmake_config())
     result = ExportResult(
         out_dir=path,

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from geosyn.controllers import ComputedTorque, Controller, RiemannianPD
+from geosyn.controllers import ComputedTorque, Controller, GeodesicMPC, RiemannianPD
 from geosyn.export.errors import ExportError
 from geosyn.robots.robot import Robot
 from geosyn.robots.symbolic import rnea
@@ -34,6 +34,9 @@ class ControlLaw:
             N m s/rad], torque limits [N m], friction).
         scalars: ``{C macro: value}`` of scalar constants (an int is written as one).
         settings: the controller's settings as written in the export's README.
+        generated: more CasADi functions generated to C (``geosyn_mpc_fun.c``), named
+            as the driver calls them.
+        c_files: more hand-written C files of the driver (from ``c/``).
     """
 
     kind: str
@@ -41,6 +44,8 @@ class ControlLaw:
     arrays: dict[str, np.ndarray]
     scalars: dict[str, float | int] = field(default_factory=dict)
     settings: dict[str, object] = field(default_factory=dict)
+    generated: tuple[ca.Function, ...] = ()
+    c_files: tuple[str, ...] = ()
 
 
 def _symbols(n: int, names: str) -> list[ca.SX]:
@@ -109,10 +114,19 @@ def riemannian_pd_law(ctl: RiemannianPD) -> ControlLaw:
     return ControlLaw("riemannian_pd", fun, arrays, {}, settings)
 
 
+def ddp_mpc_law(ctl: GeodesicMPC) -> ControlLaw:
+    """`ControlLaw` of a ``GeodesicMPC(solver="ddp", control="torque")``
+    (`geosyn.export.mpc_law.mpc_law`)."""
+    from geosyn.export.mpc_law import mpc_law  # it builds on this module's ControlLaw
+
+    return mpc_law(ctl)
+
+
 #: Exportable controller classes and the function that reads their law.
 LAWS: dict[type, Callable[..., ControlLaw]] = {
     ComputedTorque: computed_torque_law,
     RiemannianPD: riemannian_pd_law,
+    GeodesicMPC: ddp_mpc_law,
 }
 
 

@@ -57,6 +57,15 @@ def export_readme(result: ExportResult, settings: dict[str, object], compiler: s
     table = "\n".join(
         f"| {k} | {json.dumps(v) if isinstance(v, list) else v} |" for k, v in rows.items()
     )
+    mpc = ""
+    if result.kind == "ddp_mpc":
+        mpc = (
+            "- `geosyn_mpc.c/.h` (the MPC's driver: solves, warm starts, plan following,\n"
+            "  fallbacks), `geosyn_mpc_fun.c/.h` (CasADi-generated backward pass, rollout,\n"
+            "  rollout step and mass matrix of geosyn's box-DDP solver);\n"
+            "  `geosyn_controller_mpc_info` (`geosyn_controller_ext.h`) reads its solve\n"
+            "  counts, status and fallback.\n"
+        )
     return f"""\
 # geosyn_controller: {result.kind} for {result.robot}
 
@@ -73,7 +82,7 @@ controller usable; compute never allocates).
   (or `geosyn_controller::static`).
 - `geosyn_controller.c` (driver), `geosyn_law.c/.h` (CasADi-generated rigid-body terms),
   `geosyn_controller_config.h` (the numbers below): `make lib` rebuilds the libraries.
-- `loop.c`, `loop_config.h`, `robot.xml`: `make loop && ./loop` runs the controller in a
+{mpc}- `loop.c`, `loop_config.h`, `robot.xml`: `make loop && ./loop` runs the controller in a
   closed loop against the robot's MJCF with MuJoCo's C library (`MUJOCO_DIR=...`), with a
   push, and prints the tracking error and the per-tick time (median, p99, max).
 

@@ -19,7 +19,7 @@ from geosyn.export.samples import ReferenceSamples
 TEMPLATE_DIR = Path(__file__).resolve().parent / "c"
 DRIVER_FILES = ("geosyn_controller.h", "geosyn_controller.c")
 CONFIG_HEADER = "geosyn_controller_config.h"
-_LAW_IDS = {"computed_torque": 1, "riemannian_pd": 2}
+_LAW_IDS = {"computed_torque": 1, "riemannian_pd": 2, "ddp_mpc": 3}
 
 
 def c_number(x: float) -> str:
@@ -71,20 +71,30 @@ def config_header(law: ControlLaw, nq: int, samples: ReferenceSamples, max_sampl
     return "\n".join(parts)
 
 
-def generate_law(fun: ca.Function, out_dir: Path) -> list[Path]:
+def generate_law(
+    fun: ca.Function | tuple[ca.Function, ...], out_dir: Path, name: str = LAW_FUNCTION
+) -> list[Path]:
     """Write ``geosyn_law.c`` and ``geosyn_law.h`` (CasADi code generation, no runtime
     dependency: the generated code needs only libm).
+
+    Args:
+        fun: the function (or a tuple of functions, all in one file).
+        out_dir: the export directory.
+        name: the files' stem.
 
     Raises:
         ExportError: CasADi could not generate the code.
     """
+    funs = fun if isinstance(fun, tuple) else (fun,)
     try:
-        gen = ca.CodeGenerator(f"{LAW_FUNCTION}.c", {"with_header": True})
-        gen.add(fun)
+        gen = ca.CodeGenerator(f"{name}.c", {"with_header": True})
+        for f in funs:
+            gen.add(f)
         gen.generate(str(out_dir) + "/")
     except RuntimeError as err:
-        raise ExportError(f"CasADi could not generate C for {fun.name()!r}: {err}") from err
-    return [out_dir / f"{LAW_FUNCTION}.c", out_dir / f"{LAW_FUNCTION}.h"]
+        names = [f.name() for f in funs]
+        raise ExportError(f"CasADi could not generate C for {names}: {err}") from err
+    return [out_dir / f"{name}.c", out_dir / f"{name}.h"]
 
 
 def copy_templates(out_dir: Path, names: Iterable[str]) -> list[Path]:

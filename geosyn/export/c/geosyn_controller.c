@@ -10,6 +10,7 @@
  *   Riemannian PD (GEOSYN_LAW_RIEMANNIAN_PD), Slotine-Li with the Christoffel C:
  *     e = q - q_r, a_x = a_r - lam (v - v_r), v_x = v_r - lam e, s = v - v_x,
  *     law(q, v, v_x, a_x) = M a_x + C(q, v) v_x + g,   tau = law - k s
+ *   box-DDP MPC (GEOSYN_LAW_DDP_MPC): geosyn_mpc.c (law(q, v, a) = RNEA(q, v, a))
  *
  * in the order of operations of geosyn.controllers (ComputedTorque, RiemannianPD), then
  * clipped to [-tau_max, tau_max] like Controller.compute. The reference is sampled like
@@ -24,6 +25,9 @@
 #include "geosyn_controller_ext.h"
 #include "geosyn_controller_config.h"
 #include "geosyn_law.h"
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+#include "geosyn_mpc.h"
+#endif
 
 #define NQ GEOSYN_NQ
 #define MAXS GEOSYN_MAX_SAMPLES
@@ -43,6 +47,9 @@ struct geosyn_controller {
     casadi_real* res[geosyn_law_SZ_RES + 1];
     casadi_int iw[geosyn_law_SZ_IW + 1];
     casadi_real w[geosyn_law_SZ_W + 1];
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    geosyn_mpc* mpc;
+#endif
 };
 
 static int all_finite(const double* x, int n) {
@@ -98,6 +105,9 @@ int geosyn_controller_set_reference(geosyn_controller* ctl, int n, const double*
     ctl->duration = t[n - 1] - t[0];
     memcpy(ctl->q_start, q, sizeof(double) * NQ);
     memcpy(ctl->q_goal, q + (size_t)(n - 1) * NQ, sizeof(double) * NQ);
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    geosyn_mpc_reset(ctl->mpc); /* a new task: the plan is not a warm start for it */
+#endif
     return GEOSYN_OK;
 }
 
@@ -153,16 +163,39 @@ int geosyn_controller_sample_reference(geosyn_controller* ctl, double t, double*
 geosyn_controller* geosyn_controller_create(void) {
     geosyn_controller* ctl = (geosyn_controller*)calloc(1, sizeof(geosyn_controller));
     if (!ctl) return NULL;
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    ctl->mpc = geosyn_mpc_create();
+    if (!ctl->mpc) {
+        free(ctl);
+        return NULL;
+    }
+#endif
     if (geosyn_controller_set_reference(ctl, GEOSYN_REF_N, geosyn_ref_t, geosyn_ref_q,
                                         geosyn_ref_v, geosyn_ref_a) != GEOSYN_OK) {
-        free(ctl);
+        geosyn_controller_destroy(ctl);
         return NULL;
     }
     memcpy(ctl->q_reset, ctl->q_start, sizeof(double) * NQ);
     return ctl;
 }
 
-void geosyn_controller_destroy(geosyn_controller* ctl) { free(ctl); }
+void geosyn_controller_destroy(geosyn_controller* ctl) {
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    if (ctl) geosyn_mpc_destroy(ctl->mpc);
+#endif
+    free(ctl);
+}
+
+int geosyn_controller_mpc_info(const geosyn_controller* ctl, int* counts, double* values) {
+    if (!ctl || !counts || !values) return GEOSYN_ERR_NULL;
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    geosyn_mpc_info(ctl->mpc, counts, values);
+#else
+    memset(counts, 0, sizeof(int) * 5);
+    values[0] = values[1] = NAN;
+#endif
+    return GEOSYN_OK;
+}
 
 int geosyn_controller_nq(const geosyn_controller* ctl) {
     return ctl ? NQ : -GEOSYN_ERR_NULL;
@@ -173,10 +206,13 @@ int geosyn_controller_reset(geosyn_controller* ctl, const double* q, const doubl
     if (!all_finite(q, NQ) || !all_finite(v, NQ)) return GEOSYN_ERR_NONFINITE;
     memcpy(ctl->q_reset, q, sizeof(double) * NQ);
     memcpy(ctl->v_reset, v, sizeof(double) * NQ);
+#if GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    geosyn_mpc_reset(ctl->mpc);
+#endif
     return GEOSYN_OK;
 }
 
-static void control_law(geosyn_controller* ctl, const double* q, const double* v) {
+static int control_law(geosyn_controller* ctl, double t, const double* q, const double* v) {
     double* x1 = ctl->x1;
     double* x2 = ctl->x2;
     ctl->arg[0] = q;
@@ -198,6 +234,10 @@ static void control_law(geosyn_controller* ctl, const double* q, const double* v
         ctl->tau_raw[j] = ctl->tau_raw[j] + f;
     }
 #endif
+#elif GEOSYN_LAW == GEOSYN_LAW_DDP_MPC
+    (void)x1;
+    (void)x2;
+    return geosyn_mpc_compute(ctl->mpc, ctl, t, q, v, ctl->tau_raw);
 #elif GEOSYN_LAW == GEOSYN_LAW_RIEMANNIAN_PD
     for (int j = 0; j < NQ; ++j) {
         double e = q[j] - ctl->q_ref[j];
@@ -212,14 +252,19 @@ static void control_law(geosyn_controller* ctl, const double* q, const double* v
 #else
 #error "unknown GEOSYN_LAW"
 #endif
+    (void)t;
+    return GEOSYN_OK;
 }
 
 int geosyn_controller_compute(geosyn_controller* ctl, double t, const double* q,
                               const double* v, double* tau) {
     if (!ctl || !q || !v || !tau) return GEOSYN_ERR_NULL;
     if (!isfinite(t) || !all_finite(q, NQ) || !all_finite(v, NQ)) return GEOSYN_ERR_NONFINITE;
+#if GEOSYN_LAW != GEOSYN_LAW_DDP_MPC
     sample_reference(ctl, t);
-    control_law(ctl, q, v);
+#endif
+    int rc = control_law(ctl, t, q, v);
+    if (rc != GEOSYN_OK) return rc;
     if (!all_finite(ctl->tau_raw, NQ)) return GEOSYN_ERR_TORQUE;
     for (int j = 0; j < NQ; ++j) {
         double x = ctl->tau_raw[j];

@@ -35,7 +35,9 @@ enum geosyn_controller_status {
                                      close that the interpolant overflows) */
     GEOSYN_ERR_N_SAMPLES = 4,     /* n_samples < 2 or > the compiled maximum */
     GEOSYN_ERR_TORQUE = 5,        /* the control law gave a non-finite torque */
-    GEOSYN_ERR_SOLVER = 6         /* an MPC solve failed (feedback kept) */
+    GEOSYN_ERR_SOLVER = 6         /* reserved: a failed MPC solve falls back (previous plan
+                                     or computed torque) as in Python and is counted by
+                                     geosyn_controller_mpc_info, not returned */
 };
 
 typedef struct geosyn_controller geosyn_controller;

@@ -8,6 +8,9 @@
  * direction GEOSYN_LOOP_PUSH_DIR) during [start, start + length), mj_step2. It prints
  * the tracking error q - q_ref over the ticks (RMS over ticks and joints, max) and the
  * time of each compute call (median, p99, max) in microseconds, as "key value" lines.
+ * With the MPC it also prints the ticks that solved (solve_*) and the ticks between
+ * solves (feedback_*: u + K dx) apart, the solve count, the failed solves and the ticks
+ * on a fallback.
  */
 #include <math.h>
 #include <stdio.h>
@@ -32,6 +35,15 @@ static double now_us(void) {
 static int cmp_double(const void* a, const void* b) {
     double x = *(const double*)a, y = *(const double*)b;
     return (x > y) - (x < y);
+}
+
+/* Sorts x (n,) and prints "<name>_median_us", "_p99_us", "_max_us". */
+static void print_times(const char* name, double* x, long n) {
+    qsort(x, (size_t)n, sizeof(double), cmp_double);
+    long p99 = (long)ceil(0.99 * (double)n) - 1;
+    printf("%s_median_us %.4f\n", name, n ? x[n / 2] : NAN);
+    printf("%s_p99_us %.4f\n", name, n ? x[p99 < 0 ? 0 : p99] : NAN);
+    printf("%s_max_us %.4f\n", name, n ? x[n - 1] : NAN);
 }
 
 int main(int argc, char** argv) {
@@ -66,7 +78,13 @@ int main(int argc, char** argv) {
     }
     double dt = m->opt.timestep;
     long n_ticks = lround(duration / dt);
-    double* tick_us = (double*)malloc(sizeof(double) * (size_t)(n_ticks > 0 ? n_ticks : 1));
+    size_t n_alloc = (size_t)(n_ticks > 0 ? n_ticks : 1);
+    double* tick_us = (double*)malloc(sizeof(double) * n_alloc);
+    double* solve_us = (double*)malloc(sizeof(double) * n_alloc);
+    double* feedback_us = (double*)malloc(sizeof(double) * n_alloc);
+    long n_solve = 0, n_feedback = 0, fallback_ticks = 0;
+    int info[5] = {0}, solves_before = 0;
+    double info_values[2];
     double q[NQ], v[NQ], tau[NQ], qr[NQ], vr[NQ], ar[NQ];
     mj_resetData(m, d);
     for (int j = 0; j < NQ; ++j) d->qpos[qadr[j]] = geosyn_loop_q0[j];
@@ -90,6 +108,11 @@ int main(int argc, char** argv) {
         double c0 = now_us();
         int rc = geosyn_controller_compute(ctl, t, q, v, tau);
         tick_us[k] = now_us() - c0;
+        geosyn_controller_mpc_info(ctl, info, info_values);
+        if (info[0] > solves_before) solve_us[n_solve++] = tick_us[k];
+        else feedback_us[n_feedback++] = tick_us[k];
+        solves_before = info[0];
+        fallback_ticks += info[4] != 0;
         if (rc != GEOSYN_OK) {
             fprintf(stderr, "loop: compute failed at t=%g: %s\n", t, geosyn_controller_error(rc));
             break;
@@ -112,16 +135,20 @@ int main(int argc, char** argv) {
         done = k + 1;
         mj_step2(m, d);
     }
-    qsort(tick_us, (size_t)done, sizeof(double), cmp_double);
-    long p99 = (long)ceil(0.99 * (double)done) - 1;
     printf("ticks %ld\n", done);
     printf("dt_s %.9g\n", dt);
     printf("rms_error_rad %.9g\n", done ? sqrt(sq / ((double)done * NQ)) : NAN);
     printf("max_error_rad %.9g\n", max_err);
-    printf("tick_median_us %.4f\n", done ? tick_us[done / 2] : NAN);
-    printf("tick_p99_us %.4f\n", done ? tick_us[p99 < 0 ? 0 : p99] : NAN);
-    printf("tick_max_us %.4f\n", done ? tick_us[done - 1] : NAN);
+    print_times("tick", tick_us, done);
+    if (info[0] > 0) {
+        printf("solves %d\nfailed_solves %d\nfallback_ticks %ld\n", info[0], info[1],
+               fallback_ticks);
+        print_times("solve", solve_us, n_solve);
+        print_times("feedback", feedback_us, n_feedback);
+    }
     free(tick_us);
+    free(solve_us);
+    free(feedback_us);
     geosyn_controller_destroy(ctl);
     mj_deleteData(d);
     mj_deleteModel(m);
