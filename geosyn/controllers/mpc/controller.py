@@ -61,6 +61,7 @@ from geosyn.controllers.mpc.nlp.builder import OCPBuilder
 from geosyn.controllers.mpc.nlp.open_loop import OpenLoopOCP, OpenLoopSolution
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.nlp.tracking import tracking_parameters
+from geosyn.controllers.mpc.ocp.dynamics import joint_damping
 from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots
 from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan, ReferenceSampler, ReferenceSamples
 from geosyn.controllers.mpc.ocp.settings import HESSIANS, ocp_settings, outside_state_margin
@@ -99,6 +100,14 @@ def _within_budget(plan: MPCPlan, budget: float) -> MPCPlan:
         status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
         return plan._replace(success=False, status=f"{status} ({plan.status})")
     return plan
+
+
+#: What the MPC says of a robot file's dry joint friction, which its smooth OCP cannot hold.
+_DRY_FRICTION = (
+    "the file's dry joint friction {} N m is not modelled (a non-smooth force the OCP"
+    " cannot hold; its viscous damping is); expect a tracking error of the order of the"
+    " friction over the feedback gain, or compensate it outside the MPC"
+)
 
 
 class GeodesicMPC(Controller):
@@ -218,9 +227,10 @@ class GeodesicMPC(Controller):
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
         self.obstacles = _obstacle_slots(robot, metric, s.clearance_margin, obstacles)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
+        damping = joint_damping(robot)
         self._follower = PlanFollower(
             self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance,
-            robot.tau_max,
+            robot.tau_max, damping,
         )  # fmt: skip
         open_loop_options = self.solver_options
         if not isinstance(open_loop_options, NLPOptions):  # a terminal equality: IPOPT
@@ -229,7 +239,11 @@ class GeodesicMPC(Controller):
             )
         self.ocp = OCPBuilder(robot, metric, s, open_loop_options, self.max_solve_time)
         self._open_loop = OpenLoopOCP(self.ocp)
-        self._sampler = ReferenceSampler(self._model, self._data)
+        self._sampler = ReferenceSampler(self._model, self._data, damping)
+        if damping is not None:
+            self.diagnostics.notes["damping"] = f"joint damping {damping.tolist()} modelled"
+        if np.any(robot.frictionloss):
+            self._note("frictionloss", _DRY_FRICTION.format(robot.frictionloss.tolist()))
         problem = TrackingProblem(
             robot, metric, s, self.hessian, self.obstacles, self.kp, self.kd,
             self.max_solve_time, _report_progress,

@@ -61,6 +61,8 @@ class PlanFollower:
         plan_tolerance: max joint deviation from a plan that may still be followed [rad].
         tau_max: (nv,) torque limits [N m] saturating the DDP feedback (None: no plan
             with gains is expected).
+        damping: (nv,) the robot file's viscous joint damping D [N m s/rad] added to
+            the inverse dynamics (``RNEA + D v``), or None.
 
     Each method allocates only (nv,) arrays (and ``M`` in torque control).
     """
@@ -75,8 +77,10 @@ class PlanFollower:
         kd: Vector,
         plan_tolerance: float,
         tau_max: Vector | None = None,
+        damping: Vector | None = None,
     ) -> None:
         self._model, self._data = model, data
+        self._damping = damping
         self.tau_max = None if tau_max is None else np.asarray(tau_max, dtype=np.float64)
         self.torque_control = control == "torque"
         self.dt, self.kp, self.kd = dt, kp, kd
@@ -92,7 +96,7 @@ class PlanFollower:
         if self.torque_control:
             M = pin.crba(self._model, self._data, q)
             return plan.u[j] + M @ fb
-        return pin.rnea(self._model, self._data, q, v, plan.u[j] + fb).copy()
+        return self._inverse_dynamics(q, v, plan.u[j] + fb)
 
     def usable(self, plan: MPCPlan | None, t: float, q: Vector) -> bool:
         """A successful plan that still covers ``t`` and is within tolerance of ``q``."""
@@ -107,4 +111,11 @@ class PlanFollower:
         """(nv,) computed torque [N m] on ``reference`` with the same gains (no plan)."""
         q_ref, v_ref, a_ref = reference.sample(t)
         a = a_ref + self.kp * (q_ref - q) + self.kd * (v_ref - v)
-        return pin.rnea(self._model, self._data, q, v, a).copy()
+        return self._inverse_dynamics(q, v, a)
+
+    def _inverse_dynamics(self, q: Vector, v: Vector, a: Vector) -> Vector:
+        """(nv,) ``RNEA(q, v, a) + D v`` [N m] (a new array)."""
+        tau = pin.rnea(self._model, self._data, q, v, a).copy()
+        if self._damping is not None:
+            tau += self._damping * v
+        return tau

@@ -21,7 +21,12 @@ import numpy as np
 
 from geosyn.controllers.mpc.ocp import dynamics as dynamics_module
 from geosyn.controllers.mpc.ocp import rk4 as rk4_module
-from geosyn.controllers.mpc.ocp.dynamics import StageDynamics, stage_step, stage_torque
+from geosyn.controllers.mpc.ocp.dynamics import (
+    StageDynamics,
+    joint_damping,
+    stage_step,
+    stage_torque,
+)
 from geosyn.controllers.mpc.ocp.rk4 import rk4_step
 from geosyn.core.codegen import compile_library, compile_recipe
 from geosyn.robots import symbolic
@@ -201,9 +206,11 @@ def _code_digest() -> str:
 
 def stage_recipe(robot: Robot, dt: float, control: str, rk4_steps: int, gravity: bool) -> str:
     """Everything the compiled stage function depends on, as text (the cache's recipe):
-    the Pinocchio model (serialised), gravity, ``dt``, control mode, RK4 steps, CasADi's
-    version and a digest of the code that builds the graph."""
+    the Pinocchio model (serialised), gravity, ``dt``, control mode, RK4 steps, the joint
+    damping (when there is any), CasADi's version and a digest of the code that builds
+    the graph."""
     g = np.asarray(robot.gravity, dtype=np.float64) if gravity else np.zeros(3)
+    damping = joint_damping(robot)
     return "\0".join(
         [
             "geosyn-mpc-stage-v1",
@@ -215,6 +222,7 @@ def stage_recipe(robot: Robot, dt: float, control: str, rk4_steps: int, gravity:
             control,
             str(int(rk4_steps)),
         ]
+        + ([] if damping is None else ["damping", damping.tobytes().hex()])
     )
 
 

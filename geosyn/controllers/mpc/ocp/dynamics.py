@@ -1,9 +1,12 @@
 """The stage dynamics of the MPC: one shooting stage of the robot as CasADi functions.
 
 State ``x = (q, v)`` of size 2 nv; control ``u`` of size nv, either the joint torques
-(torque control: RK4 on the forward dynamics ``qdd = ABA(q, v, u)``) or the joint
+(torque control: RK4 on the forward dynamics ``qdd = ABA(q, v, u - D v)``) or the joint
 accelerations (acceleration control: the exact double integrator, with the torque
-``RNEA(q, v, u)`` as an output for the limits). Both are SX functions built once.
+``RNEA(q, v, u) + D v`` as an output for the limits). Both are SX functions built once.
+``D`` is the robot file's viscous joint damping (`joint_damping`; MuJoCo applies it as
+``-D v``); the file's dry friction cannot be written as a smooth ODE and is reported by
+the controller instead.
 """
 
 from __future__ import annotations
@@ -16,7 +19,22 @@ import numpy as np
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
 
-__all__ = ["StageDynamics", "stage_dynamics", "stage_step", "stage_torque"]
+__all__ = ["StageDynamics", "joint_damping", "stage_dynamics", "stage_step", "stage_torque"]
+
+
+def joint_damping(robot: Robot) -> np.ndarray | None:
+    """(nv,) the robot file's viscous joint damping D [N m s/rad], or None when it has none
+    (the dynamics' graphs, and so their compiled-code keys, are then those of an undamped
+    robot)."""
+    d = np.asarray(robot.damping, dtype=np.float64)
+    return d.copy() if d.size and np.any(d) else None
+
+
+def damped_torque(robot: Robot, v: ca.SX, tau: ca.SX) -> ca.SX:
+    """``tau - D v``: the torque left for the rigid body once the joint damping took its
+    share (``tau`` itself for an undamped robot)."""
+    d = joint_damping(robot)
+    return tau if d is None else tau - ca.DM(d) * v
 
 
 class StageDynamics(NamedTuple):
@@ -66,7 +84,7 @@ def stage_step(robot: Robot, dt: float, control: str, rk4_steps: int, gravity: b
     x, u = _symbols(n)
     q, v = x[:n], x[n:]
     if control == "torque":
-        acc = symbolic.aba(robot.model, q, v, u, _gravity(robot, gravity))
+        acc = symbolic.aba(robot.model, q, v, damped_torque(robot, v, u), _gravity(robot, gravity))
         f = ca.Function("f", [x, u], [ca.vertcat(v, acc)])
         hs = h / rk4_steps
         xk = x
@@ -84,7 +102,7 @@ def stage_step(robot: Robot, dt: float, control: str, rk4_steps: int, gravity: b
 
 def stage_torque(robot: Robot, control: str, gravity: bool) -> ca.Function:
     """``TAU = mpc_tau<g|0>: (x, u) -> tau``: ``u`` itself (torque control; cheap) or the
-    RNEA ``tau = RNEA(q, v, u)`` (acceleration control). Arguments as for
+    RNEA ``tau = RNEA(q, v, u) + D v`` (acceleration control). Arguments as for
     `stage_dynamics`."""
     n = robot.nv
     x, u = _symbols(n)
@@ -92,6 +110,9 @@ def stage_torque(robot: Robot, control: str, gravity: bool) -> ca.Function:
         tau = u
     else:
         tau = symbolic.rnea(robot.model, x[:n], x[n:], u, _gravity(robot, gravity))
+        d = joint_damping(robot)
+        if d is not None:
+            tau = tau + ca.DM(d) * x[n:]
     name = f"mpc_tau{'g' if gravity else '0'}"
     return ca.Function(name, [x, u], [tau], ["x", "u"], ["tau"], {"cse": True})
 

@@ -67,9 +67,16 @@ class ReferenceSamples(NamedTuple):
 
 
 def sample_reference(
-    reference: Reference, model: pin.Model, data: pin.Data, t: float, N: int, dt: float
+    reference: Reference,
+    model: pin.Model,
+    data: pin.Data,
+    t: float,
+    N: int,
+    dt: float,
+    damping: np.ndarray | None = None,
 ) -> ReferenceSamples:
-    """Sample a reference at ``t + k dt``, k = 0..N, with its inverse dynamics (allocates).
+    """Sample a reference at ``t + k dt``, k = 0..N, with its inverse dynamics
+    ``RNEA + D v`` (allocates).
 
     Args:
         reference: the reference.
@@ -78,6 +85,7 @@ def sample_reference(
         t: time of the first sample [s].
         N: number of stages.
         dt: stage length [s].
+        damping: (nv,) viscous joint damping D [N m s/rad], or None.
     """
     n = reference.n
     qr = np.empty((N + 1, n))
@@ -89,6 +97,8 @@ def sample_reference(
     tr = np.empty((N, n))
     for k in range(N):
         tr[k] = pin.rnea(model, data, qr[k], vr[k], ar[k])
+    if damping is not None:
+        tr += damping * vr[:N]
     return ReferenceSamples(qr, vr, ar, tr)
 
 
@@ -103,10 +113,12 @@ class ReferenceSampler:
     Args:
         model: Pinocchio model for the inverse dynamics.
         data: its workspace.
+        damping: (nv,) viscous joint damping D [N m s/rad] of the inverse dynamics, or None.
     """
 
-    def __init__(self, model: pin.Model, data: pin.Data) -> None:
+    def __init__(self, model: pin.Model, data: pin.Data, damping: np.ndarray | None = None) -> None:
         self._model, self._data = model, data
+        self._damping = damping
         self._last: tuple[Reference, float, int, float, ReferenceSamples] | None = None
 
     def clear(self) -> None:
@@ -124,7 +136,7 @@ class ReferenceSampler:
         if 0 <= j <= N and last is not None:
             out = self._shifted(last[4], reference, t, N, dt, j)
         else:
-            out = sample_reference(reference, self._model, self._data, t, N, dt)
+            out = sample_reference(reference, self._model, self._data, t, N, dt, self._damping)
         self._last = (reference, t, N, dt, out)
         return out
 
@@ -146,4 +158,6 @@ class ReferenceSampler:
             q[k], v[k], a[k] = reference.sample(t + k * dt)
         for k in range(N - j, N):
             tau[k] = pin.rnea(self._model, self._data, q[k], v[k], a[k])
+            if self._damping is not None:
+                tau[k] += self._damping * v[k]
         return ReferenceSamples(q, v, a, tau)

@@ -22,6 +22,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from geosyn.controllers.mpc.ocp.dynamics import damped_torque, joint_damping
 from geosyn.controllers.mpc.ocp.linalg import spd_solve
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
@@ -55,7 +56,8 @@ def rk4_step(robot: Robot, dt: float, rk4_steps: int, gravity: bool) -> RK4Step:
     tag = "g" if gravity else "0"
     g = np.asarray(robot.gravity, dtype=np.float64) if gravity else np.zeros(3)
     xs, us = ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
-    xdot = ca.vertcat(xs[n:], symbolic.aba(robot.model, xs[:n], xs[n:], us, g))
+    tau = damped_torque(robot, xs[n:], us)
+    xdot = ca.vertcat(xs[n:], symbolic.aba(robot.model, xs[:n], xs[n:], tau, g))
     ode = ca.Function(f"mpc_ode{tag}", [xs, us], [xdot], {"cse": True})
     ode_jac = ca.Function(
         f"mpc_ode_jac{tag}",
@@ -100,10 +102,14 @@ def rk4_linearisation(robot: Robot, dt: float, rk4_steps: int) -> ca.Function:
     n = robot.nv
     g = np.asarray(robot.gravity, dtype=np.float64)
     q, v, u_s, a_s = (ca.SX.sym(name, n) for name in ("q", "v", "u", "a"))
-    acc = symbolic.aba(robot.model, q, v, u_s, g)
-    # d(ABA)/d(q, v) = -M^-1 d(RNEA)/d(q, v) at a = ABA, d(ABA)/du = M^-1: 28 % fewer
-    # operations than differentiating the ABA itself (panda: 14.1k against 19.5k).
-    d_rnea = ca.jacobian(symbolic.rnea(robot.model, q, v, a_s, g), ca.vertcat(q, v))
+    acc = symbolic.aba(robot.model, q, v, damped_torque(robot, v, u_s), g)
+    # d(ABA)/d(q, v) = -M^-1 d(RNEA + D v)/d(q, v) at a = ABA, d(ABA)/du = M^-1: 28 %
+    # fewer operations than differentiating the ABA itself (panda: 14.1k against 19.5k).
+    inverse = symbolic.rnea(robot.model, q, v, a_s, g)
+    d = joint_damping(robot)
+    if d is not None:
+        inverse = inverse + ca.DM(d) * v
+    d_rnea = ca.jacobian(inverse, ca.vertcat(q, v))
     sens = spd_solve(symbolic.crba(robot.model, q), ca.horzcat(-d_rnea, ca.SX.eye(n)))
     sens = ca.substitute(sens, a_s, acc)
     top = ca.horzcat(ca.SX(n, n), ca.SX.eye(n))
