@@ -30,7 +30,7 @@ ACTIVE_TOL = 1e-6
 """A clearance within this of the margin [m], or a joint within it of a limit [rad], is
 counted as an active constraint."""
 
-KINDS = ("geodesic", "discrete geodesic", "constrained", "failed")
+KINDS = ("geodesic", "discrete geodesic", "constrained", "feasible", "failed")
 """What a `CollocationResult` is (see `CollocationResult.kind`)."""
 
 
@@ -47,7 +47,10 @@ class CollocationResult(NamedTuple):
             stationary point of the discrete energy (second-order accurate in ``1/N``)
             that shooting could not refine (``message`` says why); ``"constrained"``:
             minimum-energy path with ``active`` clearance or joint-limit constraints
-            active, not a geodesic; ``"failed"``: IPOPT did not converge (``status``).
+            active, not a geodesic; ``"feasible"``: a collision-free path that is not
+            (yet) of minimum energy, which a planner returns when its budget ends before
+            an optimum is reached (`geosyn.metrics.planning.Plan`); ``"failed"``: IPOPT
+            did not converge (``status``).
         energy: ``integral qdot^T G qdot dt`` of the nodes, midpoint rule [kg m^2 / s^2
             for the kinetic-energy metric]; ``sqrt(energy)`` bounds the length from above.
         nodes: (N + 1, n) the collocation nodes [rad].

@@ -39,7 +39,6 @@ import math
 import time
 import warnings
 from collections.abc import Sequence
-from typing import NamedTuple
 
 import numpy as np
 
@@ -50,62 +49,27 @@ from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
 from geosyn.metrics.planning.errors import NoPathFound
+from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.rrt import rrt_connect, shortcut
 from geosyn.metrics.planning.verify import (
     REPAIR_STEP,
     check_end,
     exact_check,
+    feasible_result,
     planning_geometry,
 )
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world.shapes import Shape
 
-__all__ = ["REFINEMENTS", "Plan", "Planner"]
+__all__ = ["ANYTIME_CHECKS", "REFINEMENTS", "Plan", "Planner", "densify"]
+
+ANYTIME_CHECKS = 3
+"""Most unfinished paths checked when a budget ends without a converged plan."""
 
 REFINEMENTS = ((1, 3), (2, 1), (2, 3))
 """What a path that fails the fine check is solved again with, in turn, from the same
 seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
-
-
-class Plan(NamedTuple):
-    """A planned path and how it was found.
-
-    Attributes:
-        result: the collocation result (path, kind, energy, clearance, ...).
-        seed: the global seed of the final collocation: ``"straight line"`` (directly,
-            or through a coarse collocation: ``attempts`` says which) or
-            ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed).
-        check_clearance: smallest clearance [m] on the path checked ``check_factor``
-            times finer than its samples (linear in between), by the constraints' smooth
-            minimum (at most ``log(n_spheres) / softmin`` below the exact one).
-        wall_time: wall-clock time of the query [s].
-        attempts: one line per method tried.
-        fine_clearance: the same, checked at most ``check_step`` apart in joint space.
-        exact_clearance: smallest signed distance [m] between the robot's own collision
-            geometry (its file's meshes and primitives, `geosyn.world.exact_clearance`)
-            and the obstacles along the path, linear between samples, checked at most
-            ``exact_resolution`` apart (joint max-norm); never negative for a returned
-            plan; NaN when the robot has no file geometry (``attempts`` says so).
-        exact_resolution: that joint-space resolution [rad].
-        first_feasible_time: when the query's first plan passing every check was found,
-            from the query's start [s].
-    """
-
-    result: CollocationResult
-    seed: str
-    check_clearance: float
-    wall_time: float
-    attempts: tuple[str, ...]
-    fine_clearance: float = math.nan
-    exact_clearance: float = math.nan
-    exact_resolution: float = math.nan
-    first_feasible_time: float = math.nan
-
-    @property
-    def q(self) -> np.ndarray:
-        """(T, n) the path [rad]."""
-        return self.result.q
 
 
 def densify(path: np.ndarray, factor: int) -> np.ndarray:
@@ -278,6 +242,24 @@ class Planner:
             options["lower"] = self.bounds(col, q0, q1, self.margin)
         return col.solve(q0, q1, **options)  # type: ignore[arg-type]
 
+    def _anytime(
+        self, unfinished: list[tuple[np.ndarray, str]], t0: float, attempts: list[str]
+    ) -> Plan | None:
+        """The lowest-energy path among ``unfinished`` (interrupted IPOPT iterates and
+        seeds, (T, n) each) that passes the fine and exact checks, as a ``"feasible"`` plan."""
+        results = [feasible_result(self.metric, q, how) for q, how in unfinished
+                   if np.all(np.isfinite(q))]  # fmt: skip
+        for res in sorted(results, key=lambda r: r.energy)[:ANYTIME_CHECKS]:
+            coarse, fine = self.check(res.q)
+            exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution)
+            ok = exact.clearance >= 0.0 if self.exact is not None else min(coarse, fine) >= 0.0
+            if ok:
+                wall = time.perf_counter() - t0
+                attempts.append(f"returned {res.message.split(': ', 1)[1]} (not converged)")
+                return Plan(res, "anytime", coarse, wall, tuple(attempts), fine,
+                            exact.clearance, self.exact_resolution, wall)  # fmt: skip
+        return None
+
     def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
                         attempts: list[str]) -> tuple[CollocationResult, np.ndarray]:  # fmt: skip
         """The full collocation from the coarse one's path (see the module docstring),
@@ -413,17 +395,25 @@ class Planner:
                 return None
             res = self.solve(self.collocation(self.nodes), q0, q1, init=path, budget=remaining)
             attempts.append(f"collocation from the {name} path: {res.message}")
+            if not res.success:
+                unfinished.extend([(res.nodes, f"the interrupted collocation from the {name} "
+                                   "path"), (path, f"the {name} path")])  # fmt: skip
             return finish(res, path, name.lower(), 1.0) if res.success else None
 
-        plans = []
+        plans: list[Plan] = []
+        unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         if self.coarse_nodes and self.term.obstacles:
             res, init = self._coarse_to_fine(q0, q1, 0.4 * budget, attempts)
+            unfinished += [(res.nodes, "the interrupted collocation from the coarse path"),
+                           (init, "the coarse collocation's path")] if not res.success else []  # fmt: skip
             if res.success and (plan := finish(res, init, "straight line", 0.6)) is not None:
                 plans.append(plan)
         if not plans:
             res = self.solve(self.collocation(self.nodes), q0, q1,
                              budget=max(0.5 * left(), 1e-3))  # fmt: skip
             attempts.append(f"collocation from the straight line: {res.message}")
+            if not res.success:
+                unfinished.append((res.nodes, "the interrupted collocation from the line"))
             if res.success and (plan := finish(res, None, "straight line", 0.75)) is not None:
                 plans.append(plan)
         constrained = bool(plans) and plans[0].result.kind == "constrained"
@@ -434,6 +424,9 @@ class Planner:
                 break
             if (plan := from_rrt(index)) is not None:
                 plans.append(plan)
+        if not plans and unfinished:  # anytime: the lowest-energy path that passes the checks
+            plan = self._anytime(unfinished, t0, attempts)
+            plans += [plan] if plan is not None else []
         if plans:
             lowest = min(p.result.energy for p in plans)  # ties (1e-9) go to the earlier
             best = next(p for p in plans if p.result.energy <= lowest + 1e-9 * abs(lowest))

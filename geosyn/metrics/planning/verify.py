@@ -15,6 +15,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from geosyn.metrics.base import Metric
+from geosyn.metrics.geodesic.collocation_parts import CollocationResult
 from geosyn.metrics.planning.errors import InCollision, OutsideJointLimits
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.errors import RobotFileError
@@ -22,7 +24,7 @@ from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.exact_clearance import ExactClearance, PathClearance
 from geosyn.world.shapes import Shape
 
-__all__ = ["REPAIR_STEP", "check_end", "exact_check", "planning_geometry"]
+__all__ = ["REPAIR_STEP", "check_end", "exact_check", "feasible_result", "planning_geometry"]
 
 REPAIR_STEP = 0.005
 """Added to the sphere margin [m], beyond the exact penetration, when a plan fails the
@@ -113,3 +115,20 @@ def check_end(
             "obstacle, or use a robot sphere model that fits the links more tightly",
             which, int(o), int(s), sphere.joint, float(c[s, o]),
         )  # fmt: skip
+
+
+def feasible_result(metric: Metric, path: np.ndarray, how: str) -> CollocationResult:
+    """A `CollocationResult` of kind ``"feasible"`` for a path (T, n) [rad] that is not a
+    converged solve (an interrupted IPOPT iterate, a coarse or sampled seed): its energy
+    by the midpoint rule on [0, 1], ``how`` in its message."""
+    path = np.asarray(path, dtype=float)
+    T = len(path)
+    dq = np.diff(path, axis=0)
+    mid = 0.5 * (path[1:] + path[:-1])
+    energy = float(sum(d @ metric.G(m) @ d for d, m in zip(dq, mid, strict=True))) * (T - 1)
+    t = np.linspace(0.0, 1.0, T)
+    return CollocationResult(
+        t, path, "feasible", energy, path, (T - 1) * (path[1] - path[0]), math.nan, 0,
+        math.nan, math.nan, 0, "not converged", 0.0,
+        f"collision-free, not of minimum energy (the budget ended first): {how}",
+    )  # fmt: skip

@@ -1,0 +1,55 @@
+"""`Plan`: a planned path, how it was found and how it was checked."""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from geosyn.metrics.geodesic.collocation import CollocationResult
+
+__all__ = ["Plan"]
+
+
+class Plan(NamedTuple):
+    """A planned path and how it was found.
+
+    Attributes:
+        result: the collocation result (path, kind, energy, clearance, ...).
+        seed: the global seed of the final collocation: ``"straight line"`` (directly,
+            or through a coarse collocation: ``attempts`` says which) or
+            ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed), or
+            ``"anytime"``: the budget ended before any solve converged, and this is the
+            lowest-energy interrupted iterate or seed that passed every check (``result``
+            of kind ``"feasible"``).
+        check_clearance: smallest clearance [m] on the path checked ``check_factor``
+            times finer than its samples (linear in between), by the constraints' smooth
+            minimum (at most ``log(n_spheres) / softmin`` below the exact one).
+        wall_time: wall-clock time of the query [s].
+        attempts: one line per method tried.
+        fine_clearance: the same, checked at most ``check_step`` apart in joint space.
+        exact_clearance: smallest signed distance [m] between the robot's own collision
+            geometry (its file's meshes and primitives, `geosyn.world.exact_clearance`)
+            and the obstacles along the path, linear between samples, checked at most
+            ``exact_resolution`` apart (joint max-norm); never negative for a returned
+            plan; NaN when the robot has no file geometry (``attempts`` says so).
+        exact_resolution: that joint-space resolution [rad].
+        first_feasible_time: when the query's first plan passing every check was found,
+            from the query's start [s].
+    """
+
+    result: CollocationResult
+    seed: str
+    check_clearance: float
+    wall_time: float
+    attempts: tuple[str, ...]
+    fine_clearance: float = math.nan
+    exact_clearance: float = math.nan
+    exact_resolution: float = math.nan
+    first_feasible_time: float = math.nan
+
+    @property
+    def q(self) -> np.ndarray:
+        """(T, n) the path [rad]."""
+        return self.result.q
