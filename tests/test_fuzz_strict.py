@@ -7,6 +7,7 @@ Seeded and bounded (each case under `fuzzing.CASE_SECONDS`); every refusal is a
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import random
@@ -227,6 +228,7 @@ def test_cli_exits_3_when_every_run_failed(tmp_path, monkeypatch, capsys):
 
     real = runner.run_experiment
 
+    @functools.wraps(real)  # keeps the signature: the CLI passes the keywords it names
     def every_run_fails(cfg, *args, **kwargs):
         outcome = real(cfg, *args, **kwargs)
         summary = {**outcome.summary, "geodesic.ok": 0.0, "straight.ok": 0.0}
@@ -236,7 +238,7 @@ def test_cli_exits_3_when_every_run_failed(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     fast = ["--set", "outputs.plots=false", "--set", "params.steps=60", "--no-progress"]
     code = main(["run", SRC, "--out", str(tmp_path / "out"), *fast])
-    assert code == NO_RUN_SUCCEEDED
+    assert code == NO_RUN_SUCCEEDED and (tmp_path / "out" / "summary.json").is_file()
     assert "no closed-loop run completed" in capsys.readouterr().err
 
 
@@ -298,6 +300,49 @@ def test_mujoco_warnings_never_write_the_current_directory(tmp_path, monkeypatch
     assert texts and "QPOS" in texts[0]
     assert mujoco.get_mju_user_warning() is previous
     assert files_under(tmp_path) == []
+
+
+def test_run_keeps_mujoco_and_numpy_chatter_off_the_terminal(tmp_path, monkeypatch, capfd):
+    import mujoco
+
+    from geosyn.experiments.run import runner
+
+    real = runner.run_experiment
+
+    @functools.wraps(real)
+    def noisy_run(cfg, *args, **kwargs):
+        model = mujoco.MjModel.from_xml_string(
+            '<mujoco><worldbody><body><joint/><geom size=".1"/></body></worldbody></mujoco>'
+        )
+        data = mujoco.MjData(model)
+        data.qpos[0] = np.nan
+        mujoco.mj_step(model, data)  # a MuJoCo warning, as a diverging run gives
+        np.log(np.array([-1.0]))  # numpy's RuntimeWarning
+        return real(cfg, *args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_experiment", noisy_run)
+    monkeypatch.chdir(tmp_path)
+    fast = ["--set", "outputs.plots=false", "--set", "params.steps=60", "--no-progress"]
+    assert main(["run", SRC, "--out", str(tmp_path / "out"), *fast]) == 0
+    err = capfd.readouterr().err
+    assert "RuntimeWarning" not in err and "QPOS" not in err
+    assert "QPOS" in (tmp_path / "out" / "MUJOCO_LOG.TXT").read_text()
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+def test_only_geosyns_own_warnings_reach_the_terminal():
+    import warnings
+
+    from geosyn.experiments.config.chatter import MuJoCoWarning, own_warnings_shown
+    from geosyn.robots.errors import RobotWarning
+
+    with warnings.catch_warnings(record=True) as shown:  # what reaches showwarning's output
+        previous = warnings.showwarning
+        with own_warnings_shown():
+            for category in (RobotWarning, RuntimeWarning, MuJoCoWarning, UserWarning):
+                warnings.showwarning(f"from {category.__name__}", category, "f.py", 1)
+        assert warnings.showwarning is previous
+    assert [str(w.message) for w in shown] == ["from RobotWarning"]
 
 
 # -- the viewer shows names as text -------------------------------------------------------------

@@ -123,7 +123,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             failure
         )
     loading.show_own_warnings()
-    with chatter.mujoco_warnings() as mujoco_texts:
+    with chatter.mujoco_warnings() as mujoco_texts, chatter.own_warnings_shown():
         outcome = run_experiment(cfg, **_keywords(args, run_experiment))
     _keep_chatter(outcome.path, loading, mujoco_texts)
     print(f"run directory: {outcome.path}  ({outcome.wall_time:.1f} s)")

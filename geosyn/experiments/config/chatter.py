@@ -5,7 +5,9 @@ would print and append to ``MUJOCO_LOG.TXT`` in the current directory).
 `captured_stderr` redirects file descriptor 2 (C++ and Python writers alike) into a
 temporary file for the duration of a block; `mujoco_warnings` routes MuJoCo's warnings
 into Python warnings (recorded in the run log by the runner) and a list that the CLI
-writes to the run directory's ``MUJOCO_LOG.TXT``. Both restore what they replaced.
+writes to the run directory's ``MUJOCO_LOG.TXT``; `own_warnings_shown` keeps other
+libraries' warnings (recorded in the run log) off the terminal. Each restores what it
+replaced.
 """
 
 from __future__ import annotations
@@ -120,8 +122,31 @@ class Quiet:
 
 
 def _is_geosyn(w: warnings.WarningMessage) -> bool:
-    module = getattr(w.category, "__module__", "")
-    return module.startswith("geosyn.") and w.category is not MuJoCoWarning
+    return _own_category(w.category)
+
+
+def _own_category(category: type[Warning]) -> bool:
+    module = getattr(category, "__module__", "")
+    return module.startswith("geosyn.") and category is not MuJoCoWarning
+
+
+@contextlib.contextmanager
+def own_warnings_shown() -> Iterator[None]:
+    """Inside the block, only geosyn's own warnings reach the terminal; the others
+    (numpy's, MuJoCo's) are shown nowhere but the run log, which records every warning
+    (`geosyn.experiments.run.runlog.RunLog.warnings`). ``warnings.showwarning`` is
+    restored after."""
+    previous = warnings.showwarning
+
+    def show(message: Any, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+        if _own_category(category):
+            previous(message, category, *args, **kwargs)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = previous
 
 
 @contextlib.contextmanager
@@ -142,5 +167,6 @@ __all__ = [
     "Quiet",
     "captured_stderr",
     "mujoco_warnings",
+    "own_warnings_shown",
     "quiet",
 ]
