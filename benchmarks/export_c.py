@@ -9,12 +9,27 @@ For the Panda and the UR5, computed torque and the Riemannian PD are exported wi
   ``clock_gettime`` (median, p99, max) and the whole run's CPU time with ``clock()``.
 
 Prints a Markdown table with the ratios Python / C (as pasted into RESULTS.md).
-Run: ``nice -n 10 .venv/bin/python benchmarks/export_c.py``.
+
+``--mpc``: the torque-level box-DDP MPC instead (`mpc_main`): the Panda's
+``GeodesicMPC(control="torque", solver="ddp")`` (default weights, dt 20 ms) exported
+(``-O3 -march=native``; its megabyte of generated solver code at ``-O1``, as the Python
+solver compiles it) and timed in the same run, rounds alternating, on
+``benchmarks/mpc_vs_crocoddyl.py``'s problem (its 1 kHz Pinocchio plant and geodesic
+reference, scenario ``on_reference``, 1.5 s, a solve every 20 ms; the first, cold solve
+left out): the Python MPC, the C MPC through ctypes, and Crocoddyl's BoxFDDP (one
+iteration per solve, its venv ``.venv-croc``; skipped when it is missing), N = 10 and 40.
+Then the shipped MuJoCo loop (``loop.c``, 1 kHz, a 60 N push) times the C MPC from C:
+solve ticks and the between-solve feedback ticks (``u + K dx``) apart.
+
+Run: ``nice -n 10 .venv/bin/python benchmarks/export_c.py [--mpc [--rounds 3]]``.
 """
 
 from __future__ import annotations
 
+import argparse
+import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -135,5 +150,127 @@ def main() -> None:
     print("\n".join(lines))
 
 
+def c_policy(c: CController):
+    """The C MPC as a policy of mpc_plant.run_closed_loop: (torque, iterations)."""
+    import ctypes
+
+    counts, values = np.zeros(5, dtype=np.intc), np.zeros(2)
+    info = c.lib.geosyn_controller_mpc_info
+    info.restype, info.argtypes = ctypes.c_int, [ctypes.c_void_p] * 3
+
+    def policy(k: int, t: float, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, int]:
+        tau = c.compute(t, q, v)
+        info(c.handle, counts.ctypes.data, values.ctypes.data)
+        return tau, int(counts[2])
+
+    return policy
+
+
+def mpc_main(rounds: int, horizons: list[int]) -> None:
+    """The MPC comparison (see the module docstring); prints a Markdown table."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import mpc_vs_crocoddyl as mvc
+    from mpc_plant import initial_state, panda_model, run_closed_loop
+
+    ref = mvc.ReferenceSamples.load(mvc.REFERENCE)
+    side = mvc.GeosynSide(ref, {"solver": "ddp", "max_solve_time": 1e9})
+    croc = mvc.DEFAULT_CROC_PYTHON.is_file()
+    if not croc:
+        print(f"Crocoddyl skipped: no venv at {mvc.DEFAULT_CROC_PYTHON}", flush=True)
+    runs: dict[tuple[str, int], list[dict]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        exports = {}
+        for N in horizons:
+            mpc = side.mpc(N)
+            exports[N] = export_controller(
+                "panda", mpc, Path(tmp) / f"mpc{N}", reference=side.reference,
+                sample_dt=1e-3, max_samples=4096, flags=("-O3", "-march=native"),
+            )  # fmt: skip
+        q0, v0 = initial_state("on_reference", ref)
+        for r in range(rounds):
+            for N in horizons:
+                order = ["python", "c", "croc"] if r % 2 == 0 else ["croc", "c", "python"]
+                for who in order:
+                    if who == "croc" and croc:
+                        info = mvc.run_crocoddyl(
+                            mvc.DEFAULT_CROC_PYTHON, [N], ["on_reference"], Path(tmp), f"{r}_{N}"
+                        )
+                        runs.setdefault(("Crocoddyl BoxFDDP", N), []).append(info["runs"][0])
+                    elif who == "python":
+                        s = mvc.run_geosyn(side, ref, "on_reference", N)
+                        runs.setdefault(("Python ddp", N), []).append(s)
+                    elif who == "c":
+                        c = CController(exports[N].shared_library)
+                        c.reset(q0.copy(), v0.copy())
+                        roll = run_closed_loop(panda_model(), q0, v0, mvc.DURATION, c_policy(c))
+                        s = mvc.summarize("on_reference", N, roll, ref, panda_model())
+                        runs.setdefault(("C (ctypes)", N), []).append(s)
+                        c.close()
+                    print(who, N, "round", r, flush=True)
+        loops = {N: run_loop(exports[N]) for N in horizons}
+    print_mpc_table(runs, loops, horizons)
+
+
+def run_loop(res) -> dict[str, float]:
+    """loop.c with the MPC: 1 kHz MuJoCo, 2 s, a 60 N push; its "key value" lines."""
+    subprocess.run(["make", "-s", "loop"], cwd=res.out_dir, check=True)
+    out = subprocess.run(
+        [str(res.out_dir / "loop"), str(res.model_xml), "2.0", "60", "0.5", "0.1"],
+        capture_output=True, text=True, check=True,
+    ).stdout  # fmt: skip
+    return {k: float(v) for k, v in (line.split() for line in out.splitlines())}
+
+
+def print_mpc_table(runs: dict, loops: dict, horizons: list[int]) -> None:
+    def med(rows: list[dict], key: str) -> float:
+        return statistics.median(float(x[key]) for x in rows)
+
+    lines = [
+        "| solver | N | warm solve median / p99 [ms] | CPU median [ms] | tracking RMS [rad]"
+        " | C / this (median; CPU) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for N in horizons:
+        c_rows = runs[("C (ctypes)", N)]
+        for name in ("C (ctypes)", "Python ddp", "Crocoddyl BoxFDDP"):
+            rows = runs.get((name, N))
+            if not rows:
+                continue
+            ratio = ""
+            if name != "C (ctypes)":
+                ratio = (
+                    f"{med(c_rows, 'median_ms') / med(rows, 'median_ms'):.2f}x; "
+                    f"{med(c_rows, 'cpu_median_ms') / med(rows, 'cpu_median_ms'):.2f}x"
+                )
+            lines.append(
+                f"| {name} | {N} | {med(rows, 'median_ms'):.3f} / {med(rows, 'p99_ms'):.3f}"
+                f" | {med(rows, 'cpu_median_ms'):.3f} | {med(rows, 'tracking_rms'):.3g}"
+                f" | {ratio} |"
+            )
+    lines += [
+        "",
+        "| loop.c (C from C, MuJoCo 1 kHz, 60 N push) | N | solve median / p99 / max [us]"
+        " | feedback median / p99 / max [us] | solves / failed | RMS [rad] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for N in horizons:
+        lp = loops[N]
+        lines.append(
+            f"| box-DDP MPC | {N} | {lp['solve_median_us']:.0f} / {lp['solve_p99_us']:.0f} /"
+            f" {lp['solve_max_us']:.0f} | {lp['feedback_median_us']:.2f} /"
+            f" {lp['feedback_p99_us']:.2f} / {lp['feedback_max_us']:.1f}"
+            f" | {lp['solves']:.0f} / {lp['failed_solves']:.0f} | {lp['rms_error_rad']:.3g} |"
+        )
+    print("\n".join(lines))
+
+
 if __name__ == "__main__":
-    main()
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--mpc", action="store_true", help="the box-DDP MPC comparison")
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--horizon", type=int, nargs="+", default=[10, 40])
+    args = parser.parse_args()
+    if args.mpc:
+        mpc_main(args.rounds, args.horizon)
+    else:
+        main()
