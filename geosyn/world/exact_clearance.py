@@ -17,6 +17,7 @@ nearer than ``near`` get coal's distance.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -187,9 +188,12 @@ class ExactClearance:
             return self.near, "", -1
         return best, link, which
 
-    def path_clearance(self, path: np.ndarray, resolution: float = 0.005) -> PathClearance:
+    def path_clearance(
+        self, path: np.ndarray, resolution: float = 0.005, deadline: float = math.inf
+    ) -> PathClearance:
         """Smallest exact clearance of the linear interpolation of ``path`` (T, n) [rad],
-        checked at configurations at most ``resolution`` [rad] apart (max-norm)."""
+        checked at configurations at most ``resolution`` [rad] apart (max-norm); NaN when
+        ``time.perf_counter()`` passes ``deadline`` [s] before every one is checked."""
         resolution = check_positive(resolution, "resolution", "rad")
         path = np.asarray(path, dtype=float)
         seg = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
@@ -201,6 +205,8 @@ class ExactClearance:
         Q = np.vstack(pts)
         best = PathClearance(math.inf, 0.0, "", -1, len(Q), resolution)
         for i, q in enumerate(Q):
+            if i % 16 == 15 and time.perf_counter() > deadline:
+                return best._replace(clearance=math.nan, checked=i)
             c, link, o = self.clearance(q)
             if c < best.clearance:
                 best = best._replace(

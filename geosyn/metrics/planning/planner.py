@@ -62,10 +62,13 @@ from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world.shapes import Shape
 
-__all__ = ["ANYTIME_CHECKS", "REFINEMENTS", "Plan", "Planner", "densify"]
+__all__ = ["ANYTIME_CHECKS", "ANYTIME_SLACK", "REFINEMENTS", "Plan", "Planner", "densify"]
 
 ANYTIME_CHECKS = 3
 """Most unfinished paths checked when a budget ends without a converged plan."""
+
+ANYTIME_SLACK = 1.05
+"""Those checks stop at this multiple of the budget (an unchecked path is not returned)."""
 
 REFINEMENTS = ((1, 3), (2, 1), (2, 3))
 """What a path that fails the fine check is solved again with, in turn, from the same
@@ -242,16 +245,20 @@ class Planner:
             options["lower"] = self.bounds(col, q0, q1, self.margin)
         return col.solve(q0, q1, **options)  # type: ignore[arg-type]
 
-    def _anytime(
-        self, unfinished: list[tuple[np.ndarray, str]], t0: float, attempts: list[str]
-    ) -> Plan | None:
+    def _anytime(self, unfinished: list[tuple[np.ndarray, str]], t0: float,
+                 attempts: list[str], end: float = math.inf) -> Plan | None:  # fmt: skip
         """The lowest-energy path among ``unfinished`` (interrupted IPOPT iterates and
-        seeds, (T, n) each) that passes the fine and exact checks, as a ``"feasible"`` plan."""
+        seeds, (T, n) each) that passes the fine and exact checks before ``end``
+        (perf_counter [s]), as a ``"feasible"`` plan."""
         results = [feasible_result(self.metric, q, how) for q, how in unfinished
                    if np.all(np.isfinite(q))]  # fmt: skip
         for res in sorted(results, key=lambda r: r.energy)[:ANYTIME_CHECKS]:
+            if time.perf_counter() > end:
+                attempts.append("no time left to check the unfinished paths")
+                break
             coarse, fine = self.check(res.q)
-            exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution)
+            exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution,
+                                end)  # fmt: skip
             ok = exact.clearance >= 0.0 if self.exact is not None else min(coarse, fine) >= 0.0
             if ok:
                 wall = time.perf_counter() - t0
@@ -425,7 +432,7 @@ class Planner:
             if (plan := from_rrt(index)) is not None:
                 plans.append(plan)
         if not plans and unfinished:  # anytime: the lowest-energy path that passes the checks
-            plan = self._anytime(unfinished, t0, attempts)
+            plan = self._anytime(unfinished, t0, attempts, t0 + ANYTIME_SLACK * budget)
             plans += [plan] if plan is not None else []
         if plans:
             lowest = min(p.result.energy for p in plans)  # ties (1e-9) go to the earlier

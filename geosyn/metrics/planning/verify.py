@@ -68,13 +68,14 @@ def exact_check(
     path: np.ndarray,
     obstacles: Sequence[Shape],
     resolution: float,
+    deadline: float = math.inf,
 ) -> PathClearance:
     """The smallest exact clearance of ``path`` (T, n) [rad] to ``obstacles`` (NaN
-    clearance without an exact checker)."""
+    clearance without an exact checker, or when ``deadline`` [s, perf_counter] passes)."""
     if exact is None:
         return PathClearance(math.nan, 0.0, "", -1, 0, resolution)
     exact.set_obstacles(obstacles)
-    return exact.path_clearance(path, resolution)
+    return exact.path_clearance(path, resolution, deadline)
 
 
 def check_end(
