@@ -134,10 +134,6 @@ def test_no_import_cycle_among_the_package_modules(graph: dict[str, set[str]]) -
 
 MPC = "geosyn.controllers.mpc"
 
-#: (importer, imported) reaches into MPC internals awaiting the MPC part of issue 20
-#: (`GeodesicMPC(obstacles=...)`; the lead switches `clearance_metric` over). Remove the
-#: entry when the import goes.
-PENDING = {("geosyn.experiments.run.build", "geosyn.controllers.mpc.ddp_clearance")}
 
 
 def test_experiments_never_import_a_solver_family(graph: dict[str, set[str]]) -> None:
@@ -150,4 +146,4 @@ def test_experiments_never_import_a_solver_family(graph: dict[str, set[str]]) ->
         for dst in targets
         if dst.startswith(MPC + ".")
     )
-    assert set(offenders) <= PENDING, offenders
+    assert not offenders, offenders

@@ -283,11 +283,11 @@ def test_clearance_margin_keeps_the_world_obstacle_away() -> None:
     assert runs["guarded"][1] == 0 and runs["guarded"][2] < 1e-3, runs
 
 
-def test_clearance_margin_needs_ddp_and_obstacle_terms() -> None:
+def test_clearance_margin_needs_ddp_and_obstacles() -> None:
     with pytest.raises(InvalidArgument, match="clearance_margin needs solver='ddp'"):
         GeodesicMPC(get_robot("panda"), get_metric("panda"), horizon=5, clearance_margin=0.02)
-    with pytest.raises(InvalidArgument, match="ObstacleTerm"):
-        _mpc(clearance_margin=0.02)  # the plain kinetic-energy metric has no obstacles
+    with pytest.raises(InvalidArgument, match=r"needs obstacles: GeodesicMPC\(obstacles="):
+        _mpc(clearance_margin=0.02)  # obstacles come as shapes, never through the metric
 
 
 def test_yaml_mpc_clearance_keeps_clear_of_the_scene_even_on_a_colliding_reference(tmp_path):

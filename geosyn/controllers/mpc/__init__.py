@@ -36,7 +36,6 @@ module                          holds
 `.families`                     ``solver=`` names and the backend builder of each options class
 `.follow`                       `PlanFollower`: a plan between solves, the fallback torque
 `.controller`                   `GeodesicMPC`: re-solves, warm starts, fallbacks
-`.ddp_clearance`                deprecated: a shaped metric's obstacle terms (experiments)
 ==============================  =======================================================
 
 Formulation selected by each option (the same names in Python and in YAML ``type: mpc``

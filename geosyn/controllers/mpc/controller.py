@@ -82,16 +82,14 @@ def _report_progress(line: str) -> None:
 
 
 def _obstacle_slots(
-    robot: Robot, metric: Metric, margin: float | None, obstacles: Sequence[Shape] | None
+    robot: Robot, margin: float | None, obstacles: Sequence[Shape] | None
 ) -> ObstacleSlots | None:
-    """Slots of ``obstacles``, or (transitional) of a shaped metric's obstacle terms."""
+    """Slots of ``obstacles`` (None without them; the backend names what is missing when
+    ``clearance_margin`` is set: obstacles reach the MPC as shapes, never through its
+    metric)."""
     if obstacles is not None and margin is None:
         raise InvalidArgument("obstacles need clearance_margin (the clearance [m] kept)")
-    if obstacles is not None:
-        return ObstacleSlots(robot, obstacles)
-    if margin is None:
-        return None
-    return ObstacleSlots.of_metric(robot, metric)  # None: the backend names what is missing
+    return None if obstacles is None else ObstacleSlots(robot, obstacles)
 
 
 def _within_budget(plan: MPCPlan, budget: float) -> MPCPlan:
@@ -225,7 +223,7 @@ class GeodesicMPC(Controller):
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.kp, self.kd = check_gain(kp, n, "kp"), check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
-        self.obstacles = _obstacle_slots(robot, metric, s.clearance_margin, obstacles)
+        self.obstacles = _obstacle_slots(robot, s.clearance_margin, obstacles)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
         damping = joint_damping(robot)
         self._follower = PlanFollower(
@@ -339,8 +337,6 @@ class GeodesicMPC(Controller):
         ref = self._reference_samples(t)
         r = self.robot
         self.solve_count += 1
-        if self.obstacles is not None:  # a shaped metric's obstacles as they are now
-            self.obstacles.refresh()
         outside = outside_state_margin(q, v, r.q_min, r.q_max, r.v_max)
         if outside:
             nan_u = np.full((self.N, self.nv), np.nan)

@@ -19,7 +19,6 @@ from geosyn.controllers import (
     QPController,
     RiemannianPD,
 )
-from geosyn.controllers.mpc.ddp_clearance import find_obstacle_terms
 from geosyn.core.errors import InvalidArgument
 from geosyn.experiments import schema as S
 from geosyn.experiments.run.references import (
@@ -176,32 +175,19 @@ def build_controller(
 ) -> Controller:
     """A controller from its config section (``control_dt`` is the QP's period).
 
-    An MPC with ``clearance_margin`` keeps clear of the metric's obstacle terms, or, when
-    the metric has none, of ``obstacles`` (the scene's), through an `ObstacleTerm` of them.
+    An MPC with ``clearance_margin`` keeps clear of ``obstacles`` (the scene's, as
+    `geosyn.world` shapes: ``GeodesicMPC(..., obstacles=...)``).
 
     Raises:
-        InvalidArgument: ``clearance_margin`` without obstacles in the metric or the scene.
+        InvalidArgument: ``clearance_margin`` without obstacles in the scene.
     """
     if getattr(c, "clearance_margin", None) is not None:
-        metric = clearance_metric(metric, obstacles)
+        if not obstacles:
+            raise InvalidArgument(
+                "clearance_margin (mpc controller) needs obstacles: list them in scene.obstacles"
+            )
+        return GeodesicMPC(robot, metric, **c.kwargs(), obstacles=list(obstacles))
     return CONTROLLERS[c.type](c, robot, metric, control_dt)
-
-
-def clearance_metric(metric: Metric, obstacles: Sequence[Shape]) -> Metric:
-    """``metric`` if it has an `ObstacleTerm`, else ``metric`` shaped by one holding
-    ``obstacles`` (the MPC's ``clearance_margin`` reads its obstacles from such terms).
-
-    Raises:
-        InvalidArgument: neither the metric nor ``obstacles`` has an obstacle.
-    """
-    if find_obstacle_terms(metric):
-        return metric
-    if not obstacles:
-        raise InvalidArgument(
-            "clearance_margin (mpc controller) needs obstacles: list them in scene.obstacles "
-            "or add an obstacle term to metric.terms"
-        )
-    return ShapedMetric(metric, [ObstacleTerm(list(obstacles), capacity=len(obstacles))])
 
 
 DISTURBANCES: dict[str, Callable[..., Disturbance]] = {
@@ -298,7 +284,6 @@ __all__ = [
     "build_disturbances",
     "build_metric",
     "build_obstacles",
-    "clearance_metric",
     "build_payloads",
     "build_reference",
     "build_robot",

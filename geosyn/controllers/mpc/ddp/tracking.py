@@ -51,8 +51,7 @@ def check_ddp_problem(problem: TrackingProblem) -> None:
         )
     if settings.clearance_margin is not None and problem.obstacles is None:
         raise InvalidArgument(
-            "clearance_margin needs obstacles: GeodesicMPC(obstacles=[geosyn.world shapes]) "
-            "(or, for now, a ShapedMetric with an ObstacleTerm)"
+            "clearance_margin needs obstacles: GeodesicMPC(obstacles=[geosyn.world shapes])"
         )
     if settings.effort == "metric" and not is_robot_kinetic_metric(problem.metric, problem.robot):
         raise InvalidArgument(

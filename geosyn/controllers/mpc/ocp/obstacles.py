@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -41,7 +40,6 @@ __all__ = [
     "SLOT_SIZE",
     "ObstacleSlots",
     "clearance_digest",
-    "metric_obstacle_terms",
 ]
 
 SLOT_SIZE = ROUNDED_BOX_SIZE + 1
@@ -85,31 +83,7 @@ class ObstacleSlots:
         self._robot = robot
         self._values = np.zeros(self.capacity * SLOT_SIZE)
         self._obstacles: tuple[Shape, ...] = ()
-        self._terms: tuple[Any, ...] = ()
         self.set_obstacles(obstacles)
-
-    @classmethod
-    def of_metric(cls, robot: Robot, metric: object) -> ObstacleSlots | None:
-        """Slots linked to the obstacle terms of a shaped metric (`metric_obstacle_terms`;
-        None if it has none): `refresh` copies the terms' obstacles in (transitional,
-        until every caller passes shapes)."""
-        terms = metric_obstacle_terms(metric)
-        if not terms:
-            return None
-        slots = cls(robot, (), capacity=sum(int(t.capacity) for t in terms))
-        slots._terms = terms
-        slots.refresh()
-        return slots
-
-    @property
-    def linked(self) -> bool:
-        """The slots follow a shaped metric's obstacle terms (`of_metric`)."""
-        return bool(self._terms)
-
-    def refresh(self) -> None:
-        """Copy the linked terms' current obstacles in (nothing for plain slots)."""
-        if self._terms:
-            self._values[:] = np.concatenate([t.parameter_values() for t in self._terms])
 
     @property
     def obstacles(self) -> tuple[Shape, ...]:
@@ -120,11 +94,9 @@ class ObstacleSlots:
         """Replace the shapes (a parameter write, read by the next solve).
 
         Raises:
-            InvalidArgument: more shapes than slots, or slots linked to a metric.
+            InvalidArgument: more shapes than slots.
             geosyn.world.InvalidGeometry: an element is not a shape.
         """
-        if self._terms:
-            raise InvalidArgument("set_obstacles: these slots follow a shaped metric's terms")
         shapes = [check_shape(ob, f"obstacles[{i}]") for i, ob in enumerate(obstacles)]
         if len(shapes) > self.capacity:
             raise InvalidArgument(
@@ -170,20 +142,3 @@ class ObstacleSlots:
 def clearance_digest(fun: ca.Function) -> str:
     """sha256 of a serialised clearance function (part of a compiled library's key)."""
     return hashlib.sha256(fun.serialize().encode()).hexdigest()
-
-
-def metric_obstacle_terms(metric: object) -> tuple[Any, ...]:
-    """The obstacle terms of a shaped metric (its ``terms`` that hold ``obstacles`` in
-    slots of `SLOT_SIZE` parameters), in term order; empty for other metrics.
-
-    The transitional path of ``GeodesicMPC(metric=ShapedMetric(...), clearance_margin=m)``
-    without ``obstacles=``: read by shape (``obstacles``, ``capacity``,
-    ``parameter_values``), so that this package never imports the metric shaping terms.
-    """
-    terms = getattr(metric, "terms", ())
-    return tuple(
-        t
-        for t in terms
-        if all(hasattr(t, a) for a in ("obstacles", "capacity", "parameter_values"))
-        and np.size(t.parameter_values()) == t.capacity * SLOT_SIZE
-    )
