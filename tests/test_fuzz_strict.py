@@ -147,6 +147,36 @@ def test_absurd_values_refused_with_the_limit(override, limit):
     _refused(call_api(load_config, BASE, [override]), limit)
 
 
+def test_obstacle_inside_the_robot_at_its_start_refused():
+    from geosyn.experiments.config.start_clearance import skeleton_points
+    from geosyn.robots import load_robot
+
+    cfg, _ = load_config(BASE)
+    q = np.asarray(cfg.reference.q_start)
+    points = skeleton_points(load_robot("ur5"), q)
+    # independent of the skeleton: MuJoCo's own body positions of the UR5 at q_start
+    import mujoco
+
+    from geosyn.sim import build_scene
+
+    scene = build_scene(load_robot("ur5"))
+    data = mujoco.MjData(scene.model)
+    data.qpos[:] = q
+    mujoco.mj_kinematics(scene.model, data)
+    rng = np.random.default_rng(23)
+    for body in rng.choice(np.arange(2, scene.model.nbody), size=4, replace=False):
+        c = data.xpos[body] + rng.uniform(-0.01, 0.01, 3)  # a body origin (a joint)
+        sphere = f"{{type: sphere, center: [{c[0]}, {c[1]}, {c[2]}], radius: 0.05}}"
+        _refused(call_api(load_config, BASE, [f"scene.obstacles.0={sphere}"]), "starts inside")
+    for _ in range(4):  # 0.3 m clear of every skeleton point: accepted
+        c = rng.uniform(-1.5, 1.5, 3)
+        if np.min(np.linalg.norm(points - c, axis=1)) < 0.3:
+            continue
+        load_config(
+            BASE, [f"scene.obstacles.0={{type: sphere, center: {c.tolist()}, radius: 0.05}}"]
+        )
+
+
 # -- sections the kind does not read -----------------------------------------------------------
 
 SET_SECTION = {

@@ -36,6 +36,7 @@ from geosyn.experiments.config.resource_limits import (
     read_text,
     resource_errors,
 )
+from geosyn.experiments.config.start_clearance import start_inside_errors
 from geosyn.experiments.errors import ConfigError
 from geosyn.experiments.procedures import PROCEDURES
 from geosyn.experiments.procedures.base import ignored_sections
@@ -330,6 +331,7 @@ def validate_config(
     later += consistency_errors(cfg, robot.nv) if not later else []
     later += PROCEDURES[cfg.kind].check(cfg, params, robot) if not later else []
     later += scene_errors(cfg, robot) if not later else []
+    later += start_inside_errors(cfg, robot) if not later else []
     later += unused_errors(cfg) if not later and not allow_unused else []
     if later:
         raise_problems(file, later)

@@ -1,0 +1,89 @@
+"""A cheap check that an obstacle is not placed inside the robot at its start.
+
+At the start configuration a config names (``reference.q_start``, ``synergies.q0`` or
+``params.q0``), the robot's skeleton (every joint's origin and `POINTS_PER_LINK` points
+on the segment to its parent's) is tested against every obstacle with
+`geosyn.world.signed_distance`. A point deeper than `DEPTH` inside an obstacle means the
+robot starts inside it: the metric's clearance, the planner and MuJoCo's contacts are
+then meaningless, so the config is refused. The skeleton is a lower bound of the robot's
+volume: an obstacle only touching the links' surfaces passes (the simulation reports
+contacts), but one that swallows a joint is caught at no cost (no meshes, no spheres).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from geosyn.experiments.run.scene import build_obstacles
+from geosyn.experiments.schema import ExperimentConfig
+from geosyn.robots import Robot
+from geosyn.world import signed_distance
+
+#: Points per link on the segment from a joint's origin to its parent joint's origin.
+POINTS_PER_LINK = 5
+#: Depth inside an obstacle [m] from which a skeleton point counts as inside (a floor
+#: through the base's origin, or a joint origin on a surface, is not "inside").
+DEPTH = 1e-3
+
+
+def start_configuration(cfg: ExperimentConfig) -> tuple[str, np.ndarray] | None:
+    """The start configuration a config names, with its field path (None if none)."""
+    ref, syn = cfg.reference, cfg.synergies
+    if ref is not None and getattr(ref, "q_start", None) is not None:
+        return "reference.q_start", np.asarray(ref.q_start, dtype=np.float64)
+    q0_syn = getattr(syn, "q0", None)
+    if q0_syn is not None:
+        return "synergies.q0", np.asarray(q0_syn, dtype=np.float64)
+    q0 = cfg.params.get("q0") if isinstance(cfg.params, dict) else None
+    if isinstance(q0, list) and all(isinstance(x, (int, float)) for x in q0):
+        return "params.q0", np.asarray(q0, dtype=np.float64)
+    return None
+
+
+def skeleton_points(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """(P, 3) world points [m] on the robot's skeleton at ``q`` (see the module doc)."""
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    points = []
+    for j in range(1, model.njoints):
+        here = data.oMi[j].translation
+        parent = data.oMi[model.parents[j]].translation
+        for s in np.linspace(0.0, 1.0, POINTS_PER_LINK):
+            points.append((1.0 - s) * parent + s * here)
+    return np.asarray(points, dtype=np.float64).reshape(-1, 3)
+
+
+def start_inside_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
+    """``(scene.obstacles.<i>, reason)`` for an obstacle the robot starts inside."""
+    start = start_configuration(cfg)
+    if start is None or not cfg.scene.obstacles:
+        return []
+    field, q = start
+    if q.shape != (robot.model.nq,) or not np.all(np.isfinite(q)):
+        return []  # another check reports it
+    points = skeleton_points(robot, q)
+    for i, shape in enumerate(build_obstacles(cfg)):
+        depth = -float(np.min(signed_distance(shape, points)))
+        if depth > DEPTH:
+            return [
+                (
+                    f"scene.obstacles.{i}",
+                    f"the robot starts inside this {cfg.scene.obstacles[i].type}: at {field}"
+                    f" its skeleton reaches {depth:.3g} m deep into it (allowed: at most"
+                    f" {DEPTH:g} m); move the obstacle or the start configuration",
+                )
+            ]
+    return []
+
+
+__all__ = [
+    "DEPTH",
+    "POINTS_PER_LINK",
+    "skeleton_points",
+    "start_configuration",
+    "start_inside_errors",
+]
