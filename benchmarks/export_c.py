@@ -13,7 +13,7 @@ Prints a Markdown table with the ratios Python / C (as pasted into RESULTS.md).
 ``--mpc``: the torque-level box-DDP MPC instead (`mpc_main`): the Panda's
 ``GeodesicMPC(control="torque", solver="ddp")`` (default weights, dt 20 ms) exported
 (``-O3 -march=native``; its megabyte of generated solver code at ``-O1``, as the Python
-solver compiles it) and timed in the same run, rounds alternating, on
+solver compiles it, or with ``--fast-solver`` at ``-O2 -march=native``) and timed in the same run, rounds alternating, on
 ``benchmarks/mpc_vs_crocoddyl.py``'s problem (its 1 kHz Pinocchio plant and geodesic
 reference, scenario ``on_reference``, 1.5 s, a solve every 20 ms; the first, cold solve
 left out): the Python MPC, the C MPC through ctypes, and Crocoddyl's BoxFDDP (one
@@ -166,7 +166,7 @@ def c_policy(c: CController):
     return policy
 
 
-def mpc_main(rounds: int, horizons: list[int]) -> None:
+def mpc_main(rounds: int, horizons: list[int], solver_flags: tuple[str, ...] | None) -> None:
     """The MPC comparison (see the module docstring); prints a Markdown table."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import mpc_vs_crocoddyl as mvc
@@ -185,6 +185,7 @@ def mpc_main(rounds: int, horizons: list[int]) -> None:
             exports[N] = export_controller(
                 "panda", mpc, Path(tmp) / f"mpc{N}", reference=side.reference,
                 sample_dt=1e-3, max_samples=4096, flags=("-O3", "-march=native"),
+                solver_flags=solver_flags,
             )  # fmt: skip
         q0, v0 = initial_state("on_reference", ref)
         for r in range(rounds):
@@ -269,8 +270,14 @@ if __name__ == "__main__":
     parser.add_argument("--mpc", action="store_true", help="the box-DDP MPC comparison")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--horizon", type=int, nargs="+", default=[10, 40])
+    parser.add_argument(
+        "--fast-solver",
+        action="store_true",
+        help="compile the MPC's generated solver code at -O2 -march=native (default -O1, as"
+        " geosyn compiles it for the Python solver)",
+    )
     args = parser.parse_args()
     if args.mpc:
-        mpc_main(args.rounds, args.horizon)
+        mpc_main(args.rounds, args.horizon, ("-O2", "-march=native") if args.fast_solver else None)
     else:
         main()

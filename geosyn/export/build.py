@@ -51,16 +51,22 @@ def run(command: Sequence[str], cwd: Path) -> None:
         )
 
 
-def source_flags(path: Path, flags: Sequence[str]) -> tuple[str, ...]:
+def source_flags(
+    path: Path, flags: Sequence[str], large_flags: Sequence[str] = LARGE_SOURCE_FLAGS
+) -> tuple[str, ...]:
     """``flags``, or for a generated source of megabytes (the MPC's Riccati step)
-    geosyn.core.codegen's LARGE_SOURCE_FLAGS, as the Python solver compiles it (far
-    shorter compile, little slower code)."""
+    ``large_flags`` (default geosyn.core.codegen's LARGE_SOURCE_FLAGS, as the Python
+    solver compiles it: a far shorter compile, slightly slower code)."""
     large = path.stat().st_size >= LARGE_SOURCE_CHARS
-    return tuple(LARGE_SOURCE_FLAGS) if large else tuple(flags)
+    return tuple(large_flags) if large else tuple(flags)
 
 
 def compile_library(
-    out_dir: Path, compiler: str, flags: Sequence[str], sources: Sequence[str] = OBJECT_SOURCES
+    out_dir: Path,
+    compiler: str,
+    flags: Sequence[str],
+    sources: Sequence[str] = OBJECT_SOURCES,
+    large_flags: Sequence[str] = LARGE_SOURCE_FLAGS,
 ) -> tuple[Path, Path]:
     """Compile ``sources`` in ``out_dir`` into ``lib{LIB_NAME}.so`` and ``.a``.
 
@@ -70,7 +76,7 @@ def compile_library(
     objects = []
     for source in sources:
         obj = Path(source).with_suffix(".o").name
-        own = source_flags(out_dir / source, flags)
+        own = source_flags(out_dir / source, flags, large_flags)
         run([compiler, *own, *BASE_FLAGS, "-c", source, "-o", obj], out_dir)
         objects.append(obj)
     shared, static = out_dir / f"lib{LIB_NAME}.so", out_dir / f"lib{LIB_NAME}.a"
@@ -116,6 +122,7 @@ def makefile(
     flags: Sequence[str],
     sources: Sequence[str] = OBJECT_SOURCES,
     out_dir: Path | None = None,
+    large_flags: Sequence[str] = LARGE_SOURCE_FLAGS,
 ) -> str:
     """Text of the export's ``Makefile``: ``make lib`` rebuilds the libraries, ``make
     loop`` the closed-loop program against MuJoCo (``MUJOCO_DIR`` holds ``include/`` and
@@ -126,9 +133,9 @@ def makefile(
     objects = " ".join(str(Path(s).with_suffix(".o")) for s in sources)
     large = "".join(
         f"{Path(s).with_suffix('.o')}: CFLAGS = "
-        f"{' '.join([*source_flags(out_dir / s, flags), *BASE_FLAGS])}\n"
+        f"{' '.join([*source_flags(out_dir / s, flags, large_flags), *BASE_FLAGS])}\n"
         for s in sources
-        if out_dir is not None and source_flags(out_dir / s, flags) != tuple(flags)
+        if out_dir is not None and source_flags(out_dir / s, flags, large_flags) != tuple(flags)
     )
     return f"""\
 # Written by geosyn.export. make lib: the libraries; make loop: the MuJoCo closed loop.
