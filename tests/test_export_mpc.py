@@ -1,6 +1,6 @@
 """geosyn.export of the torque-level box-DDP MPC (``GeodesicMPC(solver="ddp")``): the C
 library, loaded with ctypes, gives the Python controller's torques to 1e-9 along a 2 s
-closed loop on the Panda with a push (the same (t, q, v) sequence: warm real-time
+closed loop on the Panda (and the UR5) with a push (the same (t, q, v) sequence: warm real-time
 iterations, Riccati feedback between solves, a cold solve after a reset); bad input is an
 error code and leaves the controller usable; a failed solve falls back like Python's; no
 heap allocation after create."""
@@ -32,17 +32,21 @@ pytestmark = [
 ]
 
 Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+Q0_UR5 = np.array([0.0, -1.2, 1.4, -1.6, -1.57, 0.0])
 RTOL = 1e-9
 
 
-def make_mpc(reference: JointTrajectoryReference | None = None) -> GeodesicMPC:
-    """The Panda's torque-level DDP MPC, N = 10, on a smooth 1 s joint motion; no solve
+def make_mpc(
+    reference: JointTrajectoryReference | None = None, robot_name: str = "panda"
+) -> GeodesicMPC:
+    """The robot's torque-level DDP MPC, N = 10, on a smooth 1 s joint motion; no solve
     time budget (the budget check would make the Python side depend on the clock)."""
-    robot = load_robot("panda")
+    robot = load_robot(robot_name)
     if reference is None:
         t = np.linspace(0.0, 1.0, 21)
         w = np.linspace(1.0, 2.5, robot.nv)
-        reference = JointTrajectoryReference(t, Q0 + 0.3 * np.sin(np.outer(t, w)))
+        q0 = Q0 if robot_name == "panda" else Q0_UR5
+        reference = JointTrajectoryReference(t, q0 + 0.3 * np.sin(np.outer(t, w)))
     return GeodesicMPC(
         robot, KineticEnergyMetric(robot), horizon=10, dt=0.02, control="torque",
         solver="ddp", max_solve_time=1e9, reference=reference,
@@ -57,7 +61,7 @@ def export(tmp_path_factory: pytest.TempPathFactory) -> ExportResult:
 
 def python_twin(res: ExportResult) -> GeodesicMPC:
     """The Python MPC tracking the reference the C library holds."""
-    return make_mpc(res.samples.reference())
+    return make_mpc(res.samples.reference(), res.robot)
 
 
 class PythonLoop(NamedTuple):
@@ -75,7 +79,10 @@ class PythonLoop(NamedTuple):
 
 @pytest.fixture(scope="module")
 def python_loop(export: ExportResult) -> PythonLoop:
-    res = export
+    return run_python_loop(export, 60.0)
+
+
+def run_python_loop(res: ExportResult, force: float) -> PythonLoop:
     ctl = python_twin(res)
     calls = []
     compute = ctl.compute
@@ -86,8 +93,8 @@ def python_loop(export: ExportResult) -> PythonLoop:
         return tau
 
     ctl.compute = recorded  # type: ignore[method-assign]
-    push = Push(str(res.push.body), [60.0 * d for d in res.push.direction], 0.5, 0.1)
-    log = Simulation(load_robot("panda"), ctl, disturbances=[push]).run(
+    push = Push(str(res.push.body), [force * d for d in res.push.direction], 0.5, 0.1)
+    log = Simulation(load_robot(res.robot), ctl, disturbances=[push]).run(
         res.samples.q[0], duration=2.0, reference=res.samples.reference()
     )
     assert log.rms_error() > 1e-3  # the push moves the arm
@@ -115,6 +122,21 @@ def test_mpc_torques_equal_python_along_a_closed_loop(
     assert counts[0] == 2 * solves
     assert counts[1] == 0 and counts[4] == 0  # no failed solve, no fallback
     assert np.isfinite(values[0])
+
+
+def test_ur5_mpc_torques_equal_python_along_a_closed_loop(tmp_path: Path) -> None:
+    """The second arm: the UR5's MPC, 2 s closed loop with a 40 N push, to 1e-9."""
+    res = export_controller("ur5", make_mpc(None, "ur5"), tmp_path, sample_dt=0.02)
+    loop = run_python_loop(res, 40.0)
+    c = CController(res.shared_library)
+    c.reset(res.samples.q[0].copy(), np.zeros(res.nq))
+    scale = np.asarray(load_robot("ur5").tau_max)
+    worst = max(
+        float(np.max(np.abs(c.compute(t, q, v) - tau) / scale)) for t, q, v, tau in loop.calls
+    )
+    print(f"ur5: largest difference {worst:.3g} (relative to tau_max)")
+    assert worst <= RTOL
+    assert mpc_info(c)[0][0] == loop.solves
 
 
 def mpc_info(c: CController) -> tuple[np.ndarray, np.ndarray]:
