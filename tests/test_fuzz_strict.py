@@ -293,17 +293,19 @@ ROBOT_FILES = {
 }
 
 
+@pytest.mark.parametrize("command", ["run", "explore"])
 @pytest.mark.parametrize("name", sorted(ROBOT_FILES))
-def test_bad_robot_file_gives_one_stderr_line(tmp_path, monkeypatch, capfd, name):
+def test_bad_robot_file_gives_one_stderr_line(tmp_path, monkeypatch, capfd, name, command):
     monkeypatch.chdir(tmp_path)
     (tmp_path / name).write_text(ROBOT_FILES[name])
     (tmp_path / "cfg.yaml").write_text(f"name: t\nkind: tracking\nrobot: {{name: {name}}}\n")
+    argv = ["run", "cfg.yaml", "--out", str(tmp_path / "out"), "--no-progress"]
     with time_bound():
-        code = main(["run", "cfg.yaml", "--out", str(tmp_path / "out"), "--no-progress"])
+        code = main(argv if command == "run" else ["explore", name])
     out, err = capfd.readouterr()
     lines = [line for line in err.splitlines() if line.strip()]
     assert code == 2 and len(lines) == 1, err
-    assert lines[0].startswith("geosyn run: error: ") and "Traceback" not in err
+    assert lines[0].startswith(f"geosyn {command}: error: ") and "Traceback" not in err
     assert files_under(tmp_path) == sorted(["cfg.yaml", name])  # no MUJOCO_LOG.TXT, no run
 
 

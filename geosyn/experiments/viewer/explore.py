@@ -9,11 +9,14 @@ drawn as the robot plus its end-effector path, and animated by the time slider /
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 
 import numpy as np
 
+from geosyn.core.errors import GeosynError
 from geosyn.core.validation import check_int, check_vector
+from geosyn.experiments.config.chatter import quiet
 from geosyn.experiments.viewer.server import (
     RUN_COLORS,
     Player,
@@ -60,9 +63,22 @@ def explore_robot(
         GeosynError: unknown robot, bad ``q0`` or ``k``.
         ViewerUnavailable: viser is not installed, or the port is taken.
     """
-    robot = load_robot(name)
-    k = check_int(k, "k", low=1, high=robot.nv)
-    start = robot.neutral() if q0 is None else check_vector(q0, robot.nq, "q0 [rad]")
+    with quiet() as loading:  # the robot file's parser and MuJoCo's compiler print
+        try:
+            robot = load_robot(name)
+            k = check_int(k, "k", low=1, high=robot.nv)
+            start = robot.neutral() if q0 is None else check_vector(q0, robot.nq, "q0 [rad]")
+        except GeosynError as err:
+            failure: GeosynError | None = err
+        else:
+            failure = None
+    if failure is not None:
+        if loading.reason():  # their words in geosyn's one line, not before it
+            failure.args = (f"{failure}{loading.reason()}",)
+        raise failure
+    loading.show_own_warnings()
+    for line in loading.log_lines():  # no run log here: one line each, after loading
+        print(f"geosyn explore: note: {line}", file=sys.stderr)
     metric = KineticEnergyMetric(robot)
     synergies = list(orthonormal_synergies(metric, start, k, robot=robot).synergies)
     server = start_server(host, port, fast)
