@@ -49,8 +49,9 @@ def test_each_yaml_obstacle_becomes_a_shape_once_per_run(tmp_path, monkeypatch):
         calls.append(section)
         return build_box(section)
 
-    monkeypatch.setitem(scene_mod.OBSTACLES, "box", counting)
+    # loaded first: validation checks the start against the box (issue 23), not the run
     cfg, _ = load_config("ur5_tracking", SHORT)
+    monkeypatch.setitem(scene_mod.OBSTACLES, "box", counting)
     out = run_experiment(cfg, tmp_path / "run", progress=False, quiet=True)
     assert len(calls) == len(cfg.scene.obstacles) == 1
     assert out.summary["computed_torque.ok"] == 1.0
