@@ -76,3 +76,17 @@ def test_mpc_reports_dry_friction_it_cannot_model(damped):
         )
     assert "dry joint friction" in mpc.diagnostics.notes["frictionloss"]
     assert "modelled" in mpc.diagnostics.notes["damping"]
+
+
+def test_c_export_refuses_the_damped_mpc_it_cannot_match(damped, tmp_path):
+    """The exported MPC driver's reference and fallback torques are RNEA alone: a damped
+    robot's MPC is refused by name rather than exported with a different model."""
+    from geosyn.export import ExportError, export_controller
+
+    robot, ref = damped
+    mpc = GeodesicMPC(
+        robot, KineticEnergyMetric(robot), horizon=10, dt=0.02, control="torque", solver="ddp"
+    )
+    with pytest.raises(ExportError, match="joint damping"):
+        export_controller(robot, mpc, tmp_path / "out", reference=ref)
+    assert not (tmp_path / "out").exists()

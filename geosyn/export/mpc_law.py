@@ -65,8 +65,10 @@ def check_exportable(ctl: GeodesicMPC) -> DDPOptions:
     """The controller's `DDPOptions`.
 
     Raises:
-        ExportError: not ``solver="ddp"`` with ``control="torque"``, or with a clearance
-            margin (obstacles are not exported).
+        ExportError: not ``solver="ddp"`` with ``control="torque"``, with a clearance
+            margin (obstacles are not exported), or for a robot with joint damping (the
+            C driver's reference and fallback torques are RNEA alone, while the Python
+            MPC adds the file's ``D v``).
     """
     options = ctl.solver_options
     if not isinstance(options, DDPOptions) or ctl.control != "torque":
@@ -78,6 +80,12 @@ def check_exportable(ctl: GeodesicMPC) -> DDPOptions:
         raise ExportError(
             "controller: GeodesicMPC with clearance_margin (obstacles) cannot be exported "
             "to C yet; export it without obstacles"
+        )
+    if np.any(ctl.robot.damping):
+        raise ExportError(
+            f"controller: robot {ctl.robot.name!r} has joint damping"
+            f" {np.asarray(ctl.robot.damping).tolist()}, which the exported MPC driver does"
+            " not model yet (the Python MPC does); export computed torque or the PD instead"
         )
     return options
 
