@@ -373,6 +373,7 @@ def test_killed_sweep_leaves_no_workers_and_resumes(tmp_path, signum):
     _wait_for_partials(out, proc)
     workers = _children(proc.pid)
     assert len(workers) >= 2
+    done_at_signal = len(_timestamps(out))
     proc.send_signal(getattr(signal, signum))
     proc.communicate(timeout=60)
     # a hang guard, not a timing test: the workers are gone as soon as the kernel reaps them
@@ -382,9 +383,10 @@ def test_killed_sweep_leaves_no_workers_and_resumes(tmp_path, signum):
     assert not any(_alive(w) for w in workers), "worker processes outlived the sweep"
     assert proc.returncode == -signal.SIGKILL if signum == "SIGKILL" else proc.returncode == 143
     if signum == "SIGTERM":
-        # it stopped instead of finishing the sweep (the time to exit, ~1 s on an idle
-        # machine, within WORKER_GRACE + a kill, is a figure, not a timed assertion)
-        assert len(_timestamps(out)) < 4
+        # no queued run starts after the signal: at most the 2 in flight complete (the
+        # time to exit, ~1 s on an idle machine, within WORKER_GRACE + a kill, is a
+        # figure, not a timed assertion)
+        assert len(_timestamps(out)) <= done_at_signal + 2
         assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
     finished = _timestamps(out)  # runs completed before the signal stay as they are
 
@@ -426,10 +428,8 @@ def test_sigterm_stops_a_ray_sweep_cleanly(tmp_path):
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err[-3000:]
-    # It stopped instead of waiting for the runs in flight (each simulates 3 s): they did
-    # not both complete. (The time to exit, ~1.3 s on an idle machine, is a figure, not a
-    # timed assertion: with both cores busy by other work it took 6.8 s.)
-    assert len(list(out.glob("*/seed*/summary.json"))) < 2
+    # (The time to exit, ~1.3 s on an idle machine, is a figure, not a timed assertion:
+    # with both cores busy by other work it took 6.8 s.)
     assert "SIGTERM received" not in err and "Traceback" not in err
     from geosyn.experiments.cli import main
 
