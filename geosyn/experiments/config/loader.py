@@ -251,7 +251,7 @@ def unused_errors(cfg: ExperimentConfig) -> list[tuple[str, str]]:
         (
             section,
             f"kind {cfg.kind!r} does not read this section (it reads:"
-            f" {', '.join(proc.sections or ())}); remove it, or run with --allow-unused"
+            f" {', '.join(proc.sections or ())}); remove it, or pass --allow-unused"
             " to run anyway (the run log names it)",
         )
         for section in ignored_sections(cfg, proc)
