@@ -119,16 +119,20 @@ def test_obstacle_shaped_geodesic_keeps_clear(tmp_path):
     assert s["shaped.executed_clearance"] > 0.0
     assert s["shaped.max_contact_force"] == 0.0 and s["shaped.contact_time"] == 0.0
     assert np.all(r["shaped_computed_torque__contact_force"] == 0.0)
-    # ... the unshaped one hits it: MuJoCo's contact solver reports a normal force (kept
-    # in the summary up to the stop when the hit stops the run)
+    # ... the unshaped one hits it: MuJoCo's contact solver reports a normal force (in
+    # the run's log up to the stop when the hit stops the run; a stopped run's summary
+    # metrics are NaN, never numbers that look like a result)
     force = r["unshaped_computed_torque__contact_force"]
-    assert s["unshaped.max_contact_force"] == force.max() > 1.0  # [N]
-    assert s["unshaped.contact_time"] == np.count_nonzero(force > 0.0) * 1e-3 > 0.0  # [s]
+    assert force.max() > 1.0  # [N]
     status = str(r["unshaped_computed_torque__status"])
     assert (s["unshaped.ok"] == 1.0) == (status == "ok")
-    if status != "ok":  # stopped after the hit: the contact is named as the cause
+    if status == "ok":
+        assert s["unshaped.max_contact_force"] == force.max()
+        assert s["unshaped.contact_time"] == np.count_nonzero(force > 0.0) * 1e-3  # [s]
+    else:  # stopped after the hit: the contact is named as the cause
         assert "cause: the robot hit an obstacle" in status
         assert json.loads(str(r["unshaped_computed_torque__meta"]))["status"] == status
+        assert np.isnan(s["unshaped.max_contact_force"]) and np.isnan(s["unshaped.contact_time"])
 
 
 @pytest.mark.slow
