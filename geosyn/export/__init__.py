@@ -17,7 +17,8 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 from geosyn.export.binding import CController, load_library
 from geosyn.export.errors import ExportError
 from geosyn.export.export import ExportResult, LoopPush, export_controller
-from geosyn.export.laws import LAWS, ControlLaw, control_law
+from geosyn.export.law import ControlLaw
+from geosyn.export.laws import LAWS, control_law
 from geosyn.export.samples import ReferenceSamples, SamplingError, sample_reference
 
 __all__ = [

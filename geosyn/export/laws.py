@@ -9,43 +9,16 @@ same operations, in the same order, as the Python ``_compute`` of the controller
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
 from geosyn.controllers import ComputedTorque, Controller, GeodesicMPC, RiemannianPD
 from geosyn.export.errors import ExportError
+from geosyn.export.law import LAW_FUNCTION, ControlLaw
+from geosyn.export.mpc_law import mpc_law
 from geosyn.robots.robot import Robot
 from geosyn.robots.symbolic import rnea
-
-#: C name of the generated CasADi function (``geosyn_law.c`` / ``geosyn_law.h``).
-LAW_FUNCTION = "geosyn_law"
-
-
-@dataclass(frozen=True)
-class ControlLaw:
-    """The exported form of one controller configuration.
-
-    Attributes:
-        kind: ``"computed_torque"`` or ``"riemannian_pd"`` (the C driver's law).
-        function: CasADi function of the rigid-body terms, named `LAW_FUNCTION`.
-        arrays: ``{C name: (nq,) values}`` of per-joint constants (gains [1/s^2, 1/s,
-            N m s/rad], torque limits [N m], friction).
-        scalars: ``{C macro: value}`` of scalar constants (an int is written as one).
-        settings: the controller's settings as written in the export's README.
-        generated: more CasADi functions generated to C (``geosyn_mpc_fun.c``), named
-            as the driver calls them.
-        c_files: more hand-written C files of the driver (from ``c/``).
-    """
-
-    kind: str
-    function: ca.Function
-    arrays: dict[str, np.ndarray]
-    scalars: dict[str, float | int] = field(default_factory=dict)
-    settings: dict[str, object] = field(default_factory=dict)
-    generated: tuple[ca.Function, ...] = ()
-    c_files: tuple[str, ...] = ()
 
 
 def _symbols(n: int, names: str) -> list[ca.SX]:
@@ -114,19 +87,11 @@ def riemannian_pd_law(ctl: RiemannianPD) -> ControlLaw:
     return ControlLaw("riemannian_pd", fun, arrays, {}, settings)
 
 
-def ddp_mpc_law(ctl: GeodesicMPC) -> ControlLaw:
-    """`ControlLaw` of a ``GeodesicMPC(solver="ddp", control="torque")``
-    (`geosyn.export.mpc_law.mpc_law`)."""
-    from geosyn.export.mpc_law import mpc_law  # it builds on this module's ControlLaw
-
-    return mpc_law(ctl)
-
-
 #: Exportable controller classes and the function that reads their law.
 LAWS: dict[type, Callable[..., ControlLaw]] = {
     ComputedTorque: computed_torque_law,
     RiemannianPD: riemannian_pd_law,
-    GeodesicMPC: ddp_mpc_law,
+    GeodesicMPC: mpc_law,
 }
 
 

@@ -30,7 +30,7 @@ from geosyn.controllers.mpc.ddp.parts import ddp_parts
 from geosyn.controllers.mpc.ocp.plan import EPS_T
 from geosyn.controllers.mpc.ocp.settings import STATE_MARGIN
 from geosyn.export.errors import ExportError
-from geosyn.export.laws import LAW_FUNCTION, ControlLaw
+from geosyn.export.law import LAW_FUNCTION, ControlLaw
 from geosyn.robots.symbolic import crba, rnea
 
 #: C files of the MPC driver (copied from ``c/``) and of its generated functions.

@@ -12,7 +12,7 @@ import casadi as ca
 import numpy as np
 
 from geosyn.export.errors import ExportError
-from geosyn.export.laws import LAW_FUNCTION, ControlLaw
+from geosyn.export.law import LAW_FUNCTION, ControlLaw
 from geosyn.export.samples import ReferenceSamples
 
 #: The hand-written C files shipped with the package and copied into every export.
