@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
 
@@ -37,6 +38,26 @@ MAX_INERTIA = 1e6
 MAX_DISTANCE = 1e4
 """Largest joint offset or centre-of-mass distance geosyn accepts [m] (MuJoCo's M at a
 body placed 1e300 m away is rounding noise)."""
+
+
+def _parse_urdf(path: str | Path) -> ET.Element:
+    """The root element of a URDF file.
+
+    Raises:
+        RobotFileError: unreadable or not XML.
+    """
+    try:
+        return ET.parse(str(path)).getroot()
+    except (ET.ParseError, OSError) as err:
+        raise RobotFileError(f"could not parse robot file {str(path)!r}: {err}", path) from err
+
+
+def _inertials(root: ET.Element) -> Iterator[tuple[str, ET.Element]]:
+    """``(link name, <inertial>)`` of every link that has one."""
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is not None:
+            yield link.get("name", "?"), inertial
 
 
 def _where(path: object) -> str:
@@ -118,15 +139,8 @@ def check_urdf_inertials(path: str | Path) -> None:
     Raises:
         RobotFileError: a link with an unphysical or non-numeric inertial; names the link.
     """
-    try:
-        root = ET.parse(str(path)).getroot()
-    except (ET.ParseError, OSError) as err:
-        raise RobotFileError(f"could not parse robot file {str(path)!r}: {err}", path) from err
-    for link in root.iter("link"):
-        inertial = link.find("inertial")
-        if inertial is None:
-            continue
-        name = link.get("name", "?")
+    root = _parse_urdf(path)
+    for name, inertial in _inertials(root):
         try:
             mass_el = inertial.find("mass")
             mass = float(mass_el.get("value", "0")) if mass_el is not None else 0.0
@@ -237,15 +251,8 @@ def check_urdf_values(path: str | Path) -> None:
     Raises:
         RobotFileError: names the link or joint and the value.
     """
-    try:
-        root = ET.parse(str(path)).getroot()
-    except (ET.ParseError, OSError) as err:
-        raise RobotFileError(f"could not parse robot file {str(path)!r}: {err}", path) from err
-    for link in root.iter("link"):
-        inertial = link.find("inertial")
-        if inertial is None:
-            continue
-        name = link.get("name", "?")
+    root = _parse_urdf(path)
+    for name, inertial in _inertials(root):
         mass_el = inertial.find("mass")
         mass = _floats(
             mass_el.get("value", "0") if mass_el is not None else "0",
