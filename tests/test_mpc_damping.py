@@ -90,3 +90,16 @@ def test_c_export_refuses_the_damped_mpc_it_cannot_match(damped, tmp_path):
     with pytest.raises(ExportError, match="joint damping"):
         export_controller(robot, mpc, tmp_path / "out", reference=ref)
     assert not (tmp_path / "out").exists()
+
+
+def test_riemannian_pd_compensates_the_files_damping(damped):
+    """Referee: MuJoCo's compile of the damped file. Measured: 1.7e-6 rad RMS with D v_r
+    in the law against 3.1e-4 with the damping removed from its model."""
+    from geosyn.controllers import RiemannianPD
+
+    robot, ref = damped
+    undamped = dataclasses.replace(robot, damping=np.zeros(robot.nv))
+    make = lambda r: RiemannianPD(r, 20.0, 40.0)  # noqa: E731
+    with_damping = _rms(robot, robot, make, ref)
+    without = _rms(robot, undamped, make, ref)
+    assert without > 5.0 * with_damping, (with_damping, without)

@@ -27,14 +27,18 @@ class RiemannianPD(Controller):
         \\quad s = \\dot q - v_r = \\dot e + \\Lambda e,
 
     .. math::
-        \\tau = M(q) a_r + C(q, \\dot q) v_r + g(q) - K s,
+        \\tau = M(q) a_r + C(q, \\dot q) v_r + g(q) + D v_r - K s,
 
     where ``C_ij = sum_k Gamma_ijk qdot_k`` is built from the Christoffel symbols of the
     first kind of the kinetic-energy metric ``M`` (``pin.computeCoriolisMatrix``), the
     Levi-Civita connection of the configuration manifold. Only ``C(q, qdot) v_r`` (not
     ``C v``) appears, which is what makes the law passive rather than a cancellation.
 
-    Stability. With an exact model the closed loop is ``M s' + C s + K s = 0``. Because
+    ``D`` is the robot file's viscous joint damping (``robot.damping``; zero when the file
+    has none), the plant's ``-D qdot`` compensated along ``v_r`` so that the closed loop
+    keeps its form with ``K + D`` in place of ``K``.
+
+    Stability. With an exact model the closed loop is ``M s' + C s + (K + D) s = 0``. Because
     ``Mdot - 2C`` is skew-symmetric for the Christoffel ``C``, the function
 
     .. math:: V = \\tfrac12 s^T M(q) s + e^T \\Lambda K e
@@ -76,6 +80,12 @@ class RiemannianPD(Controller):
         self.k = check_gain(k, self.nv, "k")
         self._e = np.zeros(self.nv)
         self._s = np.zeros(self.nv)
+        damping = np.asarray(robot.damping, dtype=np.float64)
+        self._damping = damping.copy() if damping.size and np.any(damping) else None
+        if self._damping is not None:
+            self.diagnostics.notes["damping"] = (
+                f"joint damping {self._damping.tolist()} compensated along v_r"
+            )
 
     def lyapunov(self, t: float, q: Vector, v: Vector) -> float:
         """``V = 1/2 s^T M s + e^T Lambda K e`` at the state (allocates).
@@ -107,6 +117,8 @@ class RiemannianPD(Controller):
         tau = M @ a_ref
         tau += C @ v_ref
         tau += pin.computeGeneralizedGravity(model, data, q)
+        if self._damping is not None:
+            tau += self._damping * v_ref
         tau -= self.k * s
         self.diagnostics.extra["lyapunov"] = 0.5 * float(s @ M @ s) + float(e @ (lam * self.k * e))
         return tau

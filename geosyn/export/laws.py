@@ -66,6 +66,12 @@ def riemannian_pd_law(ctl: RiemannianPD) -> ControlLaw:
     ``C(q, v) w = (c(q, v + w) - c(q, v - w)) / 4`` with ``c(q, v) = RNEA(q, v, 0) - g``;
     ``M a_x + g = RNEA(q, 0, a_x)``. Three RNEA passes, no mass matrix.
     """
+    if np.any(ctl.robot.damping):
+        raise ExportError(
+            f"controller: RiemannianPD of robot {ctl.robot.name!r} compensates joint damping"
+            f" {np.asarray(ctl.robot.damping).tolist()} along v_r, which the exported C law"
+            " does not yet; export ComputedTorque (which carries it) instead"
+        )
     robot, n = ctl.robot, ctl.nv
     q, v, vx, ax = _symbols(n, "q v v_x a_x")
     model, g, zero = robot.model, _gravity(robot), np.zeros(n)
