@@ -1,4 +1,4 @@
-"""The MPC's model holds the robot file's viscous joint damping (every solver family):
+"""The controllers' models hold the robot file's viscous joint damping (MPC, every solver family; PD):
 tracked inside MuJoCo's compile of the original file, it does as well as the file's
 dynamics allow, and measurably worse with the damping removed from its model (issue 21).
 The file's dry friction, which a smooth OCP cannot hold, is reported, not dropped."""
