@@ -116,7 +116,11 @@ class GeodesicMPC(Controller):
     Defaults: ``control="acceleration"`` with ``effort="acceleration"`` and fatrop. At
     the torque level, ``solver="ddp"`` is the fast choice (faster than Crocoddyl's
     BoxFDDP on the same problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of
-    the RK4 step on the ABA over several interior-point iterations.
+    the RK4 step on the ABA over several interior-point iterations. fatrop stays the
+    default even for ``control="torque"`` because the DDP keeps only the torque box as a
+    hard constraint: its joint position and velocity limits are stiff penalties, which
+    can be violated in closed loop, while fatrop and IPOPT hold them as constraints of
+    the NLP. Choose ``solver="ddp"`` when speed matters more than hard joint limits.
 
     Args:
         robot: the robot (its model is the OCP's dynamics).
