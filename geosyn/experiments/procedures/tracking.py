@@ -58,7 +58,12 @@ class Tracking(Procedure):
     sections = SECTIONS  # every section
     description = "general closed loop: any robot, metric, scene, reference, controllers and disturbances; standard metrics"
     Params = TrackingParams
-    units = UNITS | {"threshold": "rad", "reference_end": "s", "planned_clearance": "m"}
+    units = UNITS | {
+        "threshold": "rad",
+        "reference_end": "s",
+        "reference_coupling_residual": "rad",
+        "planned_clearance": "m",
+    }
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:
@@ -81,6 +86,7 @@ class Tracking(Procedure):
             ref, geo = R.build_reference(cfg, metric, synergies)
             out["reference__t"], out["reference__q"] = geo.t, geo.q
         out["reference__end"] = np.array(ref.t0 + ref.duration)
+        out["reference__coupling_residual"] = np.array(R.reference_coupling_residual(ref, metric))
         q0, v0, _ = ref.sample(0.0)
         advance = ctx.progress(f"{cfg.name}: controllers", len(cfg.controllers))
 
@@ -97,6 +103,9 @@ class Tracking(Procedure):
             out |= {f"{label}.{k}": v for k, v in metrics.items()}
         out["threshold"] = params.threshold
         out["reference_end"] = float(results["reference__end"])
+        residual = float(results.get("reference__coupling_residual", np.nan))
+        if np.isfinite(residual):  # a coupled robot: the reference's own constraint residual
+            out["reference_coupling_residual"] = residual
         if "reference__planned_clearance" in results:
             out["planned_clearance"] = float(results["reference__planned_clearance"])
         return out
