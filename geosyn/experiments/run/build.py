@@ -57,7 +57,7 @@ from geosyn.sim import (
 )
 from geosyn.sim.log import ARRAY_FIELDS, RUN_META
 from geosyn.synergies import GeodesicSynergy, orthonormal_synergies, pga
-from geosyn.synergies.human.demonstrations import load_demonstrations
+from geosyn.synergies.demonstrations import load_demonstrations
 from geosyn.world import Payload, Shape
 
 

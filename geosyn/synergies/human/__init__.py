@@ -11,7 +11,6 @@ from geosyn.synergies.human.data import (
     climb_sequences,
     data_dir,
 )
-from geosyn.synergies.human.demonstrations import load_demonstrations
 from geosyn.synergies.human.errors import DataSourceError
 from geosyn.synergies.human.mocap_ik import ArmFit, Calibration, calibrate, fit_sequence
 from geosyn.synergies.human.myoarm import HumanArm, MuscleInfo, load_myoarm, myoarm_xml
@@ -32,7 +31,6 @@ __all__ = [
     "climb_sequences",
     "data_dir",
     "fit_sequence",
-    "load_demonstrations",
     "load_myoarm",
     "myoarm_xml",
 ]

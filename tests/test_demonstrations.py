@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from geosyn.synergies import pca_synergies
+from geosyn.synergies.demonstrations import load_demonstrations
 from geosyn.synergies.errors import InvalidSynergyInput
-from geosyn.synergies.human.demonstrations import load_demonstrations
 
 
 def test_npz_and_csv_round_trip(tmp_path) -> None:
