@@ -150,3 +150,30 @@ outputs: {{plots: false}}
     assert s["reference_coupling_residual"] <= TOL
     rms = next(v for k, v in s.items() if k.endswith(".rms_error") or k.endswith(".tracking_rms"))
     assert rms < 0.005, s  # measured 9.5e-4 rad
+
+
+def test_python_geodesic_reference_on_the_joints_metric_keeps_the_coupling() -> None:
+    """`GeodesicReference(geo, KineticEnergyMetric(robot))` on a coupled robot: a geodesic on
+    the coupling is tracked in z and lifted (its accelerations keep the coupling, which the
+    joints' metric alone does not give); one off the coupling is tracked as given, warned."""
+    from geosyn.controllers import GeodesicReference
+    from geosyn.metrics import CoupledMetric
+
+    metric = _metric()
+    coupling = metric.robot.coupling
+    cm = CoupledMetric(metric, coupling)
+    z0, z1 = coupling.z(np.array(_on(0.2, -0.4))), coupling.z(np.array(_on(-0.5, 0.6)))
+    geo_z = exp(cm, z0, log(cm, z0, z1, steps=40), 1.0, 40)
+    geo_q = R._lift(geo_z, coupling)
+    for exact in (True, False):
+        ref = GeodesicReference(geo_q, metric, exact_acceleration=exact, rest_to_rest=exact)
+        assert ref.coupling is coupling and ref.n == 4
+        assert _worst(ref) <= TOL
+    # The joints' own geodesic acceleration at a coupled state leaves the coupling.
+    q, v = geo_q.q[10], geo_q.v[10]
+    a = metric.geodesic_acceleration(q, v)
+    assert abs(a[2] - 0.5 * a[1]) > 1e-3
+    naive = exp(metric, geo_q.q[0], np.array([0.3, 0.5, 0.0, 0.0]), 1.0, 20)
+    with pytest.warns(RobotWarning, match="leaves the robot's joint coupling"):
+        off = GeodesicReference(naive, metric)
+    assert off.coupling is None

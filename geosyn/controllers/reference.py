@@ -9,6 +9,13 @@
   `geosyn.metrics.CoupledMetric`, lifted to the joints so that any controller tracks it.
 - `SequenceReference`: references played one after the other (geodesics through goals).
 
+On a robot with coupled joints, a `GeodesicReference` on the joints' metric whose samples
+satisfy the coupling is computed in the independent coordinates on the pull-back metric and
+lifted (its velocities and accelerations then keep the coupling too); samples off the
+coupling are tracked as given, with a `RobotWarning` stating by how much they leave it.
+`JointTrajectoryReference` interpolates linearly in its samples, so samples on a coupling
+give positions on it.
+
 All hold the final configuration with zero velocity and acceleration after their
 duration, and the initial configuration with zero velocity and acceleration before their
 start time ``t0``.
@@ -17,6 +24,7 @@ start time ``t0``.
 from __future__ import annotations
 
 import bisect
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -28,7 +36,9 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.interpolation import hermite_cubic_coefficients, hermite_quintic_coefficients
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_float, check_int, check_positive
+from geosyn.metrics.coupled import CoupledMetric
 from geosyn.robots.couplings import Coupling
+from geosyn.robots.errors import RobotWarning
 
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
@@ -197,8 +207,15 @@ class GeodesicReference(_SampledReference):
             a ``Geodesic``, which carries its own time stamps).
         steps: number of integration steps when ``source`` is a synergy.
 
+    On a coupled robot (``metric.robot.coupling``, ``metric`` on the joints) samples on the
+    coupling (to `COUPLING_TOLERANCE`) are tracked in the independent coordinates z on
+    `geosyn.metrics.CoupledMetric` and lifted exactly (``coupling`` attribute set); samples
+    off it are tracked as given, with a `RobotWarning` (``coupling`` None).
+
     `sample` allocates its three result arrays and calls the metric once.
     """
+
+    coupling: Coupling | None = None
 
     def __init__(
         self,
@@ -232,6 +249,13 @@ class GeodesicReference(_SampledReference):
                 f"metric has dimension {metric.n}, but the geodesic has n={q.shape[1]}"
             )
         self.n = int(q.shape[1])
+        self.coupling = _coupling_to_keep(metric, q)
+        if self.coupling is not None:
+            idx = _independent(self.coupling)
+            q, v = q[:, idx], v[:, idx]
+            metric = CoupledMetric(metric, self.coupling)  # type: ignore[arg-type]
+            self._S = np.asarray(self.coupling.S, dtype=np.float64)
+            self._c = np.asarray(self.coupling.c, dtype=np.float64)
         self.metric = metric
         self.time_scale = scale
         self.t0 = check_float(t0, "t0", unit="s")
@@ -246,9 +270,12 @@ class GeodesicReference(_SampledReference):
         else:
             coef = hermite_cubic_coefficients(t, q, v)
         self._spline = _Piecewise(t - t[0], coef)
-        self._q_start = q[0].copy()
-        self._q_goal = q[-1].copy()
+        self._q_start = self._lifted(q[0])
+        self._q_goal = self._lifted(q[-1])
         self.rest_to_rest = bool(rest_to_rest)
+
+    def _lifted(self, z: np.ndarray) -> np.ndarray:
+        return z.copy() if self.coupling is None else self._S @ z + self._c
 
     def sample(self, t: float) -> ReferenceSample:
         """Reference ``(q, v, a)`` at controller time ``t`` [s].
@@ -260,8 +287,12 @@ class GeodesicReference(_SampledReference):
         tau = self._local(float(t))
         if tau is None:
             return self._hold(float(t))
-        if self.rest_to_rest:
-            return self._sample_rest_to_rest(tau)
+        q, v, a = self._sample_rest_to_rest(tau) if self.rest_to_rest else self._sample_at(tau)
+        if self.coupling is not None:  # exact lift: S is constant
+            return ReferenceSample(self._S @ q + self._c, self._S @ v, self._S @ a)
+        return ReferenceSample(q, v, a)
+
+    def _sample_at(self, tau: float) -> ReferenceSample:
         s = self.time_scale
         q, v, a = self._spline(tau / s)
         if self._exact:
@@ -286,6 +317,34 @@ class GeodesicReference(_SampledReference):
             a = ddq * (sigma_d * sigma_d)
         a += dq * sigma_dd
         return ReferenceSample(q, v, a)
+
+
+COUPLING_TOLERANCE = 1e-6
+"""Largest constraint residual [rad or m] of samples that a `GeodesicReference` on a coupled
+robot treats as on the coupling."""
+
+
+def _coupling_to_keep(metric: Metric | None, q: np.ndarray) -> Coupling | None:
+    """The robot's coupling when ``metric`` is on a coupled robot's joints and the samples
+    ``q`` (T, nq) satisfy it; None otherwise (warned when the samples leave it)."""
+    coupling = getattr(getattr(metric, "robot", None), "coupling", None)
+    if not isinstance(coupling, Coupling) or coupling.S.shape[0] != q.shape[1]:
+        return None
+    residual = float(np.abs(q - (q[:, _independent(coupling)] @ coupling.S.T + coupling.c)).max())
+    if residual <= COUPLING_TOLERANCE:
+        return coupling
+    warnings.warn(
+        f"the geodesic to track leaves the robot's joint coupling by {residual:.3g} (constraints:"
+        f" {'; '.join(coupling.constraints)}); it is tracked as given: compute it in the"
+        " independent coordinates on CoupledMetric(metric, robot.coupling) to keep the coupling",
+        RobotWarning,
+        stacklevel=4,
+    )
+    return None
+
+
+def _independent(coupling: Coupling) -> list[int]:
+    return [coupling.joint_names.index(j) for j in coupling.independent]
 
 
 class JointTrajectoryReference(_SampledReference):
