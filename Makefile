@@ -13,9 +13,12 @@ LATEST  := .venv-latest
 EXTRAS  := test dev distributed video viewer
 COMMA   := ,
 COMMA_EXTRAS := $(subst $(eval) ,$(COMMA),$(EXTRAS))
-# uv uses this machine's Python and never downloads an interpreter of its own
+# uv uses this machine's Python and never downloads an interpreter of its own, and compiles
+# the packages' bytecode at install time as pip does (else every process compiles what it
+# imports again wherever PYTHONDONTWRITEBYTECODE is set: +20 % CPU for the flagship)
 export UV_PYTHON := $(PYTHON)
 export UV_PYTHON_DOWNLOADS := never
+export UV_COMPILE_BYTECODE := 1
 
 .PHONY: run test test-latest lint lock bench clean browser
 
