@@ -7,6 +7,11 @@ file's actuators are disabled (MuJoCo's ``mjDSBL_ACTUATION``) because geosyn's t
 applied as generalized joint forces (``qfrc_applied``) whatever actuators the file declares
 (motors, position or velocity servos, tendon actuators). Joints of the file that the robot
 does not control (e.g. locked with ``keep_joints``) stay passive; this is warned about.
+
+A robot loaded with ``fixed_base=True`` from a file with free joints (geosyn's model welds
+them at their initial pose) has them removed from the plant too, which welds their bodies at
+the same pose (the file's body ``pos``/``quat``); the file's keyframes lose those joints'
+coordinates. This is warned about.
 """
 
 from __future__ import annotations
@@ -69,6 +74,8 @@ def build_file_scene(
     spec.option.integrator = int(_INTEGRATORS[integrator])
     spec.option.gravity = g
     spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+    if not robot.floating:
+        _weld_free_joints(spec, path)
     if not limits:
         for joint in spec.joints:
             joint.limited = int(mujoco.mjtLimited.mjLIMITED_FALSE)
@@ -102,6 +109,39 @@ def build_file_scene(
         qpos_adr=np.array([model.jnt_qposadr[j] for j in joint_ids], dtype=np.int64),
         dof_adr=dof_adr,
         clearance=Clearance(robot, model, ()),
+    )
+
+
+def _weld_free_joints(spec: mujoco.MjSpec, path: object) -> None:
+    """Remove the free joints of ``spec`` (welding their bodies at the file's pose), and
+    their coordinates from the keyframes, as geosyn's model of a fixed-base robot does."""
+    free = [j for j in spec.joints if j.type == mujoco.mjtJoint.mjJNT_FREE]
+    if not free:
+        return
+    try:
+        original = spec.compile()
+    except ValueError as err:
+        raise InvalidArgument(f"the file plant {path!r} does not compile: {err}") from err
+    names = [j.name for j in free]
+    qpos_drop: list[int] = []
+    qvel_drop: list[int] = []
+    for j in range(original.njnt):
+        if original.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            qpos_drop += range(int(original.jnt_qposadr[j]), int(original.jnt_qposadr[j]) + 7)
+            qvel_drop += range(int(original.jnt_dofadr[j]), int(original.jnt_dofadr[j]) + 6)
+    keys = [(key, np.array(key.qpos), np.array(key.qvel)) for key in spec.keys]
+    for key, _, _ in keys:  # emptied first: deleting a joint checks the keyframes' sizes
+        key.qpos, key.qvel = np.zeros(0), np.zeros(0)
+    for joint in free:
+        spec.delete(joint)
+    for key, qpos, qvel in keys:
+        key.qpos = np.delete(qpos, qpos_drop) if len(qpos) == original.nq else qpos
+        key.qvel = np.delete(qvel, qvel_drop) if len(qvel) == original.nv else qvel
+    warnings.warn(
+        f"plant {path!r}: free joints {names} welded at the file's pose (fixed_base=True),"
+        " as in geosyn's model",
+        RuntimeWarning,
+        stacklevel=4,
     )
 
 
