@@ -40,6 +40,7 @@ NOT_PARAMETERS = {
     ("RiemannianPDConfig", "label"),
     ("QPConfig", "label"),
     ("MPCConfig", "label"),
+    ("WholeBodyConfig", "label"),
     ("LoadTermConfig", "payload"),  # an index into scene.payloads
     ("OutputsConfig", "plots"),
     ("OutputsConfig", "video"),
@@ -78,6 +79,11 @@ NOT_EXPOSED = {
     "exp.q0": "reference.q_start",
     "exp.v0": "log(q_start, goal) / duration",
     "exp.method": "RK4, the integrator of every geodesic of the experiments",
+    "WholeBodyController.contacts": "stance.frames",
+    "WholeBodyController.points": "stance.points",
+    "WholeBodyController.mu": "stance.mu (one friction cone for every controller)",
+    "WholeBodyController.f_min": "stance.f_min",
+    "synergy": "the stance synergy built from the stance and reference.direction",
 }
 
 

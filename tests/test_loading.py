@@ -297,7 +297,8 @@ def test_geosyn_robots_lists_every_named_robot(capsys) -> None:
     assert set(rows) == set(BUILTINS)
     assert rows["xarm7"].split()[1:4] == ["7", rows["xarm7"].split()[2], "link_eef"]
     assert rows["xarm7"].split()[4] == "xarm7.urdf"
-    assert "needs fixed_base=True" in rows["go1"]
+    assert "floating base" in rows["go1"] and "fixed_base: true to run it" in rows["go1"]
+    assert "stands in kind tracking" in rows["go2"] and rows["go2"].split()[1] == "18"  # 12 + 6
     assert "cannot load" in rows["quadrotor_base"] and "no movable joints" in rows["quadrotor_base"]
     assert rows["panda"].split()[3] == "panda_hand_tcp"
 

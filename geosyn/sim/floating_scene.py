@@ -13,6 +13,7 @@ lowered or lifted so that the lowest contact point touches the floor.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,6 +109,9 @@ def build_floating_scene(
     noslip: int = 0,
     impratio: float = 10.0,
     cone: str = "elliptic",
+    *,
+    feet: Sequence[str] | None = None,
+    points: np.ndarray | None = None,
 ) -> FloatingScene:
     """The standing scene of a built-in floating robot (a key of `STANDING`).
 
@@ -124,9 +128,12 @@ def build_floating_scene(
             With the defaults (pyramidal, impratio 1), go2's feet creep 6.5 mm under a
             50 N push while their forces stay at 0.7 of the friction limit
             (benchmarks/RESULTS.md).
+        feet: contact frames (None: the robot's `STANDING` feet).
+        points: (P, 3) contact points in each foot frame [m] (None: `STANDING`'s).
 
     Raises:
-        SimError: ``name`` has no standing specification.
+        SimError: ``name`` has no standing specification, or ``points`` is not (P, 3).
+        UnknownFrame: a foot is not a frame of the robot.
     """
     if name not in STANDING:
         raise SimError(
@@ -138,10 +145,13 @@ def build_floating_scene(
         robot = load_robot(name)
         welded = load_robot(name, fixed_base=True)
     q0 = standing_pose(robot, spec)
-    corners = np.array(spec.points, dtype=np.float64)
+    feet = spec.feet if feet is None else tuple(feet)
+    corners = np.array(spec.points if points is None else points, dtype=np.float64)
+    if corners.ndim != 2 or corners.shape[1] != 3 or len(corners) == 0:
+        raise SimError(f"points must have shape (P, 3), P >= 1; got {corners.shape}")
     model = robot.model
     extra: dict[str, str] = {}
-    for foot in spec.feet:
+    for foot in feet:
         frame = model.frames[robot.frame_id(foot)]
         spheres = []
         for c in corners:
@@ -172,7 +182,7 @@ def build_floating_scene(
     )
     data = model.createData()
     pin.framesForwardKinematics(model, data, q0)
-    lowest = min(data.oMf[robot.frame_id(f)].act(c)[2] for f in spec.feet for c in corners)
+    lowest = min(data.oMf[robot.frame_id(f)].act(c)[2] for f in feet for c in corners)
     q0 = q0.copy()
     q0[2] -= lowest  # the lowest contact point on the floor
-    return FloatingScene(robot, xml, q0, spec.feet, corners)
+    return FloatingScene(robot, xml, q0, feet, corners)

@@ -30,21 +30,29 @@ def cmd_robots(args: argparse.Namespace) -> int:
     # deferred (as in every command): loading the robots imports Pinocchio and MuJoCo
     from geosyn.robots import BUILTINS, load_robot
     from geosyn.robots.catalog import catalog
+    from geosyn.sim.floating_scene import STANDING
 
     entries = catalog()
     print(f"{'robot':<28} {'DoF':>3} {'mass [kg]':>10}  {'end-effector':<30} source")
     for name in BUILTINS:
-        entry = entries.get(name)
-        floating = entry is not None and entry.floating
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            welded = False
             try:
-                r = load_robot(name, fixed_base=True) if floating else load_robot(name)
+                try:
+                    r = load_robot(name)
+                except GeosynError:  # e.g. couplings on a floating base: welded it loads
+                    if not (entries.get(name) and entries[name].floating):
+                        raise
+                    r, welded = load_robot(name, fixed_base=True), True
             except GeosynError as err:
                 print(f"{name:<28}   -          -  {'-':<30} cannot load: {err}")
                 continue
         source = "built-in" if r.source_file is None else Path(r.source_file).name
-        notes = ["floating base: needs fixed_base=True"] if floating else []
+        notes = ["floating base: loads with fixed_base=True only"] if welded else []
+        if r.floating:  # DoF counts the base's 6
+            stands = "stands in kind tracking" if name in STANDING else "fixed_base: true to run it"
+            notes.append(f"floating base, DoF with the base's 6: {stands}")
         notes += [f"{len(caught)} warning(s) on loading"] if caught else []
         extra = f" ({'; '.join(notes)})" if notes else ""
         print(f"{name:<28} {r.nv:>3} {r.total_mass:>10.3f}  {r.ee_frame:<30} {source}{extra}")

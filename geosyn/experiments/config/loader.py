@@ -226,7 +226,7 @@ def scene_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
                     f"no payload named {d.payload!r}; named payloads: {', '.join(names) or 'none'}",
                 )
             ]
-    if bodies:
+    if bodies and not robot.floating:  # a floating robot's pushes: run.floating checks them
         try:
             scene = build_scene(robot, payloads=build_payloads(cfg, robot))
         except GeosynError as err:

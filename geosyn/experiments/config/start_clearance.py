@@ -32,8 +32,9 @@ DEPTH = 1e-3
 def start_configuration(cfg: ExperimentConfig) -> tuple[str, np.ndarray] | None:
     """The start configuration a config names, with its field path (None if none)."""
     ref, syn = cfg.reference, cfg.synergies
-    if ref is not None and getattr(ref, "q_start", None) is not None:
-        return "reference.q_start", np.asarray(ref.q_start, dtype=np.float64)
+    q_start = getattr(ref, "q_start", None)  # a stance_synergy reference has none
+    if q_start is not None:
+        return "reference.q_start", np.asarray(q_start, dtype=np.float64)
     q0_syn = getattr(syn, "q0", None)
     if q0_syn is not None:
         return "synergies.q0", np.asarray(q0_syn, dtype=np.float64)

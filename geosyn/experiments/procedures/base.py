@@ -140,6 +140,7 @@ SECTIONS = (
     "robot",
     "metric",
     "scene",
+    "stance",
     "synergies",
     "reference",
     "controllers",

@@ -29,6 +29,7 @@ from geosyn.experiments.procedures.base import (
 from geosyn.experiments.procedures.common import track_with_each_controller
 from geosyn.experiments.results.plots import torque_plot, tracking_error_plot
 from geosyn.experiments.run import build as B
+from geosyn.experiments.run import floating as F
 from geosyn.experiments.run import references as R
 from geosyn.experiments.run.run_metrics import (
     DEFAULT_THRESHOLD,
@@ -67,10 +68,13 @@ class Tracking(Procedure):
 
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:
-        return check_required(cfg, "reference", "controllers")
+        return check_required(cfg, "reference", "controllers") + F.floating_problems(cfg, robot)
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
         cfg, robot = ctx.config, ctx.robot
+        if robot.floating:  # standing on the floor, base free: geosyn.experiments.run.floating
+            advance = ctx.progress(f"{cfg.name}: controllers", len(cfg.controllers))
+            return F.track_floating(cfg, robot, advance)
         metric = B.build_metric(cfg, robot, scene=ctx.scene)
         out: dict[str, np.ndarray] = {}
         ref: Reference

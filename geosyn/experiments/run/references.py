@@ -109,7 +109,7 @@ def reference_geodesic(
 ) -> Geodesic:
     """The geodesic of a reference section over ``ref.duration`` (before time scaling), in
     the joints (on a coupled robot: computed in z on the pull-back metric, then lifted)."""
-    if ref.type == "goals" or ref.type == "planned":
+    if ref.type in ("goals", "planned", "stance_synergy"):
         raise ProcedureFailed(f"a {ref.type!r} reference is built by kind tracking")
     coupling = reference_coupling(metric)
     if ref.type == "combination":
@@ -122,6 +122,8 @@ def reference_geodesic(
         zd0 = _tangent_velocity(metric, coupling, coupling.q(z0), np.asarray(syn.v0))
         cm = CoupledMetric(metric, coupling)
         return _lift(exp(cm, z0, zd0, ref.duration, ref.steps), coupling)
+    if not isinstance(ref, S.LogReference):  # stance_synergy: geosyn.experiments.run.floating
+        raise ProcedureFailed(f"a {ref.type!r} reference is built by kind tracking")
     if coupling is not None:
         z0 = _z_of(coupling, ref.q_start, "q_start")
         z1 = _z_of(coupling, ref.goal, "goal")
@@ -136,6 +138,8 @@ def build_reference(
     """(the tracked reference, its geodesic) of the config's reference section."""
     if cfg.reference is None:
         raise ProcedureFailed(f"experiment {cfg.name!r} has no reference section")
+    if isinstance(cfg.reference, S.StanceSynergyReferenceConfig):
+        raise ProcedureFailed("a 'stance_synergy' reference is built by kind tracking")
     geo = reference_geodesic(cfg.reference, metric, synergies)
     ref = tracked_reference(geo, metric, cfg.reference.time_scale, cfg.reference.rest_to_rest)
     return ref, geo

@@ -18,7 +18,11 @@ experiment stores in ``results.npz``) to named scalars:
   the obstacles (``inf`` without obstacles);
 - ``max_contact_force`` [N]: the largest total normal force of the robot-obstacle
   contacts (when the run logs ``contact_force``; 0 with visual-only obstacles);
-- ``wall_time`` [s] of the run.
+- ``wall_time`` [s] of the run;
+- floating-base robots standing on the floor (`geosyn.experiments.run.floating`):
+  ``feet_slip`` [m], the largest horizontal displacement of a contact frame,
+  ``feet_sink`` [m], its largest vertical displacement, and ``min_base_height`` [m]; their
+  tracking error is taken on the group (``pinocchio.difference``, base twist [m, rad]).
 
 A run that did not complete (``ok`` 0: diverged, stopped, its controller failed) has
 every other metric NaN, counts included: a count up to the stop would read as clean.
@@ -73,6 +77,9 @@ UNITS: dict[str, str] = {
     "min_clearance": "m",
     "max_contact_force": "N",
     "wall_time": "s",
+    "feet_slip": "m",
+    "feet_sink": "m",
+    "min_base_height": "m",
 }
 
 
@@ -238,6 +245,10 @@ def standard_metrics(
     clearance = _array(run, "clearance")
     if clearance is not None and clearance.size:
         out["min_clearance"] = float(np.min(clearance))
+    for name in ("feet_slip", "feet_sink", "min_base_height"):  # floating robots only
+        value = _array(run, name)
+        if value is not None:
+            out[name] = float(value)
     wall = _array(run, "wall_time")
     if wall is not None:
         out["wall_time"] = float(wall)

@@ -19,7 +19,8 @@ synergies, a payload index against the payloads, ...) are in `consistency_errors
 
 Modules: `section` (strict base, `Section`, defaults from signatures), `values` (value
 types of fields), `scene` (robot, obstacles, payloads), `metric`, `synergies` (synergies
-and references), `controllers`, `disturbances`, `experiment` (simulation, outputs, the
+and references), `controllers`, `stance` (a floating robot's stance and its reference),
+`disturbances`, `experiment` (simulation, outputs, the
 whole config).
 """
 
@@ -29,6 +30,7 @@ from geosyn.experiments.schema.controllers import (
     MPCConfig,
     QPConfig,
     RiemannianPDConfig,
+    WholeBodyConfig,
 )
 from geosyn.experiments.schema.disturbances import (
     DisturbanceConfig,
@@ -65,6 +67,11 @@ from geosyn.experiments.schema.scene import (
     SphereConfig,
 )
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
+from geosyn.experiments.schema.stance import (
+    StanceConfig,
+    StanceSynergyReferenceConfig,
+    SynergyDirection,
+)
 from geosyn.experiments.schema.synergies import (
     CombinationReference,
     DesignedSynergies,
@@ -129,11 +136,15 @@ __all__ = [
     "SensorNoiseConfig",
     "SimulationConfig",
     "SphereConfig",
+    "StanceConfig",
+    "StanceSynergyReferenceConfig",
     "Strict",
+    "SynergyDirection",
     "SynergyConfig",
     "TermConfig",
     "TorqueNoiseConfig",
     "Vec3",
+    "WholeBodyConfig",
     "WrenchConfig",
     "consistency_errors",
     "python_defaults",

@@ -14,6 +14,7 @@ from pydantic import Field
 
 from geosyn.controllers import ComputedTorque, GeodesicMPC, QPController, RiemannianPD
 from geosyn.controllers.mpc import DDPOptions, NLPOptions
+from geosyn.controllers.whole_body import WholeBodyController
 from geosyn.experiments.schema.section import Section, python_defaults
 from geosyn.experiments.schema.values import Gain, NonNegFloat, PositiveFloat
 
@@ -26,6 +27,7 @@ _QP = python_defaults(QPController, kp=400.0, kd=40.0)
 _MPC = python_defaults(GeodesicMPC)
 _NLP = python_defaults(NLPOptions)
 _DDP = python_defaults(DDPOptions)
+_WHOLE_BODY = python_defaults(WholeBodyController)
 
 
 class _ControllerBase(Section):
@@ -148,11 +150,30 @@ class MPCConfig(_ControllerBase):
     tracking: Literal["euclidean", "metric"] = _MPC["tracking"]
 
 
+class WholeBodyConfig(_ControllerBase):
+    """`WholeBodyController` (floating-base robots on a ``stance``): the QP over
+    accelerations and contact forces (proxsuite), gains ``kp`` [1/s^2], ``kd`` [1/s],
+    task ``weights``, ``contact_gain`` [1/s]; contacts, friction cone and ``f_min`` are
+    the ``stance`` section's."""
+
+    builds = (WholeBodyController,)
+    type: Literal["whole_body"]
+    kp: Gain = _WHOLE_BODY["kp"]
+    kd: Gain = _WHOLE_BODY["kd"]
+    weights: Gain = _WHOLE_BODY["weights"]
+    contact_gain: NonNegFloat = _WHOLE_BODY["contact_gain"]
+    force_regularisation: PositiveFloat = _WHOLE_BODY["force_regularisation"]
+    compensate_friction: bool = _WHOLE_BODY["compensate_friction"]
+    friction_velocity: PositiveFloat = _WHOLE_BODY["friction_velocity"]
+
+
 ControllerConfig = Annotated[
-    ComputedTorqueConfig | RiemannianPDConfig | QPConfig | MPCConfig, Field(discriminator="type")
+    ComputedTorqueConfig | RiemannianPDConfig | QPConfig | MPCConfig | WholeBodyConfig,
+    Field(discriminator="type"),
 ]
 
 __all__ = [
+    "WholeBodyConfig",
     "ComputedTorqueConfig",
     "ControllerConfig",
     "DDPSolverConfig",

@@ -25,6 +25,7 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
         "robot": ("", "the robot"),
         "metric": ("", "the metric: kinetic energy plus shaping terms"),
         "scene": ("", "payloads and obstacles of the MuJoCo scene, and whether they collide"),
+        "stance": ("", "a floating robot's contact frames held on the floor, their points"),
         "synergies": ("", "synergies of the robot (needed by a combination reference)"),
         "reference": ("", "what the controllers track"),
         "controllers": ("", "the controllers; each one runs the experiment"),
@@ -44,6 +45,17 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
         "fixed_base": ("", "weld a floating base to the world (null: the robot's own)"),
         "tau_max": ("N m", "one torque limit for every joint (null: the file's limits)"),
     },
+    "StanceConfig": {
+        "frames": ("", "contact frames held on the floor (feet, soles)"),
+        "points": ("m", "(P, 3) contact points in each frame; 1: a point foot, >= 3: a sole"),
+        "mu": ("", "friction coefficient of the controllers' cones (below the floor's 1.0)"),
+        "f_min": ("N", "smallest normal force per contact point"),
+    },
+    "SynergyDirection": {
+        "base": ("m/s, rad/s", "(6,) base twist of the wish, base frame"),
+        "joints": ("rad/s", "joint rates of the wish by joint name (others 0)"),
+    },
+    "WholeBodyConfig": {"label": _LABEL},
     "MetricConfig": {"terms": ("", "shaping terms added to the kinetic-energy metric")},
     "SceneConfig": {
         "payloads": ("", "rigid payloads welded to links"),

@@ -13,6 +13,7 @@ from geosyn.experiments.schema.disturbances import DisturbanceConfig
 from geosyn.experiments.schema.metric import MetricConfig
 from geosyn.experiments.schema.scene import RobotConfig, SceneConfig
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
+from geosyn.experiments.schema.stance import StanceConfig
 from geosyn.experiments.schema.synergies import ReferenceConfig, SynergyConfig
 from geosyn.experiments.schema.values import PositiveFloat
 from geosyn.sim import Simulation, render_video
@@ -87,6 +88,7 @@ class ExperimentConfig(Strict):
     robot: RobotConfig
     metric: MetricConfig = MetricConfig()
     scene: SceneConfig = SceneConfig()
+    stance: StanceConfig | None = None
     synergies: SynergyConfig | None = None
     reference: ReferenceConfig | None = None
     controllers: list[ControllerConfig] = []

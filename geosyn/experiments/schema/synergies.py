@@ -17,6 +17,7 @@ from pydantic import Field, model_validator
 
 from geosyn.controllers import GeodesicReference
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
+from geosyn.experiments.schema.stance import StanceSynergyReferenceConfig
 from geosyn.experiments.schema.values import FiniteFloat, JointVector, PositiveFloat
 from geosyn.metrics import exp, log
 from geosyn.metrics.planning import Planner
@@ -151,7 +152,11 @@ class PlannedReference(Strict):
 
 
 ReferenceConfig = Annotated[
-    CombinationReference | LogReference | GoalsReference | PlannedReference,
+    CombinationReference
+    | LogReference
+    | GoalsReference
+    | PlannedReference
+    | StanceSynergyReferenceConfig,
     Field(discriminator="type"),
 ]
 
