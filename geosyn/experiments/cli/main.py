@@ -3,7 +3,8 @@
 Every subcommand is a `Command` listed by its module (`experiment_commands`,
 `schema_commands`, `viewer_commands`) and assembled in `COMMANDS`; a `GeosynError` raised by any of
 them is printed as one line on stderr and exits with code 2 (bad input), never as a
-traceback; ``--help`` lists every exit code (`exit_codes`).
+traceback; ``--help`` lists every exit code (`exit_codes`). geosyn's own warnings print
+once each, on one line without a source line (`warning_format`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from geosyn.experiments.cli import (
     viewer_commands,
 )
 from geosyn.experiments.cli.registry import Command
+from geosyn.experiments.cli.warning_format import geosyn_warnings_once
 from geosyn.experiments.run import termination
 
 #: Every subcommand, by name, in ``--help`` order.
@@ -61,7 +63,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(exc.code) if isinstance(exc.code, int) else 2
     fn = COMMANDS[args.command].run
     try:
-        with termination.sigterm_exits():  # the previous handler is back when main returns
+        # the previous signal handler and warnings display are back when main returns
+        with termination.sigterm_exits(), geosyn_warnings_once():
             return fn(args)
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -118,13 +118,18 @@ def cmd_schema(args: argparse.Namespace) -> int:
 
 def _start_and_goal(robot: Any) -> tuple[list[float], list[float]]:
     """A start at the model's zero configuration moved 0.1 rad inside finite position
-    limits, and a goal 0.4 rad away on the first three joints (kept inside too)."""
+    limits, and a goal 0.4 rad away on the first three joints (kept inside too); on a
+    robot with coupled joints both are moved onto the coupling (its independent joints
+    kept)."""
     lo, hi = robot.model.lowerPositionLimit, robot.model.upperPositionLimit
     finite = (np.abs(lo) < 1e3) & (np.abs(hi) < 1e3) & (hi - lo > 0.3)
     start = np.where(finite, np.clip(0.0, lo + 0.1, hi - 0.1), 0.0)
     goal = start.copy()
     goal[: min(3, robot.nq)] += 0.4
     goal = np.where(finite, np.clip(goal, lo + 0.05, hi - 0.05), goal)
+    coupling = getattr(robot, "coupling", None)
+    if coupling is not None:
+        start, goal = coupling.q(coupling.z(start)), coupling.q(coupling.z(goal))
     return [round(float(x), 3) for x in start], [round(float(x), 3) for x in goal]
 
 
@@ -186,7 +191,11 @@ params:
 
 def _init_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", metavar="NAME", help="experiment name (the file is NAME.yaml)")
-    p.add_argument("--robot", default="planar2", help="a built-in robot (default planar2)")
+    p.add_argument(
+        "--robot",
+        default="planar2",
+        help="a built-in robot or a .urdf/.xml/.mjcf file path (default planar2)",
+    )
     p.add_argument("--out", metavar="FILE", help="where to write (default NAME.yaml)")
     p.add_argument("--force", action="store_true", help="replace an existing file")
 
@@ -197,12 +206,22 @@ def cmd_init(args: argparse.Namespace) -> int:
     path = Path(args.out or f"{args.name}.yaml")
     if path.exists() and not args.force:
         raise ConfigError(str(path), None, "exists; choose another --out or pass --force")
+    from geosyn.core import GeosynError
     from geosyn.robots import BUILTINS
 
-    if args.robot not in BUILTINS:
-        reason = unknown_name_message(args.robot, list(BUILTINS), "robot")
-        raise ConfigError("init", "--robot", reason)
-    path.write_text(template(args.name, args.robot), encoding="utf-8")
+    robot = args.robot
+    if robot not in BUILTINS:
+        if not robot.lower().endswith((".urdf", ".xml", ".mjcf")):
+            reason = unknown_name_message(robot, list(BUILTINS), "robot")
+            raise ConfigError("init", "--robot", reason + " (or a .urdf/.xml/.mjcf path)")
+        if not Path(robot).is_file():
+            raise ConfigError("init", "--robot", f"robot file {robot!r} does not exist")
+        robot = str(Path(robot).resolve())  # the config then runs from any directory
+    try:
+        text = template(args.name, robot)
+    except GeosynError as err:
+        raise ConfigError("init", "--robot", str(err)) from err
+    path.write_text(text, encoding="utf-8")
     print(f"wrote {path}; run it with: geosyn run {path}")
     return 0
 

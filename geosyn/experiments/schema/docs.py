@@ -43,7 +43,31 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
         "gravity": ("m/s^2", "(3,) gravity vector (null: the model's)"),
         "ee_frame": ("", "end-effector frame (null: the robot's)"),
         "fixed_base": ("", "weld a floating base to the world (null: the robot's own)"),
-        "tau_max": ("N m", "one torque limit for every joint (null: the file's limits)"),
+        "tau_max": (
+            "N m",
+            "torque limit: one for every joint, or {joint: limit} (null: the file's limits)",
+        ),
+        "floating_base": ("", "put a URDF's root link on a free flyer (null: fixed)"),
+        "default_tau_max": (
+            "N m",
+            "torque limit of joints the file and tau_max give none (null: the loader's, warned)",
+        ),
+        "default_v_max": (
+            "rad/s",
+            "velocity limit of joints the file gives none (null: the loader's default, warned)",
+        ),
+        "keep_joints": ("", "joints to keep; every other is locked (null: all joints)"),
+        "lock_q": ("rad or m", "{joint: position} where locked joints are held (null: 0, clipped)"),
+        "damping": ("N m s/rad", "{joint: viscous damping} replacing the file's ({}: none)"),
+        "frictionloss": ("N m", "{joint: dry friction} replacing the file's ({}: none)"),
+        "capsule_radius": (
+            "m",
+            "radius of the derived collision capsules (null: the loader's default)",
+        ),
+        "inertia_check": (
+            "",
+            "an unphysical URDF inertial: 'error' refuses the file, 'warn' loads it (null: error)",
+        ),
     },
     "StanceConfig": {
         "frames": ("", "contact frames held on the floor (feet, soles)"),

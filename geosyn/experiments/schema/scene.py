@@ -16,13 +16,28 @@ from geosyn.world import Payload
 
 
 class RobotOptions(Strict):
-    """Options of `geosyn.robots.load_robot` (only these are accepted; None: the robot's own)."""
+    """Options of `geosyn.robots.load_robot` (only these are accepted; None: the robot's own).
+
+    Every user option of the file loader (`geosyn.robots.files.load_file` and
+    `geosyn.robots.from_model.robot_from_model`) is here; a built-in robot that does not
+    take one refuses it by name when the config is loaded.
+    """
 
     armature: NonNegFloat | None = None
     gravity: Vec3 | None = None
     ee_frame: str | None = None
     fixed_base: bool | None = None  # weld a floating base (recorded in Robot.base)
-    tau_max: PositiveFloat | None = None  # overrides the file's torque limits [N m]
+    floating_base: bool | None = None  # a URDF's root link on a free flyer
+    # overrides the file's torque limits [N m]: one for every joint or {joint: limit}
+    tau_max: PositiveFloat | dict[str, PositiveFloat] | None = None
+    default_tau_max: PositiveFloat | None = None  # where neither file nor tau_max gives one
+    default_v_max: PositiveFloat | None = None  # where the file gives none [rad/s]
+    keep_joints: Annotated[list[str], Field(min_length=1)] | None = None
+    lock_q: dict[str, FiniteFloat] | None = None  # positions of the locked joints
+    damping: dict[str, NonNegFloat] | None = None  # replaces the file's; {} none
+    frictionloss: dict[str, NonNegFloat] | None = None  # replaces the file's; {} none
+    capsule_radius: PositiveFloat | None = None  # derived collision capsules [m]
+    inertia_check: Literal["error", "warn"] | None = None  # an unphysical URDF inertial
 
 
 class RobotConfig(Strict):
@@ -30,7 +45,8 @@ class RobotConfig(Strict):
 
     ``plant``: ``model`` simulates geosyn's rebuilt model of the robot; ``file`` simulates
     the robot's original MJCF file (its meshes, contacts, joint properties; its actuators
-    disabled, geosyn's torques applied as joint forces), see `geosyn.sim.file_scene`.
+    disabled, geosyn's torques applied as joint forces; the scene's obstacles, payloads and
+    contact added to it as to the model), see `geosyn.sim.file_scene`.
     """
 
     name: str
