@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
+from PIL import Image
 
 from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import ConfigError
@@ -40,7 +41,8 @@ def _feet_slip(robot, q: np.ndarray, feet: list[str]) -> float:  # type: ignore[
 def test_built_in_floating_experiment_stands_under_a_50_newton_push(
     tmp_path, name: str, duration: float, low: float
 ) -> None:
-    cfg, _ = load_config(name, [f"simulation.duration={duration}"])  # the push is 0.8 - 1.0 s
+    overrides = [f"simulation.duration={duration}", "outputs.fps=25", "outputs.width=160"]
+    cfg, _ = load_config(name, [*overrides, "outputs.height=120"])  # the push is 0.8 - 1.0 s
     out = run_experiment(cfg, tmp_path / name, video=True, progress=False, quiet=True)
     s = out.summary
     # measured: talos slip 0.21 mm, sink 0.70 mm, base >= 0.95 m; go2 0.63 mm, 1.3 mm, 0.27 m
@@ -59,7 +61,9 @@ def test_built_in_floating_experiment_stands_under_a_50_newton_push(
     assert s["whole_body.rms_error"] == pytest.approx(np.sqrt(np.mean(diff**2)), rel=1e-12)
     assert 0.0 < s["whole_body.rms_error"] < 0.06  # measured 0.043 (talos), 0.0077 (go2)
     video = json.loads((out.path / "run.json").read_text())["video"]
-    assert not video["files"] and "floating base" in video["error"]  # refused, run kept
+    assert video["error"] is None and video["files"] == ["video_whole_body.gif"]
+    with Image.open(out.path / "video_whole_body.gif") as gif:  # 25 fps over the run
+        assert gif.n_frames == video["frames"] == int(25 * (duration - 1e-3)) + 1
 
 
 def cfg_robot(cfg):  # type: ignore[no-untyped-def]

@@ -26,6 +26,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from geosyn.experiments.run.build import build_disturbances
+from geosyn.experiments.run.floating import floating_videos
 from geosyn.experiments.run.scene import BuiltScene, build_run_scene
 from geosyn.experiments.schema import ExperimentConfig
 from geosyn.robots import Robot
@@ -141,6 +142,30 @@ def motion_clip(
     )
 
 
+def _floating_videos(
+    cfg: ExperimentConfig,
+    robot: Robot,
+    results: dict[str, np.ndarray],
+    out_dir: Path,
+    record: dict[str, Any],
+) -> dict[str, Any]:
+    """`write_videos` of a floating-base robot (`geosyn.experiments.run.floating`)."""
+    t0 = time.perf_counter()
+    try:
+        record["files"] = floating_videos(cfg, robot, results, out_dir)
+    except Exception as err:  # a failed video never throws the finished run away
+        record["error"] = f"video of a floating-base robot: {type(err).__name__}: {err}"
+        return record
+    frames = sum(  # one per 1/fps over each run (`geosyn.sim.floating_video`)
+        len(np.arange(t[0], t[-1] + 1e-12, 1.0 / cfg.outputs.fps))
+        for t in (results[f"{label}__t"] for label in cfg.controller_labels())
+    )
+    record["frames"] = frames
+    record["seconds_per_frame"] = (time.perf_counter() - t0) / max(frames, 1)
+    record["robot_drawn_as"] = "geosyn's twin (capsules between joints) on the floor"
+    return record
+
+
 def write_videos(
     cfg: ExperimentConfig,
     robot: Robot,
@@ -166,13 +191,8 @@ def write_videos(
         motion gets an error saying so.
     """
     record: dict[str, Any] = {"files": [], "frames": 0, "seconds_per_frame": None, "error": None}
-    if robot.floating:  # the renderer poses geosyn's fixed-base twin (issue 26: not yet)
-        record["error"] = (
-            f"videos of floating-base robots are not drawn yet: {robot.name!r} has a floating"
-            " base and the renderer poses a fixed-base twin; the run's configurations (base"
-            " pose included) are in results.npz"
-        )
-        return record
+    if robot.floating:  # standing on the floor with its base free: its own scene
+        return _floating_videos(cfg, robot, results, out_dir, record)
     motions = run_motions(results, robot.nq)
     if not motions:
         record["error"] = (

@@ -12,12 +12,14 @@ error taken on the group (``pinocchio.difference(q, q_ref)``, (nv,) [m, rad]), p
 feet's ``feet_slip`` and ``feet_sink`` [m] and the ``min_base_height`` [m]. A push acts
 on the base body (its ``body`` must be ``base`` or the robot's root link); a run whose
 base drops below `FALL_FRACTION` of its start height ends with status ``fell``.
+`floating_videos` films each run in the same standing scene.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,12 +36,14 @@ from geosyn.metrics.stance_synergy import StanceSynergy
 from geosyn.robots import Robot
 from geosyn.sim.floating_plant import FloatingPlant
 from geosyn.sim.floating_scene import FloatingScene, build_floating_scene
+from geosyn.sim.floating_video import render_floating_video
 
 __all__ = [
     "FALL_FRACTION",
     "FLOATING_CONTROLLERS",
     "FloatingSetup",
     "build_floating_setup",
+    "floating_videos",
     "floating_problems",
     "run_floating",
     "track_floating",
@@ -244,3 +248,27 @@ def track_floating(
         out |= {f"{label}__{k}": v for k, v in run.items()}
         advance()
     return out
+
+
+def floating_videos(
+    cfg: S.ExperimentConfig, robot: Robot, results: dict[str, np.ndarray], out_dir: Path
+) -> list[str]:
+    """Write ``video_{label}.{gif|mp4}`` of every controller's run in the standing scene
+    (`geosyn.sim.floating_video`), sized and timed by ``outputs``; returns the file names.
+
+    Raises:
+        RenderError: no OpenGL context, or the video could not be written.
+    """
+    st = cfg.stance
+    if st is None:
+        raise ProcedureFailed(f"{cfg.name}: a floating robot needs a stance section")
+    o = cfg.outputs
+    scene = build_floating_scene(robot.name, feet=st.frames, points=np.array(st.points))
+    files = []
+    for label in cfg.controller_labels():
+        name = f"video_{label}.{o.video_format}"
+        t, q = results[f"{label}__t"], results[f"{label}__q"]
+        size = (min(o.width, 1280), min(o.height, 960))
+        render_floating_video(scene, t, q, out_dir / name, o.fps, *size, label=label)
+        files.append(name)
+    return files
