@@ -90,3 +90,47 @@ def test_bad_input():
         reach([s], [1.0, 0.0, 0.0], "tip", robot, lam=-1.0)
     with pytest.raises(InvalidSynergyInput, match="duration"):
         reach([s], [1.0, 0.0, 0.0], "tip", robot, duration=0.0)
+
+
+def _limited_arm():
+    """tests/fixtures/floating_arm.xml with its base welded: 3 joints limited to +-2.5 rad."""
+    import warnings
+    from pathlib import Path
+
+    from geosyn.metrics import KineticEnergyMetric
+    from geosyn.robots import load_robot
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot(Path(__file__).parent / "fixtures" / "floating_arm.xml", fixed_base=True)
+    return robot, KineticEnergyMetric(robot)
+
+
+def test_reach_stays_inside_the_joint_limits():
+    """A target only reached straight on by turning j1 to 2.9 rad (limit 2.5): the motion
+    returned stays inside the limits (the best it can do is reported, not converged)."""
+    robot, metric = _limited_arm()
+    q0 = np.array([2.2, 0.3, 0.5])
+    np.testing.assert_array_equal(robot.q_max, [2.5, 2.5, 2.5])
+    basis = orthonormal_synergies(metric, q0, 3)
+    target = fk(robot, np.array([2.9, 0.3, 0.5]), "tip")
+    res = reach(basis.synergies, target, "tip", robot, q_start=q0, restarts=2)
+    q = res.trajectory.q
+    assert np.all(q <= robot.q_max) and np.all(q >= robot.q_min)
+    assert q[:, 0].max() > 2.4  # it went as far as the limit allows
+    assert not res.converged and res.error > 0.05
+    # Inside the limits, a target is still reached as before.
+    near = fk(robot, np.array([2.0, 0.5, 0.3]), "tip")
+    ok = reach(basis.synergies, near, "tip", robot, q_start=q0)
+    assert ok.converged and np.all(np.abs(ok.trajectory.q) <= 2.5)
+
+
+def test_reach_from_outside_the_limits_names_the_joint():
+    from geosyn.synergies.reach import ReachOutsideLimits
+
+    robot, metric = _limited_arm()
+    q_out = np.array([0.1, 2.7, 0.0])
+    basis = orthonormal_synergies(metric, q_out, 2)
+    with pytest.raises(ReachOutsideLimits, match="joint 'j2' at 2.7 passes its limit 2.5") as err:
+        reach(basis.synergies, [0.3, 0.0, 0.8], "tip", robot, q_start=q_out)
+    assert err.value.joint == "j2" and err.value.limit == 2.5

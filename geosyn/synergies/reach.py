@@ -1,4 +1,5 @@
-"""Reaching with synergies: the weights whose combined geodesic brings a frame to a target."""
+"""Reaching with synergies: the weights whose combined geodesic brings a frame to a target,
+with every configuration of the motion inside the robot's joint position limits."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from geosyn.core.validation import check_float, check_int, check_positive
 from geosyn.metrics.geodesic import Geodesic, exp
 from geosyn.robots.kinematics import frame_position
 from geosyn.robots.robot import Robot
-from geosyn.synergies.errors import synergy_input
+from geosyn.synergies.errors import SynergyError, synergy_input
 from geosyn.synergies.synergy import (
     GeodesicSynergy,
     _check_synergies,
@@ -21,6 +22,56 @@ from geosyn.synergies.synergy import (
     check_robot,
     transported_velocities,
 )
+
+#: Weight [m/rad] of a joint-limit violation against the position error in the solve.
+LIMIT_WEIGHT = 10.0
+#: The solve keeps the motion this far inside finite joint limits [rad or m], so that the
+#: few microradians a penalised solve may leave over stay inside the true limits.
+LIMIT_MARGIN = 1e-3
+
+
+class ReachOutsideLimits(SynergyError):
+    """No motion found inside the joint limits (or ``q_start`` is outside them).
+
+    Attributes:
+        joint: name of the joint furthest outside its limits.
+        value: its position [rad or m] (at time ``t``).
+        limit: the limit it passes [rad or m].
+        t: time along the motion [s].
+    """
+
+    def __init__(self, message: str, joint: str, value: float, limit: float, t: float) -> None:
+        super().__init__(message)
+        self.joint, self.value, self.limit, self.t = joint, float(value), float(limit), float(t)
+
+
+def _limits(robot: Robot, n: int) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.asarray(robot.q_min, dtype=np.float64)
+    hi = np.asarray(robot.q_max, dtype=np.float64)
+    if lo.shape != (n,):  # a floating base: no limits on the group part
+        return np.full(n, -np.inf), np.full(n, np.inf)
+    return lo, hi
+
+
+def _check_within(robot: Robot, traj: Geodesic, lo: np.ndarray, hi: np.ndarray, what: str) -> None:
+    """Raise `ReachOutsideLimits` naming the joint furthest outside ``[lo, hi]``."""
+    q = np.asarray(traj.q, dtype=np.float64)
+    over = np.maximum(q - hi, 0.0) + np.maximum(lo - q, 0.0)
+    if not over.size or float(over.max()) <= 0.0:
+        return
+    k, j = np.unravel_index(int(np.argmax(over)), over.shape)
+    value = float(q[k, j])
+    limit = float(hi[j] if value > hi[j] else lo[j])
+    name = robot.joint_names[j] if j < len(robot.joint_names) else f"q[{j}]"
+    raise ReachOutsideLimits(
+        f"{what}: joint {name!r} at {value:.4g} passes its limit {limit:.4g} at"
+        f" t={float(traj.t[k]):.3g} s (limits [{lo[j]:.4g}, {hi[j]:.4g}]); give another"
+        " target or q_start, more synergies, or a longer duration",
+        name,
+        value,
+        limit,
+        float(traj.t[k]),
+    )
 
 
 class ReachResult(NamedTuple):
@@ -70,6 +121,12 @@ def reach(
     random weights (normal, std ``weight_scale``); the best solution is returned. A
     target that is not reached is reported by ``converged=False``, not raised.
 
+    Joint limits: every sample of the motion is kept inside the robot's finite position
+    limits shrunk by `LIMIT_MARGIN` by a penalty residual (weight `LIMIT_WEIGHT`) on the
+    violation; the best solution is chosen among those inside the limits first. A motion
+    that still leaves the true limits is never returned: `ReachOutsideLimits` names the
+    joint, its value, the limit and the time.
+
     Args:
         synergies: m synergies sharing one metric.
         target: (3,) target position in the world frame [m].
@@ -91,6 +148,8 @@ def reach(
         InvalidSynergyInput: bad input.
         UnknownFrame: ``frame`` is not in the robot.
         SynergyNotConverged: a synergy base could not be joined to ``q_start``.
+        ReachOutsideLimits: ``q_start`` outside the joint limits, or no motion found
+            inside them.
     """
     syns = _check_synergies(synergies)
     metric = syns[0].metric
@@ -105,20 +164,23 @@ def reach(
         restarts = check_int(restarts, "restarts", low=0)
     fid = robot.frame_id(frame)
     q_s = syns[0].q0.copy() if q_start is None else as_vector(q_start, n, "q_start")
+    lo, hi = _limits(robot, n)
+    _check_within(robot, Geodesic(np.zeros(1), q_s[None, :], np.zeros((1, n))), lo, hi, "q_start")
+    lo_in = np.where(np.isfinite(lo), np.minimum(lo + LIMIT_MARGIN, (lo + hi) / 2), lo)
+    hi_in = np.where(np.isfinite(hi), np.maximum(hi - LIMIT_MARGIN, (lo + hi) / 2), hi)
     Vt = transported_velocities(syns, q_s, steps=steps)
     m = Vt.shape[1]
     data = robot.model.createData()
     sqrt_lam = np.sqrt(lam)
 
-    def endpoint(w: np.ndarray) -> Vector:
-        g = exp(metric, q_s, Vt @ w, duration=duration, steps=steps)
-        return frame_position(robot, g.q[-1], fid, data)
-
     def residual(w: np.ndarray) -> np.ndarray:
-        return np.concatenate([endpoint(w) - p_star, sqrt_lam * w])
+        q = exp(metric, q_s, Vt @ w, duration=duration, steps=steps).q
+        over = np.maximum(q - hi_in, 0.0) + np.maximum(lo_in - q, 0.0)
+        p = frame_position(robot, q[-1], fid, data)
+        return np.concatenate([p - p_star, sqrt_lam * w, LIMIT_WEIGHT * over.ravel()])
 
     rng = np.random.default_rng(seed)
-    best_w, best_err, starts = np.zeros(m), np.inf, 0
+    best_w, best_err, best_feasible, starts = np.zeros(m), np.inf, False, 0
     for attempt in range(restarts + 1):
         w0 = np.zeros(m) if attempt == 0 else weight_scale * rng.standard_normal(m)
         sol = scipy.optimize.least_squares(
@@ -133,11 +195,13 @@ def reach(
         )
         starts += 1
         err = float(np.linalg.norm(sol.fun[:3]))
-        if err < best_err:
-            best_w, best_err = sol.x.copy(), err
-        if best_err <= tol:
+        feasible = not np.any(sol.fun[3 + m :] > 0.0)
+        if (feasible, -err) > (best_feasible, -best_err):
+            best_w, best_err, best_feasible = sol.x.copy(), err, feasible
+        if best_feasible and best_err <= tol:
             break
     traj = exp(metric, q_s, Vt @ best_w, duration=duration, steps=steps)
+    _check_within(robot, traj, lo, hi, f"reach of {frame!r} to {np.round(p_star, 4).tolist()}")
     position = frame_position(robot, traj.q[-1], fid, data)
     error = float(np.linalg.norm(position - p_star))
     return ReachResult(best_w, position, error, traj, error <= tol, starts)
