@@ -95,7 +95,7 @@ class PushRecovery(Procedure):
     """Each controller tracks the reference through the configured disturbances."""
 
     kind = "push_recovery"
-    sections = SECTIONS  # every section
+    sections = tuple(s for s in SECTIONS if s != "stance")  # fixed-base robots: no stance
     description = "track a synergy combination under a push, a payload change and torque noise; compare controllers"
     Params = PushRecoveryParams
     units = {
