@@ -9,7 +9,7 @@ from geosyn.synergies.basis import SynergyBasis, g_orthonormalize, orthonormal_s
 from geosyn.synergies.errors import InvalidSynergyInput, SynergyError, SynergyNotConverged
 from geosyn.synergies.perception_map import MapSolution, SynergyMap
 from geosyn.synergies.pga import PCAResult, PGAResult, frechet_mean, pca_synergies, pga
-from geosyn.synergies.reach import ReachResult, reach
+from geosyn.synergies.reach import ReachOutsideLimits, ReachResult, reach
 from geosyn.synergies.sequence import (
     SequenceSegment,
     SynergySequence,
@@ -25,6 +25,7 @@ __all__ = [
     "MapSolution",
     "PCAResult",
     "PGAResult",
+    "ReachOutsideLimits",
     "ReachResult",
     "SequenceSegment",
     "SynergyBasis",
