@@ -17,6 +17,7 @@ base drops below `FALL_FRACTION` of its start height ends with status ``fell``.
 
 from __future__ import annotations
 
+import difflib
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -35,7 +36,7 @@ from geosyn.metrics.stance import Stance
 from geosyn.metrics.stance_synergy import StanceSynergy
 from geosyn.robots import Robot
 from geosyn.sim.floating_plant import FloatingPlant
-from geosyn.sim.floating_scene import FloatingScene, build_floating_scene
+from geosyn.sim.floating_scene import STANDING, FloatingScene, build_floating_scene
 from geosyn.sim.floating_video import render_floating_video
 
 __all__ = [
@@ -82,8 +83,26 @@ def floating_problems(cfg: S.ExperimentConfig, robot: Robot) -> list[tuple[str, 
         if ref_type == "stance_synergy":
             errors.append(("reference", "stance_synergy needs a floating-base robot"))
         return errors
+    if robot.name not in STANDING:
+        reason = f"{robot.name!r} has no standing pose; robots that stand: {', '.join(STANDING)}"
+        errors.append(("robot.name", reason + " (or fixed_base: true)"))
     if cfg.stance is None:
         errors.append(("stance", f"floating-base robot {robot.name!r} needs a stance section"))
+    else:
+        frames = {str(f.name) for f in robot.model.frames}
+        for i, name in enumerate(cfg.stance.frames):
+            if name not in frames:
+                close = difflib.get_close_matches(name, sorted(frames), n=3)
+                hint = f"; closest: {', '.join(close)}" if close else ""
+                reason = f"{name!r} is not a frame of {robot.name!r}{hint}"
+                errors.append((f"stance.frames.{i}", reason))
+    ref = cfg.reference
+    if isinstance(ref, S.StanceSynergyReferenceConfig):
+        joints = list(robot.joint_names)
+        for name in ref.direction.joints:
+            if name not in joints:
+                reason = f"{name!r} is not a joint of {robot.name!r}; joints: {', '.join(joints)}"
+                errors.append(("reference.direction.joints", reason))
     if ref_type != "stance_synergy":
         errors.append(("reference", "a floating-base robot tracks a stance_synergy reference"))
     for i, c in enumerate(cfg.controllers):
