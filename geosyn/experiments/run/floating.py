@@ -50,6 +50,8 @@ __all__ = [
     "track_floating",
 ]
 
+_BODY = pin.FrameType.BODY
+
 FALL_FRACTION = 0.5
 """A run falls when its base height drops below this fraction of the start height."""
 
@@ -110,11 +112,13 @@ def floating_problems(cfg: S.ExperimentConfig, robot: Robot) -> list[tuple[str, 
             errors.append(
                 (f"controllers.{i}", f"{c.type} needs a fixed-base robot; use whole_body")
             )
+    root = [str(f.name) for f in robot.model.frames if f.parentJoint == 1 and f.type == _BODY]
+    bases = ("base", *root[:1])  # the root link: the free flyer's body
     for i, d in enumerate(cfg.disturbances):
         if d.type != "push":
             errors.append((f"disturbances.{i}", f"{d.type} is not simulated on a floating robot"))
-        elif d.body not in ("base", str(robot.model.names[1])):
-            reason = f"a push acts on the base: body 'base' or {str(robot.model.names[1])!r}"
+        elif d.body not in bases:
+            reason = f"a push acts on the base: body {' or '.join(map(repr, bases))}"
             errors.append((f"disturbances.{i}.body", reason))
         elif d.point is not None:
             errors.append((f"disturbances.{i}.point", "a push on the base acts at its origin"))
