@@ -132,13 +132,20 @@ KEPT_WHEN_FAILED = frozenset(
 )
 
 
+#: Words that mark a plain summary key as a claim derived by comparing runs (not
+#: established, NaN, when any run failed).
+DERIVED_CLAIMS = ("ratio", "saving", "reduction", "speedup", "improvement")
+
+
 def clean_summary(summary: dict[str, Any]) -> dict[str, float]:
     """Floats only (bools and ints converted); JSON-safe; failed runs marked.
 
     A run whose ``ok`` (``<row>.ok`` or plain ``ok``) is not 1 diverged, stopped or its
     controller failed: its metrics other than `KEPT_WHEN_FAILED` become NaN (never a 0.0
-    that reads as perfect), plain ratios become NaN (they compare runs), and
-    ``failed_runs`` counts such runs (present whenever the summary has ``ok`` keys).
+    that reads as perfect), plain derived claims (keys naming one of `DERIVED_CLAIMS`:
+    ratios, savings, reductions; they compare runs) become NaN, ``claims_established`` is 0
+    (1 when every run is ok), and ``failed_runs`` counts such runs (both present whenever
+    the summary has ``ok`` keys).
     """
     out: dict[str, float] = {}
     for k, v in summary.items():
@@ -153,8 +160,9 @@ def clean_summary(summary: dict[str, Any]) -> dict[str, float]:
             out[key] = math.nan
     if failed:
         for key in out:
-            if "." not in key and "ratio" in key:
+            if "." not in key and any(word in key for word in DERIVED_CLAIMS):
                 out[key] = math.nan
+    out["claims_established"] = 0.0 if failed else 1.0
     out["failed_runs"] = float(len(failed))
     return out
 
@@ -172,6 +180,7 @@ def write_summary(
 
 
 __all__ = [
+    "DERIVED_CLAIMS",
     "KEPT_WHEN_FAILED",
     "clean_summary",
     "fmt",
