@@ -135,7 +135,6 @@ def test_no_import_cycle_among_the_package_modules(graph: dict[str, set[str]]) -
 MPC = "geosyn.controllers.mpc"
 
 
-
 def test_experiments_never_import_a_solver_family(graph: dict[str, set[str]]) -> None:
     """`geosyn.experiments` uses the MPC through `geosyn.controllers.mpc`'s public names
     (or `geosyn.controllers`), never one of its modules or solver subpackages."""
