@@ -23,11 +23,12 @@ def _run(name, tmp_path, *overrides, plots=False):
     return outcome.summary, results
 
 
-def test_there_are_eight_builtins_each_with_a_description():
+def test_the_builtins_each_have_a_description():
     names = builtin_names()
     assert names == sorted(
         [
             "arm_synergy_combinations",
+            "go2_body_shift",  # its claims: tests/test_floating_experiments.py
             "human_synergies",  # its claims: tests/test_human_experiment.py
             "perception_reach",  # its claims: tests/test_perception_map.py
             "pga_vs_pca",
@@ -38,6 +39,7 @@ def test_there_are_eight_builtins_each_with_a_description():
             "planar2_geodesic_vs_euclidean",
             "synergy_sequence",  # its claims: tests/test_sequence.py
             "synergy_transport",
+            "talos_stance_push",  # its claims: tests/test_floating_experiments.py
             "ur5_tracking",  # kind tracking; its claims: tests/test_tracking.py
         ]
     )
