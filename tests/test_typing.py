@@ -9,21 +9,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_exports import LAYERS
 
 import geosyn
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = [
-    "core",
-    "robots",
-    "world",
-    "metrics",
-    "synergies",
-    "controllers",
-    "sim",
-    "export",
-    "experiments",
-]
 # One module per layer and a use of a name from the layer below it, mistyped on purpose.
 PLANTED = "\n\ndef _planted() -> int:\n    return 'not an int'  # planted type error\n"
 
