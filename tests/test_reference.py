@@ -285,7 +285,7 @@ def test_interpolated_acceleration_is_close_to_exact(panda_geodesic, rest_to_res
 def test_sequence_reference_plays_segments_in_turn():
     """Two cubic pieces of one polynomial (independent: the polynomial itself) played one
     after the other give the polynomial on both, and hold the end after the last."""
-    from geosyn.controllers.reference import SequenceReference
+    from geosyn.controllers.sequence_reference import SequenceReference
 
     rng = np.random.default_rng(3)
     coeffs = rng.normal(size=(4, 2))

@@ -12,12 +12,12 @@ if not __name__.startswith("geosyn."):  # the folder imported as a top-level pac
 
 from geosyn.controllers.base import Controller, ControllerDiagnostics
 from geosyn.controllers.computed_torque import ComputedTorque
+from geosyn.controllers.coupled_reference import CoupledReference
 from geosyn.controllers.errors import ControllerError, NoReference, SolverFailed
 from geosyn.controllers.mpc import GeodesicMPC, MPCPlan, OpenLoopSolution
 from geosyn.controllers.plant import PinocchioPlant, Rollout
 from geosyn.controllers.qp import QPController
 from geosyn.controllers.reference import (
-    CoupledReference,
     GeodesicReference,
     JointTrajectoryReference,
     Reference,
@@ -25,6 +25,7 @@ from geosyn.controllers.reference import (
 )
 from geosyn.controllers.replan import replan_geodesic
 from geosyn.controllers.riemannian_pd import RiemannianPD
+from geosyn.controllers.sequence_reference import SequenceReference
 from geosyn.controllers.whole_body import WholeBodyController
 from geosyn.controllers.whole_body_reference import StanceSynergyReference
 
@@ -45,6 +46,7 @@ __all__ = [
     "Reference",
     "ReferenceSample",
     "RiemannianPD",
+    "SequenceReference",
     "Rollout",
     "SolverFailed",
     "StanceSynergyReference",

@@ -4,10 +4,9 @@
   optionally slowed down or sped up by a time scale, with the exact geodesic acceleration.
 - `JointTrajectoryReference`: a joint-space trajectory given by samples, interpolated by
   piecewise cubic (or quintic, when accelerations are given) polynomials.
-- `CoupledReference`: a reference in the independent coordinates z of coupled joints
-  (``q = S z + c``, `geosyn.robots.Coupling`), e.g. a geodesic of the pull-back metric
-  `geosyn.metrics.CoupledMetric`, lifted to the joints so that any controller tracks it.
-- `SequenceReference`: references played one after the other (geodesics through goals).
+- (`geosyn.controllers.coupled_reference.CoupledReference`: a reference in the
+  independent coordinates z of coupled joints, lifted; `geosyn.controllers.
+  sequence_reference.SequenceReference`: references played one after the other.)
 
 On a robot with coupled joints, a `GeodesicReference` on the joints' metric whose samples
 satisfy the coupling is computed in the independent coordinates on the pull-back metric and
@@ -26,7 +25,6 @@ from __future__ import annotations
 import bisect
 import warnings
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -397,124 +395,3 @@ class JointTrajectoryReference(_SampledReference):
         if tau is None:
             return self._hold(float(t))
         return ReferenceSample(*self._spline(tau))
-
-
-class CoupledReference(Reference):
-    """A reference in independent coordinates z, lifted to the coupled joints.
-
-    For a robot whose joints are coupled, ``q = S z + c`` (``robot.coupling``), geodesics
-    and synergies live in z (`geosyn.metrics.CoupledMetric`, ``G_z = S^T G S``); the
-    controllers work in the joints q, on the robot's full dynamics. Because S is constant,
-    the lift is exact at every time:
-
-    .. math::
-        q = S z + c, \\qquad \\dot q = S \\dot z, \\qquad \\ddot q = S \\ddot z,
-
-    so a computed-torque (or QP, MPC) controller of the robot tracks the z-geodesic on the
-    coupled manifold. The controller commands every joint, dependent ones included, on
-    the robot's unconstrained dynamics; as the reference satisfies the constraints, the
-    simulated constraint forces stay small (computed torque inside the coupled fixture
-    file: RMS error ~1e-4 rad, tests/test_couplings.py). Typical use::
-
-        metric = CoupledMetric(KineticEnergyMetric(robot), robot.coupling)
-        geodesic = GeodesicReference(exp(metric, z0, z_dot0), metric)  # in z
-        ref = CoupledReference(geodesic, robot.coupling)  # in q
-        controller.set_reference(ref)  # any joint-space controller
-
-    Args:
-        reference: the reference in z (anything with ``sample(t) -> (z, z_dot, z_ddot)``,
-            ``goal()``, ``n``, ``duration`` and ``t0``; ``n`` must equal ``coupling.nz``).
-        coupling: the coupling ``q = S z + c``.
-
-    Attributes:
-        inner: the reference in z.
-        coupling: the coupling.
-        n: number of joints (rows of S).
-
-    `sample` allocates its three result arrays (and what the inner reference allocates).
-
-    Raises:
-        InvalidArgument: ``coupling`` is not a `Coupling`, ``reference`` has no
-            ``sample``, or its dimension is not ``coupling.nz``.
-    """
-
-    def __init__(self, reference: Reference, coupling: Coupling) -> None:
-        if not isinstance(coupling, Coupling):
-            raise InvalidArgument(
-                f"coupling must be a geosyn.robots.Coupling, got {type(coupling).__name__}"
-            )
-        if not callable(getattr(reference, "sample", None)):
-            raise InvalidArgument(
-                f"reference must have sample(t) (a geosyn Reference), got {type(reference).__name__}"
-            )
-        nz = getattr(reference, "n", None)
-        if nz != coupling.nz:
-            raise InvalidArgument(
-                f"reference has dimension n={nz}, but the coupling has nz={coupling.nz}"
-                f" independent coordinates {coupling.independent}"
-            )
-        self.inner = reference
-        self.coupling = coupling
-        self.n = int(coupling.S.shape[0])
-        self.t0 = float(reference.t0)
-        self.duration = float(reference.duration)
-        self._S = np.asarray(coupling.S, dtype=np.float64)
-        self._c = np.asarray(coupling.c, dtype=np.float64)
-
-    def sample(self, t: float) -> ReferenceSample:
-        """Joint reference at time ``t`` [s].
-
-        Returns:
-            (n,) ``S z + c`` [rad], (n,) ``S z_dot`` [rad/s], (n,) ``S z_ddot`` [rad/s^2].
-        """
-        z, z_dot, z_ddot = self.inner.sample(t)
-        S = self._S
-        return ReferenceSample(S @ z + self._c, S @ z_dot, S @ z_ddot)
-
-    def goal(self) -> Vector:
-        """(n,) final joint configuration ``S z_goal + c`` [rad]."""
-        return self._S @ np.asarray(self.inner.goal(), dtype=np.float64) + self._c
-
-
-class SequenceReference(Reference):
-    """References played one after the other: segment ``i`` runs from its ``t0`` until the
-    next one's; before the first it holds the first's start, after the last its goal.
-
-    Args:
-        segments: the references, in order, each with ``t0`` at the end of the previous
-            one (``t0 + duration``), all of dimension ``n``.
-
-    Raises:
-        InvalidArgument: no segment, dimensions that differ, or a segment that does not
-            start where the previous one ends (to 1e-9 s).
-    """
-
-    def __init__(self, segments: Sequence[Reference]) -> None:
-        self.segments = list(segments)
-        if not self.segments:
-            raise InvalidArgument("segments must hold at least one reference, got none")
-        self.n = self.segments[0].n
-        for i, (prev, seg) in enumerate(zip(self.segments, self.segments[1:], strict=False)):
-            if seg.n != self.n:
-                raise InvalidArgument(f"segments[{i + 1}] has n={seg.n}, segments[0] has {self.n}")
-            end = prev.t0 + prev.duration
-            if abs(seg.t0 - end) > 1e-9:
-                raise InvalidArgument(
-                    f"segments[{i + 1}].t0={seg.t0} [s] must equal the end of segments[{i}],"
-                    f" {end} [s]"
-                )
-        self.t0 = self.segments[0].t0
-        last = self.segments[-1]
-        self.duration = last.t0 + last.duration - self.t0
-
-    def sample(self, t: float) -> ReferenceSample:
-        """Reference ``(q, v, a)`` at controller time ``t`` [s] (that of the segment
-        running at ``t``; the goal at rest after the last)."""
-        for seg in self.segments:
-            if t < seg.t0 + seg.duration:
-                return seg.sample(t)
-        return self.segments[-1].sample(t)
-
-    def goal(self) -> Vector:
-        """(n,) the last goal [rad]."""
-        return self.segments[-1].goal()

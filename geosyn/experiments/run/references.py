@@ -26,7 +26,9 @@ from typing import NamedTuple
 import numpy as np
 
 from geosyn.controllers import GeodesicReference
-from geosyn.controllers.reference import CoupledReference, Reference, SequenceReference
+from geosyn.controllers.coupled_reference import CoupledReference
+from geosyn.controllers.reference import Reference
+from geosyn.controllers.sequence_reference import SequenceReference
 from geosyn.experiments import schema as S
 from geosyn.experiments.errors import ProcedureFailed
 from geosyn.metrics import CoupledMetric, Metric
