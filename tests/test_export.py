@@ -251,7 +251,9 @@ def test_library_depends_only_on_libc_and_libm(exports) -> None:
     assert exported == api, exported
 
 
-ALLOC_PROBE = r"""
+#: The allocation counter of the probes: every malloc/calloc/realloc of a program linked
+#: with -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc goes through it.
+ALLOC_COUNTER = r"""
 #include <stdio.h>
 #include <stdlib.h>
 #include "geosyn_controller.h"
@@ -260,6 +262,9 @@ void* __real_malloc(size_t); void* __real_calloc(size_t, size_t); void* __real_r
 void* __wrap_malloc(size_t n) { ++n_alloc; return __real_malloc(n); }
 void* __wrap_calloc(size_t a, size_t b) { ++n_alloc; return __real_calloc(a, b); }
 void* __wrap_realloc(void* p, size_t n) { ++n_alloc; return __real_realloc(p, n); }
+"""
+
+ALLOC_PROBE = r"""
 int main(void) {
     geosyn_controller* c = geosyn_controller_create();
     long at_create = n_alloc;
@@ -284,11 +289,10 @@ int main(void) {
 """
 
 
-def test_no_heap_allocation_after_create(exports, tmp_path: Path) -> None:
-    """The static library linked with -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc: every
-    allocation of the library goes through a counter."""
-    res = exports["panda", "riemannian_pd"]
-    (tmp_path / "probe.c").write_text(ALLOC_PROBE)
+def count_allocations(res: ExportResult, main_c: str, tmp_path: Path) -> dict[str, int]:
+    """Compile ``ALLOC_COUNTER + main_c`` against an export's static library with every
+    allocation wrapped, run it, and return the ``name count`` lines it prints."""
+    (tmp_path / "probe.c").write_text(ALLOC_COUNTER + main_c)
     exe = tmp_path / "probe"
     wrap = "-Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc"
     subprocess.run(
@@ -298,10 +302,16 @@ def test_no_heap_allocation_after_create(exports, tmp_path: Path) -> None:
     )  # fmt: skip
     out = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout
     print(out)
-    counts = dict(line.split() for line in out.splitlines())
-    assert int(counts["allocations_in_create"]) >= 1  # the counter sees the library's calloc
-    assert int(counts["allocations_after_create"]) == 0
-    assert int(counts["failed_calls"]) == 0
+    return {name: int(value) for name, value in (line.split() for line in out.splitlines())}
+
+
+def test_no_heap_allocation_after_create(exports, tmp_path: Path) -> None:
+    """The static library linked with -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc: every
+    allocation of the library goes through a counter."""
+    counts = count_allocations(exports["panda", "riemannian_pd"], ALLOC_PROBE, tmp_path)
+    assert counts["allocations_in_create"] >= 1  # the counter sees the library's calloc
+    assert counts["allocations_after_create"] == 0
+    assert counts["failed_calls"] == 0
 
 
 def test_export_refuses_what_it_cannot_do(exports, tmp_path: Path) -> None:

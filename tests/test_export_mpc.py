@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pytest
+from test_export import count_allocations
 
 from geosyn.controllers import GeodesicMPC, JointTrajectoryReference
 from geosyn.export import CController, ExportError, ExportResult, export_controller
@@ -201,14 +202,6 @@ def test_bad_input_gives_error_codes_and_leaves_the_mpc_usable(export: ExportRes
 
 
 ALLOC_PROBE = r"""
-#include <stdio.h>
-#include <stdlib.h>
-#include "geosyn_controller.h"
-static long n_alloc = 0;
-void* __real_malloc(size_t); void* __real_calloc(size_t, size_t); void* __real_realloc(void*, size_t);
-void* __wrap_malloc(size_t n) { ++n_alloc; return __real_malloc(n); }
-void* __wrap_calloc(size_t a, size_t b) { ++n_alloc; return __real_calloc(a, b); }
-void* __wrap_realloc(void* p, size_t n) { ++n_alloc; return __real_realloc(p, n); }
 int main(void) {
     geosyn_controller* c = geosyn_controller_create();
     long at_create = n_alloc;
@@ -230,20 +223,10 @@ int main(void) {
 def test_no_heap_allocation_after_create(export: ExportResult, tmp_path: Path) -> None:
     """The static library linked with -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc:
     cold solves, warm solves and the feedback allocate nothing."""
-    (tmp_path / "probe.c").write_text(ALLOC_PROBE)
-    exe = tmp_path / "probe"
-    wrap = "-Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc"
-    subprocess.run(
-        ["nice", "-n", "10", "cc", "-O2", f"-I{export.out_dir}", str(tmp_path / "probe.c"),
-         str(export.static_library), wrap, "-lm", "-o", str(exe)],
-        check=True,
-    )  # fmt: skip
-    out = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout
-    print(out)
-    counts = dict(line.split() for line in out.splitlines())
-    assert int(counts["allocations_in_create"]) >= 2  # the controller and its MPC
-    assert int(counts["allocations_after_create"]) == 0
-    assert int(counts["failed_calls"]) == 0
+    counts = count_allocations(export, ALLOC_PROBE, tmp_path)
+    assert counts["allocations_in_create"] >= 2  # the controller and its MPC
+    assert counts["allocations_after_create"] == 0
+    assert counts["failed_calls"] == 0
 
 
 def test_export_refuses_an_mpc_it_cannot_export(tmp_path: Path) -> None:
