@@ -21,6 +21,7 @@ import socket
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -206,6 +207,34 @@ def _check_reachable(address: str, timeout: float) -> None:
         )
 
 
+#: Ray's switch for multi-node clusters: on Linux it is on by default, and then a local
+#: cluster's GCS, raylet and workers listen on every interface with the machine's address
+#: (Ray maps 127.0.0.1 to it); off, they listen on 127.0.0.1 only (checked with ``ss -ltn``).
+_RAY_CLUSTER_ENV = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+
+
+def _loopback_only_local_cluster() -> None:
+    """Make a ``--ray local`` cluster listen on 127.0.0.1 only (said once if overridden).
+
+    Ray reads the switch when it is imported and its processes inherit it, so it is set
+    before the import; a value the user exported is kept and reported.
+    """
+    value = os.environ.get(_RAY_CLUSTER_ENV)
+    if value is None:
+        os.environ[_RAY_CLUSTER_ENV] = "0"
+        if "ray" in sys.modules:  # imported earlier in this process: read at call time
+            constants = sys.modules.get("ray._private.ray_constants")
+            if constants is not None:
+                setattr(constants, "ENABLE_RAY_CLUSTER", False)  # noqa: B010
+    elif value.strip().lower() not in ("0", "false"):
+        warnings.warn(
+            f"--ray local: {_RAY_CLUSTER_ENV}={value} is set, so the local Ray cluster"
+            " listens on every network interface, not only 127.0.0.1",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+
+
 def _ray_init(ray: Any, address: str, workers: int) -> None:
     """``ray.init`` with a connection check first and one-line errors."""
     _check_reachable(address, RAY_CONNECT_TIMEOUT)
@@ -248,6 +277,8 @@ def run_ray(
     job_fn: JobFunction,
 ) -> None:
     """Run ``job_fn(job)`` for each job as Ray tasks (one CPU each); see `_ray_init`."""
+    if address == "local":
+        _loopback_only_local_cluster()
     try:  # deferred: ray is the optional 'distributed' extra
         import ray
     except ImportError as err:
