@@ -14,9 +14,11 @@ One query, within a stated time budget:
    a small initial barrier parameter (``seeded_mu_init``); if the coarse-to-fine plan
    fails, the full collocation from the straight line itself;
 3. if that fails, RRT-Connect (`geosyn.metrics.planning.rrt`) for a global seed around
-   the obstacles, then collocation from it; with ``alternatives`` > 0, also after a
-   constrained straight-line result, from that many RRT-Connect seeds (other homotopy
-   classes round the obstacles), keeping the lowest-energy plan;
+   the obstacles, then collocation from it; after a constrained straight-line result,
+   up to ``alternatives`` RRT-Connect seeds (other homotopy classes round the
+   obstacles), each while the time left is at least the time the first plan took,
+   keeping the lowest-energy plan not longer than the straight line's
+   (`geosyn.metrics.planning.query`);
 4. checks the result between the nodes (``check_factor`` times finer and at most
    ``check_step`` apart, linear between nodes) and, for a robot with a file, against its
    exact collision geometry (`geosyn.metrics.planning.verify`: coal distances to the
@@ -48,11 +50,9 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
-from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.rrt import rrt_connect, shortcut
+from geosyn.metrics.planning.query import REFINEMENTS, Query
 from geosyn.metrics.planning.verify import (
-    REPAIR_STEP,
     check_end,
     exact_check,
     feasible_result,
@@ -69,10 +69,6 @@ ANYTIME_CHECKS = 3
 
 ANYTIME_SLACK = 1.05
 """Those checks stop at this multiple of the budget (an unchecked path is not returned)."""
-
-REFINEMENTS = ((1, 3), (2, 1), (2, 3))
-"""What a path that fails the fine check is solved again with, in turn, from the same
-seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
 
 
 def densify(path: np.ndarray, factor: int) -> np.ndarray:
@@ -102,7 +98,10 @@ class Planner:
         check_step: largest joint-space distance (2-norm) between two checked
             configurations [rad], > 0.
         alternatives: RRT-Connect seeds tried after a constrained straight-line plan,
-            >= 0 (each costs a sampling and a collocation; the lowest-energy plan wins).
+            >= 0, each only while the time left of the budget is at least the time the
+            first plan took (each costs a sampling and a collocation); the lowest-energy
+            plan whose metric length is not above the straight line's wins. 0: the first
+            plan is returned as soon as it is found.
         coarse_nodes: segments of the coarse collocation that seeds the full one when
             there are obstacles, >= 2; 0: none (the full collocation from the straight line).
         coarse_subdivisions: constrained points inside each coarse segment, >= 0.
@@ -129,7 +128,7 @@ class Planner:
         nodes: int = 24,
         check_factor: int = 4,
         check_step: float = 0.005,
-        alternatives: int = 0,
+        alternatives: int = 2,
         coarse_nodes: int = 4,
         coarse_subdivisions: int = 3,
         coarse_inflation: float = 0.015,
@@ -330,122 +329,4 @@ class Planner:
         self.term.set_obstacles(obstacles)
         self._check_end(q0, "start")
         self._check_end(q1, "goal")
-        attempts: list[str] = []
-        first = [math.nan]  # when the first plan passed every check [s]
-
-        def left() -> float:
-            return budget - (time.perf_counter() - t0)
-
-        def finish(
-            res: CollocationResult, init: np.ndarray | None, seed_name: str, share: float
-        ) -> Plan | None:
-            """The plan if ``res`` passes the fine check, else solved again from the same
-            seed ``init`` along `REFINEMENTS` (within the first ``share`` of the budget)
-            until one does. Not from ``res``: where a thin obstacle lies between two
-            constrained points, a finer NLP started there keeps the crossing (measured)."""
-            previous, extra = -math.inf, 0.0
-            for level, (_, sub) in enumerate(((1, 1), *REFINEMENTS)):
-                coarse, fine = self.check(res.q)
-                check, what = min(coarse, fine), "the fine check"
-                exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution)
-                if self.exact is not None:  # the robot's own geometry decides
-                    check, what = exact.clearance, f"the exact check ({exact.link})"
-                if check >= 0.0:
-                    wall = time.perf_counter() - t0
-                    if math.isnan(first[0]):
-                        first[0] = wall
-                    return Plan(res, seed_name, coarse, wall, tuple(attempts), fine,
-                                exact.clearance, self.exact_resolution, first[0])  # fmt: skip
-                attempts.append(
-                    f"{res.kind} path ({len(res.nodes) - 1} segments, {sub} constrained "
-                    f"point(s) inside each) crosses an obstacle on {what} "
-                    f"(clearance {check:.4f} m)"
-                )
-                if self.exact is not None:  # repair: a larger sphere margin, and more points
-                    extra += -check + REPAIR_STEP
-                if level == len(REFINEMENTS):
-                    return None
-                if level >= 2 and check <= 0.5 * previous:  # after more nodes, too
-                    attempts.append("refining does not help: the path tunnels through")
-                    return None
-                previous = max(previous, check)
-                nodes, sub = self.nodes * REFINEMENTS[level][0], REFINEMENTS[level][1]
-                col = self.collocation(nodes, sub)  # its first use builds it: then the clock
-                if (share_left := left() - (1.0 - share) * budget) <= 0:
-                    attempts.append("no time left to refine it")
-                    return None
-                res = self.solve(col, q0, q1, init=init, budget=share_left,
-                                 lower=self.bounds(col, q0, q1, self.margin + extra))  # fmt: skip
-                if not res.success:
-                    attempts.append(f"collocation ({nodes} segments, {sub} constrained "
-                                    f"point(s) inside each): {res.message}")  # fmt: skip
-                    return None
-            return None
-
-        def from_rrt(index: int) -> Plan | None:
-            """Collocation from an RRT-Connect seed (``seed + index``), or None."""
-            name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
-            # the sampling box: the limits, or within pi of start and goal where infinite
-            lo = np.maximum(self.robot.q_min, np.minimum(q0, q1) - np.pi)
-            hi = np.minimum(self.robot.q_max, np.maximum(q0, q1) + np.pi)
-            path, grown = rrt_connect(self.valid, q0, q1, lo, hi, budget=0.6 * left(),
-                                      seed=seed + index)  # fmt: skip
-            if path is None:
-                attempts.append(f"{name}: no connection after {grown} nodes")
-                return None
-            if len(path) == 2:  # the straight line is free: collocation already had it
-                attempts.append(f"{name}: the straight line is collision-free")
-                return None
-            path = shortcut(self.valid, path, budget=0.05 * left(), seed=seed + index)
-            attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
-            if (remaining := left()) <= 0:
-                return None
-            res = self.solve(self.collocation(self.nodes), q0, q1, init=path, budget=remaining)
-            attempts.append(f"collocation from the {name} path: {res.message}")
-            if not res.success:
-                unfinished.extend([(res.nodes, f"the interrupted collocation from the {name} "
-                                   "path"), (path, f"the {name} path")])  # fmt: skip
-            return finish(res, path, name.lower(), 1.0) if res.success else None
-
-        plans: list[Plan] = []
-        unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
-        if self.coarse_nodes and self.term.obstacles:
-            res, init = self._coarse_to_fine(q0, q1, 0.4 * budget, attempts)
-            unfinished += [(res.nodes, "the interrupted collocation from the coarse path"),
-                           (init, "the coarse collocation's path")] if not res.success else []  # fmt: skip
-            if res.success and (plan := finish(res, init, "straight line", 0.6)) is not None:
-                plans.append(plan)
-        if not plans:
-            res = self.solve(self.collocation(self.nodes), q0, q1,
-                             budget=max(0.5 * left(), 1e-3))  # fmt: skip
-            attempts.append(f"collocation from the straight line: {res.message}")
-            if not res.success:
-                unfinished.append((res.nodes, "the interrupted collocation from the line"))
-            if res.success and (plan := finish(res, None, "straight line", 0.75)) is not None:
-                plans.append(plan)
-        constrained = bool(plans) and plans[0].result.kind == "constrained"
-        tries = (self.alternatives if constrained else 0) if plans else 1
-        for index in range(tries):
-            if left() <= 0:
-                attempts.append(f"no time left for RRT-Connect seed {index}")
-                break
-            if (plan := from_rrt(index)) is not None:
-                plans.append(plan)
-        if not plans and unfinished:  # anytime: the lowest-energy path that passes the checks
-            plan = self._anytime(unfinished, t0, attempts, t0 + ANYTIME_SLACK * budget)
-            plans += [plan] if plan is not None else []
-        if plans:
-            lowest = min(p.result.energy for p in plans)  # ties (1e-9) go to the earlier
-            best = next(p for p in plans if p.result.energy <= lowest + 1e-9 * abs(lowest))
-            if len(plans) > 1:
-                attempts.append(f"kept the lowest-energy of {len(plans)} plans: {best.seed} "
-                                f"(energies {', '.join(f'{p.result.energy:.4f}' for p in plans)})")  # fmt: skip
-            return best._replace(wall_time=time.perf_counter() - t0, attempts=tuple(attempts))
-        elapsed = time.perf_counter() - t0
-        raise NoPathFound(
-            f"no collision-free path from the start to the goal within the {budget:g} s "
-            f"budget ({elapsed:.2f} s spent): " + "; ".join(attempts) + ". Try a larger "
-            "budget, a smaller margin, or check that the goal is reachable (not enclosed "
-            "by obstacles)",
-            budget, elapsed, tuple(attempts),
-        )  # fmt: skip
+        return Query(self, q0, q1, budget, seed, t0).run()

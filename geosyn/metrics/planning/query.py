@@ -1,0 +1,217 @@
+"""`Query`: one planning query of a `Planner`, from a checked start and goal to a `Plan`.
+
+The query's clock, the list of what was tried and the unfinished paths kept for an
+anytime return live here; the planner (its NLPs, checks and clearance bounds) is shared
+by every query. The order of the search is stated in `geosyn.metrics.planning.planner`.
+
+Homotopy rule: after a constrained plan from the straight line, up to
+``planner.alternatives`` RRT-Connect seeds (other ways round the obstacles) are solved,
+each only while the time left is at least the time the first plan took (a solve from a
+seed costs about as much). A plan from another seed replaces the kept one only when its
+energy is lower and its metric length (midpoint rule on its nodes) is not longer, so the
+returned path is never longer than the straight-line seed's solution.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geosyn.metrics.base import Metric
+from geosyn.metrics.geodesic.collocation import CollocationResult
+from geosyn.metrics.planning.errors import NoPathFound
+from geosyn.metrics.planning.plan import Plan
+from geosyn.metrics.planning.rrt import rrt_connect, shortcut
+from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check
+
+if TYPE_CHECKING:
+    from geosyn.metrics.planning.planner import Planner
+
+__all__ = ["REFINEMENTS", "Query", "metric_length"]
+
+REFINEMENTS = ((1, 3), (2, 1), (2, 3))
+"""What a path that fails the fine check is solved again with, in turn, from the same
+seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
+
+
+def metric_length(metric: Metric, path: np.ndarray) -> float:
+    """Metric length of the piecewise-linear ``path`` (T, n) [rad]: the sum over segments
+    of ``sqrt(dq^T G(q_mid) dq)`` (midpoint rule)."""
+    path = np.asarray(path, dtype=float)
+    dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
+    return float(
+        sum(math.sqrt(max(d @ metric.G(m) @ d, 0.0)) for d, m in zip(dq, mid, strict=True))
+    )
+
+
+class Query:
+    """One query of ``planner`` from ``q0`` to ``q1`` (checked, obstacles set) within
+    ``budget`` [s] from ``t0`` (perf_counter [s]); `run` returns the plan or raises."""
+
+    def __init__(self, planner: Planner, q0: np.ndarray, q1: np.ndarray, budget: float,
+                 seed: int, t0: float) -> None:  # fmt: skip
+        self.p, self.q0, self.q1 = planner, q0, q1
+        self.budget, self.seed, self.t0 = budget, seed, t0
+        self.attempts: list[str] = []
+        self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
+        self.first = math.nan  # when the first plan passed every check [s]
+
+    def left(self) -> float:
+        """Time left of the budget [s] (negative once spent)."""
+        return self.budget - (time.perf_counter() - self.t0)
+
+    def finish(self, res: CollocationResult, init: np.ndarray | None, seed_name: str,
+               share: float) -> Plan | None:  # fmt: skip
+        """The plan if ``res`` passes the fine check, else solved again from the same
+        seed ``init`` along `REFINEMENTS` (within the first ``share`` of the budget)
+        until one does. Not from ``res``: where a thin obstacle lies between two
+        constrained points, a finer NLP started there keeps the crossing (measured)."""
+        p, previous, extra = self.p, -math.inf, 0.0
+        for level, (_, sub) in enumerate(((1, 1), *REFINEMENTS)):
+            coarse, fine = p.check(res.q)
+            check, what = min(coarse, fine), "the fine check"
+            exact = exact_check(p.exact, res.q, p.term.obstacles, p.exact_resolution)
+            if p.exact is not None:  # the robot's own geometry decides
+                check, what = exact.clearance, f"the exact check ({exact.link})"
+            if check >= 0.0:
+                wall = time.perf_counter() - self.t0
+                self.first = wall if math.isnan(self.first) else self.first
+                return Plan(res, seed_name, coarse, wall, tuple(self.attempts), fine,
+                            exact.clearance, p.exact_resolution, self.first)  # fmt: skip
+            self.attempts.append(
+                f"{res.kind} path ({len(res.nodes) - 1} segments, {sub} constrained "
+                f"point(s) inside each) crosses an obstacle on {what} (clearance {check:.4f} m)"
+            )
+            if p.exact is not None:  # repair: a larger sphere margin, and more points
+                extra += -check + REPAIR_STEP
+            if level == len(REFINEMENTS):
+                return None
+            if level >= 2 and check <= 0.5 * previous:  # after more nodes, too
+                self.attempts.append("refining does not help: the path tunnels through")
+                return None
+            previous = max(previous, check)
+            nodes, sub = p.nodes * REFINEMENTS[level][0], REFINEMENTS[level][1]
+            col = p.collocation(nodes, sub)  # its first use builds it: then the clock
+            if (share_left := self.left() - (1.0 - share) * self.budget) <= 0:
+                self.attempts.append("no time left to refine it")
+                return None
+            res = p.solve(col, self.q0, self.q1, init=init, budget=share_left,
+                          lower=p.bounds(col, self.q0, self.q1, p.margin + extra))  # fmt: skip
+            if not res.success:
+                self.attempts.append(f"collocation ({nodes} segments, {sub} constrained "
+                                     f"point(s) inside each): {res.message}")  # fmt: skip
+                return None
+        return None
+
+    def from_rrt(self, index: int) -> Plan | None:
+        """Collocation from an RRT-Connect seed (``seed + index``), or None."""
+        p, q0, q1 = self.p, self.q0, self.q1
+        name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
+        # the sampling box: the limits, or within pi of start and goal where infinite
+        lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
+        hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
+        path, grown = rrt_connect(p.valid, q0, q1, lo, hi, budget=0.6 * self.left(),
+                                  seed=self.seed + index)  # fmt: skip
+        if path is None:
+            self.attempts.append(f"{name}: no connection after {grown} nodes")
+            return None
+        if len(path) == 2:  # the straight line is free: collocation already had it
+            self.attempts.append(f"{name}: the straight line is collision-free")
+            return None
+        path = shortcut(p.valid, path, budget=0.05 * self.left(), seed=self.seed + index)
+        self.attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
+        if (remaining := self.left()) <= 0:
+            return None
+        res = p.solve(p.collocation(p.nodes), q0, q1, init=path, budget=remaining)
+        self.attempts.append(f"collocation from the {name} path: {res.message}")
+        if not res.success:
+            self.unfinished.extend([(res.nodes, f"the interrupted collocation from the {name} "
+                                    "path"), (path, f"the {name} path")])  # fmt: skip
+            return None
+        return self.finish(res, path, name.lower(), 1.0)
+
+    def straight_line(self) -> Plan | None:
+        """The plan from the straight line (through the coarse collocation among
+        obstacles, else directly), or None."""
+        p, q0, q1 = self.p, self.q0, self.q1
+        if p.coarse_nodes and p.term.obstacles:
+            res, init = p._coarse_to_fine(q0, q1, 0.4 * self.budget, self.attempts)
+            if not res.success:
+                self.unfinished += [
+                    (res.nodes, "the interrupted collocation from the coarse path"),
+                    (init, "the coarse collocation's path"),
+                ]
+            elif (plan := self.finish(res, init, "straight line", 0.6)) is not None:
+                return plan
+        res = p.solve(p.collocation(p.nodes), q0, q1, budget=max(0.5 * self.left(), 1e-3))
+        self.attempts.append(f"collocation from the straight line: {res.message}")
+        if not res.success:
+            self.unfinished.append((res.nodes, "the interrupted collocation from the line"))
+            return None
+        return self.finish(res, None, "straight line", 0.75)
+
+    def alternatives(self, line: Plan) -> list[Plan]:
+        """Plans from RRT-Connect seeds after the constrained ``line`` plan (the
+        module's homotopy rule: each tried while the time left is at least the time
+        ``line`` took)."""
+        plans: list[Plan] = []
+        for index in range(self.p.alternatives):
+            if self.left() < line.wall_time:
+                self.attempts.append(
+                    f"alternative seeds stopped after {index}: {max(self.left(), 0.0):.2f} s "
+                    f"left, less than the first plan took ({line.wall_time:.2f} s)"
+                )
+                break
+            if (plan := self.from_rrt(index)) is not None:
+                plans.append(plan)
+        return plans
+
+    def keep(self, line: Plan | None, others: list[Plan]) -> Plan:
+        """The kept plan among ``line`` (the straight line's, if any) and ``others``:
+        the lowest-energy one not longer than ``line`` (energy ties to the earlier)."""
+        candidates = ([line] if line is not None else []) + others
+        plans = candidates
+        if line is not None and others:
+            cap = metric_length(self.p.metric, line.q) * (1.0 + 1e-9)
+            plans = [line] + [o for o in others if metric_length(self.p.metric, o.q) <= cap]
+        lowest = min(p.result.energy for p in plans)
+        best = next(p for p in plans if p.result.energy <= lowest + 1e-9 * abs(lowest))
+        if dropped := len(candidates) - len(plans):
+            self.attempts.append(f"{dropped} plan(s) from other seeds longer than the "
+                                 "straight line's: not kept")  # fmt: skip
+        if len(candidates) > 1:
+            energies = ", ".join(f"{p.result.energy:.4f}" for p in candidates)
+            self.attempts.append(f"kept the lowest-energy of {len(candidates)} plans: "
+                                 f"{best.seed} (energies {energies})")  # fmt: skip
+        return best._replace(wall_time=time.perf_counter() - self.t0, attempts=tuple(self.attempts))
+
+    def run(self) -> Plan:
+        """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
+        from geosyn.metrics.planning.planner import ANYTIME_SLACK
+
+        line = self.straight_line()
+        others: list[Plan] = []
+        if line is None:
+            if self.left() <= 0:
+                self.attempts.append("no time left for RRT-Connect seed 0")
+            elif (plan := self.from_rrt(0)) is not None:
+                others.append(plan)
+        elif line.result.kind == "constrained":
+            others = self.alternatives(line)
+        if line is None and not others and self.unfinished:  # anytime: the lowest-energy
+            end = self.t0 + ANYTIME_SLACK * self.budget  # path that passes the checks
+            plan = self.p._anytime(self.unfinished, self.t0, self.attempts, end)
+            others += [plan] if plan is not None else []
+        if line is not None or others:
+            return self.keep(line, others)
+        elapsed = time.perf_counter() - self.t0
+        raise NoPathFound(
+            f"no collision-free path from the start to the goal within the {self.budget:g} s "
+            f"budget ({elapsed:.2f} s spent): " + "; ".join(self.attempts) + ". Try a larger "
+            "budget, a smaller margin, or check that the goal is reachable (not enclosed "
+            "by obstacles)",
+            self.budget, elapsed, tuple(self.attempts),
+        )  # fmt: skip
