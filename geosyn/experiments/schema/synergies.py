@@ -13,14 +13,15 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, model_validator
 
 from geosyn.controllers import GeodesicReference
 from geosyn.experiments.schema.section import Section, Strict, python_defaults
 from geosyn.experiments.schema.stance import StanceSynergyReferenceConfig
-from geosyn.experiments.schema.values import FiniteFloat, JointVector, PositiveFloat
+from geosyn.experiments.schema.values import FiniteFloat, JointVector, PositiveFloat, Vec3
 from geosyn.metrics import exp, log
-from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning import EndEffectorGoal, Planner
 from geosyn.synergies import GeodesicSynergy, combine, orthonormal_synergies
 
 Count = Annotated[int, Field(ge=1)]
@@ -133,22 +134,55 @@ class GoalsReference(Section):
 
 
 _PLANNED = python_defaults(Planner, Planner.plan, GeodesicReference)
+_EE_GOAL = python_defaults(EndEffectorGoal)
+
+
+class EndEffectorGoalConfig(Strict):
+    """An end-effector goal (`geosyn.metrics.planning.EndEffectorGoal`): where a frame's
+    origin should be, optionally with its orientation (roll-pitch-yaw, as URDF), each
+    within a tolerance. The planner solves it by inverse kinematics within the joint
+    limits and clear of the scene, plans to ``solutions`` distinct solutions and keeps
+    the lowest-energy plan."""
+
+    position: Vec3
+    rpy: Vec3 | None = None
+    frame: str | None = _EE_GOAL["frame"]
+    position_tolerance: PositiveFloat = _EE_GOAL["position_tolerance"]
+    orientation_tolerance: PositiveFloat = _EE_GOAL["orientation_tolerance"]
+    solutions: Annotated[int, Field(ge=1, le=64)] = _EE_GOAL["solutions"]
+
+    def to_goal(self) -> EndEffectorGoal:
+        """The planner's goal."""
+        options = {"frame": self.frame, "position_tolerance": self.position_tolerance,
+                   "orientation_tolerance": self.orientation_tolerance,
+                   "solutions": self.solutions}  # fmt: skip
+        if self.rpy is None:
+            return EndEffectorGoal(tuple(self.position), **options)  # type: ignore[arg-type]
+        return EndEffectorGoal.from_rpy(self.position, self.rpy, **options)
 
 
 class PlannedReference(Strict):
     """A collision-free minimum-energy path from ``q_start`` to ``goal`` around the scene's
     obstacles (`geosyn.metrics.planning.Planner`: collocation, RRT-Connect fallback),
-    traversed in ``duration * time_scale`` (``kind: tracking`` only)."""
+    traversed in ``duration * time_scale`` (``kind: tracking`` only). The goal is a
+    joint configuration or an end-effector goal (``{position: [x, y, z], rpy: ...}``)."""
 
     type: Literal["planned"]
     q_start: JointVector
-    goal: JointVector
+    goal: JointVector | EndEffectorGoalConfig
     duration: PositiveFloat = _LOG["duration"]
     time_scale: PositiveFloat = _PLANNED["time_scale"]
     rest_to_rest: bool = _PLANNED["rest_to_rest"]
     margin: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = _PLANNED["margin"]
     nodes: Annotated[int, Field(ge=2, le=1000)] = _PLANNED["nodes"]
     budget: PositiveFloat = _PLANNED["budget"]
+
+    def planner_goal(self) -> np.ndarray | EndEffectorGoal:
+        """The goal as `Planner.plan` takes it: (nv,) joint positions [rad] or an
+        `EndEffectorGoal`."""
+        if isinstance(self.goal, EndEffectorGoalConfig):
+            return self.goal.to_goal()
+        return np.array(self.goal, dtype=np.float64)
 
 
 ReferenceConfig = Annotated[
@@ -163,6 +197,7 @@ ReferenceConfig = Annotated[
 __all__ = [
     "CombinationReference",
     "DesignedSynergies",
+    "EndEffectorGoalConfig",
     "ExplicitSynergies",
     "ExplicitSynergy",
     "GoalsReference",

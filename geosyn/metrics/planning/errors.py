@@ -5,7 +5,7 @@ from __future__ import annotations
 from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.errors import MetricError
 
-__all__ = ["InCollision", "NoPathFound", "OutsideJointLimits", "PlanningError"]
+__all__ = ["GoalUnreachable", "InCollision", "NoPathFound", "OutsideJointLimits", "PlanningError"]
 
 
 class PlanningError(MetricError):
@@ -64,3 +64,22 @@ class NoPathFound(PlanningError):
         self.budget = float(budget)
         self.elapsed = float(elapsed)
         self.attempts = attempts
+
+
+class GoalUnreachable(PlanningError):
+    """No configuration reaches an end-effector goal within its tolerances, inside the
+    joint limits and clear of the scene.
+
+    Attributes:
+        frame: the goal frame.
+        position: (3,) the goal position [m].
+        refused: why each solution found was refused (collision, self-collision).
+    """
+
+    def __init__(
+        self, message: str, frame: str, position: tuple[float, ...], refused: tuple[str, ...]
+    ) -> None:
+        super().__init__(message)
+        self.frame = frame
+        self.position = tuple(position)
+        self.refused = refused

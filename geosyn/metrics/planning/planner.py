@@ -37,6 +37,7 @@ of one robot and capacity reuses them.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import warnings
@@ -50,8 +51,10 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
+from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import REFINEMENTS, Query
+from geosyn.metrics.planning.self_collision import SelfCollision
 from geosyn.metrics.planning.verify import (
     check_end,
     exact_check,
@@ -175,6 +178,12 @@ class Planner:
             self.collocation(self.nodes).solver(self.seeded_mu_init)
         self.build_time = time.perf_counter() - t0
 
+    @functools.cached_property
+    def self_collision(self) -> SelfCollision | None:
+        """Exact self-clearance on the file's self-collision pairs (built on first use:
+        IK goals are checked with it), or None for a robot without file geometry."""
+        return SelfCollision.for_robot(self.robot) if self.exact is not None else None
+
     def collocation(self, nodes: int, subdivisions: int = 1) -> Collocation:
         """The collocation with ``nodes`` segments and ``subdivisions`` constrained points
         inside each (built on first use, then kept)."""
@@ -294,7 +303,7 @@ class Planner:
     def plan(
         self,
         q0: Vector,
-        q1: Vector,
+        q1: Vector | EndEffectorGoal,
         obstacles: Sequence[Shape] = (),
         *,
         budget: float = 5.0,
@@ -304,7 +313,10 @@ class Planner:
 
         Args:
             q0: (n,) start [rad].
-            q1: (n,) goal [rad].
+            q1: (n,) goal [rad], or an end-effector position or pose with tolerances
+                (`EndEffectorGoal`: solved by inverse kinematics within the limits and
+                clear of the scene, several solutions planned to, the lowest-energy plan
+                kept; see `geosyn.metrics.planning.goals`).
             obstacles: shapes of `geosyn.world`, at most ``capacity``.
             budget: wall-time limit of the query [s], > 0 (a shooting refinement of a
                 free geodesic may add its own bounded iterations).
@@ -319,10 +331,14 @@ class Planner:
             InCollision: start or goal in collision (names obstacle and sphere).
             geosyn.metrics.shaping.CapacityExceeded: more obstacles than ``capacity``.
             NoPathFound: no collision-free path within the budget.
+            GoalUnreachable: no IK solution of an end-effector goal.
         """
         t0 = time.perf_counter()
         n = self.metric.n
         q0 = check_vector(q0, n, "q0")
+        if isinstance(q1, EndEffectorGoal):
+            budget, seed = check_positive(budget, "budget", "s"), check_int(seed, "seed")
+            return plan_to_goal(self, q0, q1, obstacles, budget=budget, seed=seed)
         q1 = check_vector(q1, n, "q1")
         budget = check_positive(budget, "budget", "s")
         seed = check_int(seed, "seed")
