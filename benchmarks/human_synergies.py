@@ -78,8 +78,9 @@ def _fits(out: Path, seqs) -> list:
     for seq in seqs:
         d = np.load(out / f"{seq.name}.npz")
         empty = np.zeros((0,))
+        offset = d["root_offset"] if "root_offset" in d.files else np.zeros((len(d["t"]), 3))
         fits.append(ik.ArmFit(seq.name, d["t"], d["z"], d["z_raw"], empty, d["residual"],
-                              d["residual_raw"], empty))  # fmt: skip
+                              d["residual_raw"], empty, offset))  # fmt: skip
     return fits
 
 
@@ -143,14 +144,28 @@ def _builtin(name):
 
 
 ROBOTS = {
-    # name: (loader, home posture [rad], shoulder frame)
-    "panda": (_builtin("panda"), [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], "panda_joint2"),
-    "talos_arm": (_builtin("talos_arm"), [0.3, 0.4, 0.0, -1.2, 0.0, 0.0, 0.0], "arm_left_2_joint"),
-    "g1_arm": (_g1_right_arm, [0.0, -0.3, 0.0, 1.0, 0.0, 0.0, 0.0], "right_shoulder_roll_joint"),
-}
+    # name: (loader, home posture [rad], shoulder frame, mirror: a left arm)
+    "panda": (_builtin("panda"), [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], "panda_joint2",
+              False),
+    "talos_arm": (_builtin("talos_arm"), [0.3, 0.4, 0.0, -1.2, 0.0, 0.0, 0.0], "arm_left_2_joint",
+                  True),
+    "g1_arm": (_g1_right_arm, [0.2, -0.3, 0.0, 0.5, 0.0, 0.0, 0.0], "right_shoulder_roll_joint",
+               False),
+}  # fmt: skip
 
 
-def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> None:
+def stage_transfer(
+    out: Path,
+    robot_name: str,
+    n_track: int,
+    push: float,
+    margin: float | None,
+    mirror: bool | None,
+    kp: float = 400.0,
+    kd: float = 40.0,
+) -> None:
+    import pinocchio as pin
+
     from geosyn.controllers import ComputedTorque, GeodesicReference
     from geosyn.metrics.geodesic.exp_map import Geodesic
     from geosyn.sim import Push, Simulation
@@ -161,11 +176,13 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
     seqs, _ = climb_sequences()
     sub = _subjects(seqs)[0]
     rows = [Segment(**r) for r in json.loads((out / "segments.json").read_text())["rows"]]
-    loader, home, shoulder = ROBOTS[robot_name]
+    loader, home, shoulder, left = ROBOTS[robot_name]
+    left = left if mirror is None else mirror
     robot = loader()
     metric = KineticEnergyMetric(robot)
-    hmap, moved = st.transfer_capture(robot, metric, np.array(home), shoulder, seqs, sub,
-                                      _fits(out, seqs), rows)  # fmt: skip
+    hmap, sfit, moved = st.transfer_capture(robot, metric, np.array(home), shoulder, seqs, sub,
+                                            _fits(out, seqs), rows, torque_margin=margin,
+                                            mirror=left)  # fmt: skip
     res0 = moved[0]
     hands = [np.array([tr.hand_position(robot, q) for q in Q])
              for Q in (res0.q_kinematic, res0.q_geodesic)]  # fmt: skip
@@ -174,7 +191,10 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
     tracked = []
     for j, res in enumerate(moved[:n_track]):
         ref = GeodesicReference(Geodesic(res.t, res.q_geodesic, res.v_geodesic), metric)
-        ctl = ComputedTorque(robot, 400.0, 40.0, reference=ref)
+        ctl = ComputedTorque(robot, kp, kd, reference=ref)
+        data = robot.model.createData()
+        grav = max(float(np.max(np.abs(pin.computeGeneralizedGravity(robot.model, data, q))
+                                / robot.tau_max)) for q in res.q_geodesic)  # fmt: skip
         duration = float(res.t[-1])
         kick = Push(robot.ee_frame, [push, 0.0, 0.0], start=duration / 3, duration=0.1)
         run = Simulation(robot, ctl, disturbances=[kick]).run(
@@ -185,6 +205,8 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
                         "rms_rad": float(np.sqrt(np.mean(e**2))),
                         "max_rad": float(np.abs(e).max()),
                         "saturated_ticks": float(run.saturated.any(axis=1).mean()),
+                        "saturated_joints": np.flatnonzero(run.saturated.any(axis=0)).tolist(),
+                        "gravity_over_tau_max": grav,
                         "pieces": res.pieces,
                         "ref_speed_max_rad_s": float(np.abs(res.v_geodesic).max())})  # fmt: skip
     hk = np.array([m.hand_dev_kinematic for m in moved])
@@ -193,6 +215,8 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
     eg = np.array([m.energy_geodesic for m in moved])
     summary = {
         "robot": robot_name, "segments": len(moved), "scale": hmap.scale,
+        "mirror": left, "torque_margin": margin,
+        "scale_fit": sfit._asdict() if sfit is not None else None,
         "hand_dev_geodesic_median_m": float(np.median(hg)),
         "hand_dev_geodesic_worst_m": float(hg.max()),
         "hand_dev_kinematic_median_m": float(np.median(hk)),
@@ -200,10 +224,11 @@ def stage_transfer(out: Path, robot_name: str, n_track: int, push: float) -> Non
         "energy_ratio_quartiles": np.percentile(eg / ek, [25, 50, 75]).tolist(),
         "energy_ratio_worst": float(np.max(eg / ek)),
         "pieces_histogram": np.bincount([m.pieces for m in moved]).tolist(),
-        "tracked": len(tracked), "push_N": push,
+        "tracked": len(tracked), "push_N": push, "kp": kp, "kd": kd,
         "tracking_rms_worst_rad": max((x["rms_rad"] for x in tracked), default=float("nan")),
         "tracking_rms_median_rad": float(np.median([x["rms_rad"] for x in tracked]))
         if tracked else float("nan"),
+        "tracked_saturating": int(sum(x["saturated_ticks"] > 0 for x in tracked)),
         "time": _since(t0),
     }  # fmt: skip
     print(json.dumps(summary, indent=1))
@@ -239,6 +264,20 @@ def main() -> None:
     p.add_argument("--robot", choices=tuple(ROBOTS), default="panda")
     p.add_argument("--track", type=int, default=20, help="segments tracked in MuJoCo")
     p.add_argument("--push", type=float, default=50.0, help="push on the hand [N]")
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=0.7,
+        help="torque margin of the workspace scaling (<= 0: reach ratio kept)",
+    )
+    p.add_argument(
+        "--mirror",
+        choices=("auto", "yes", "no"),
+        default="auto",
+        help="mirror the path (auto: for left arms)",
+    )
+    p.add_argument("--kp", type=float, default=400.0, help="computed-torque gain [1/s^2]")
+    p.add_argument("--kd", type=float, default=40.0, help="computed-torque gain [1/s]")
     p.add_argument("--out", type=Path, default=Path("benchmarks/data/human_synergies"))
     p.add_argument("--configs", type=int, default=30)
     p.add_argument("--kmax", type=int, default=5)
@@ -254,7 +293,9 @@ def main() -> None:
         stage_pga(a.out, a.configs, a.kmax, a.evals, a.steps)
     if a.stage in ("transfer", "all"):
         for name in ROBOTS if a.stage == "all" else (a.robot,):
-            stage_transfer(a.out, name, a.track, a.push)
+            mirror = None if a.mirror == "auto" else a.mirror == "yes"
+            margin = a.margin if a.margin > 0 else None
+            stage_transfer(a.out, name, a.track, a.push, margin, mirror, a.kp, a.kd)
     if a.stage in ("figures", "all"):
         stage_figures(a.out, Path("docs"))
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from geosyn.metrics import KineticEnergyMetric
@@ -52,3 +53,34 @@ def test_geodesic_transfer_has_less_energy(panda) -> None:
     assert res.hand_dev_geodesic < 0.02
     with pytest.raises(InvalidSynergyInput, match="T >= 3"):
         tr.transfer_segment(KineticEnergyMetric(panda), panda, t[:2], targets[:2], q_kin[:2])
+
+
+def test_fit_scale_keeps_a_followable_path_and_shrinks_an_unreachable_one(panda) -> None:
+    """A 10 cm circle at home is kept at its reach scale; the same circle 40x larger
+    (beyond the Panda's reach) is shrunk until the kinematic retargeting reaches it,
+    and a tight torque margin shrinks it until holding every posture against gravity
+    (RNEA at rest, an independent evaluation) stays inside the margin."""
+    s = np.linspace(0.0, 2 * np.pi, 40)
+    wrist = np.column_stack([0.05 * np.cos(s), 0.05 * np.sin(s), 0.02 * np.sin(2 * s)])
+    shoulder = wrist.mean(axis=0) + [0.0, 0.0, 0.3]
+    hmap = tr.hand_map(panda, HOME, "panda_joint2", wrist, np.tile(shoulder, (40, 1)), np.eye(3))
+    kept, fit = tr.fit_scale(panda, hmap, wrist, HOME, frames=20)
+    assert kept.scale == hmap.scale == fit.reach_scale and fit.trials == 1
+    big = hmap._replace(scale=40 * hmap.scale, reach_scale=40 * hmap.scale)
+    kept, fit = tr.fit_scale(panda, big, wrist, HOME, frames=20, reach_tol=0.002)
+    assert 0 < kept.scale < big.scale and fit.reach_error_p95 <= 0.002
+    _, err = tr.kinematic_retarget(panda, kept(wrist[::2]), HOME)
+    assert np.percentile(err, 95) <= 0.002 + 1e-9
+    _, err_up = tr.kinematic_retarget(panda, big._replace(scale=1.3 * kept.scale)(wrist), HOME)
+    assert err_up.max() > 0.002  # the bisection's bracket: a little larger is not reachable
+    # holding the home posture takes 0.253 x tau_max on the Panda's worst joint
+    tight, fit = tr.fit_scale(panda, big, wrist, HOME, frames=20, torque_margin=0.3, trials=12)
+    assert tight.scale < kept.scale and fit.gravity_ratio <= 0.3
+    Q, _ = tr.kinematic_retarget(panda, tight(wrist[::2]), HOME)
+    data, zero = panda.model.createData(), np.zeros(panda.nv)
+    g = np.array([pin.rnea(panda.model, data, q, zero, zero) for q in Q])
+    assert np.max(np.abs(g) / panda.tau_max) <= 0.3 + 1e-9
+    with pytest.raises(InvalidSynergyInput, match="at home: 0.25"):
+        tr.fit_scale(panda, big, wrist, HOME, frames=10, torque_margin=0.2, trials=3)
+    with pytest.raises(InvalidSynergyInput, match="torque_margin"):
+        tr.fit_scale(panda, big, wrist, HOME, torque_margin=1.5)

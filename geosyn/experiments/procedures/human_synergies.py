@@ -35,7 +35,8 @@ class HumanSynergiesParams(Strict):
     """Parameters of `HumanSynergies`: which capture (sequences, frames per sequence from
     the start; None: all), segments (most analysed), PGA (postures, k_max, refinement
     evaluations, RK4 steps), the robot's home posture [rad] and shoulder frame, tracking
-    (segments tracked, computed-torque gains [1/s^2, 1/s], push on the hand [N])."""
+    (segments tracked, computed-torque gains [1/s^2, 1/s], push on the hand [N]), the
+    workspace scaling's torque margin and the left-right mirror."""
 
     sequences: list[Annotated[int, Field(ge=0, le=4)]] | None = Field(
         None, description="climbing sequences used, 0-4 (None: all five)"
@@ -72,6 +73,14 @@ class HumanSynergiesParams(Strict):
     push: Annotated[float, Field(ge=0)] = Field(
         50.0, description="push on the robot's hand during each tracked segment [N]"
     )
+    torque_margin: Annotated[float, Field(gt=0, le=1)] | None = Field(
+        0.7,
+        description="workspace scaling: largest share of each torque limit that holding the"
+        " robot's postures against gravity may take (None: keep the reach ratio)",
+    )
+    mirror: bool = Field(
+        False, description="carry the human right arm to a left arm (path mirrored left-right)"
+    )
 
 
 @register
@@ -95,6 +104,9 @@ class HumanSynergies(Procedure):
         "hand_dev_median": "m",
         "energy_below_kinematic": "1",
         "tracking_rms_worst": "rad",
+        "reach_scale": "1",
+        "scale": "1",
+        "tracking_saturated": "1",
     }
 
     @classmethod
@@ -125,11 +137,12 @@ class HumanSynergies(Procedure):
         rows = st.pga_vs_pca_rows(sub.metric, X, p.k_max, evals=p.pga_evals, steps=p.steps)
         advance()
         metric = B.build_metric(ctx.config, robot)
-        _, moved = st.transfer_capture(
-            robot, metric, np.array(p.q_home), p.shoulder_frame, seqs, sub, fits, segs
-        )
+        hmap, _, moved = st.transfer_capture(
+            robot, metric, np.array(p.q_home), p.shoulder_frame, seqs, sub, fits, segs,
+            torque_margin=p.torque_margin, mirror=p.mirror,
+        )  # fmt: skip
         advance()
-        rms = []
+        rms, saturated = [], []
         for res in moved[: p.track]:
             ref = GeodesicReference(Geodesic(res.t, res.q_geodesic, res.v_geodesic), metric)
             duration = float(res.t[-1])
@@ -138,6 +151,7 @@ class HumanSynergies(Procedure):
                              disturbances=[kick])  # fmt: skip
             run = sim.run(res.q_geodesic[0], res.v_geodesic[0], duration=duration)
             rms.append(float(np.sqrt(np.mean(run.tracking_error**2))))
+            saturated.append(float(run.saturated.any(axis=1).mean()))
         advance()
         ex = moved[0] if moved else None
         hands = [
@@ -157,6 +171,9 @@ class HumanSynergies(Procedure):
             "transfer_energy_geodesic": np.array([m.energy_geodesic for m in moved]),
             "transfer_energy_kinematic": np.array([m.energy_kinematic for m in moved]),
             "tracking_rms": np.array(rms),
+            "tracking_saturated_ticks": np.array(saturated),
+            "transfer_scale": np.array([hmap.reach_scale, hmap.scale]),
+            "ik_root_offset": np.concatenate([f.root_offset for f in fits]),
             "example_target": ex.target if ex is not None else np.zeros((0, 3)),
             "example_kinematic": hands[0],
             "example_geodesic": hands[1],
@@ -179,6 +196,9 @@ class HumanSynergies(Procedure):
             k = int(row[0])
             for j, name in enumerate(("pga_metric", "pca_metric", "pga_plain", "pca_plain")):
                 out[f"k={k}.{name}"] = float(row[1 + j])
+        if "transfer_scale" in r:
+            out["transfer.reach_scale"] = float(r["transfer_scale"][0])
+            out["transfer.scale"] = float(r["transfer_scale"][1])
         if len(r["transfer_hand_dev"]):
             out["transfer.hand_dev_median"] = float(np.median(r["transfer_hand_dev"]))
             out["transfer.energy_below_kinematic"] = float(
@@ -186,6 +206,7 @@ class HumanSynergies(Procedure):
             )
         if len(r["tracking_rms"]):
             out["transfer.tracking_rms_worst"] = float(np.max(r["tracking_rms"]))
+            out["transfer.tracking_saturated"] = float(np.sum(r["tracking_saturated_ticks"] > 0))
         return out
 
     def plot(

@@ -12,7 +12,13 @@ from geosyn.synergies.human.data import (
     data_dir,
 )
 from geosyn.synergies.human.errors import DataSourceError
-from geosyn.synergies.human.mocap_ik import ArmFit, Calibration, calibrate, fit_sequence
+from geosyn.synergies.human.mocap_ik import (
+    ArmFit,
+    Calibration,
+    RootOffset,
+    calibrate,
+    fit_sequence,
+)
 from geosyn.synergies.human.myoarm import HumanArm, MuscleInfo, load_myoarm, myoarm_xml
 
 __all__ = [
@@ -25,6 +31,7 @@ __all__ = [
     "MocapSequence",
     "MuscleInfo",
     "Provenance",
+    "RootOffset",
     "WheelPin",
     "calibrate",
     "clear_data_cache",

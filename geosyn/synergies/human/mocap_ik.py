@@ -6,8 +6,14 @@
    the left to the right shoulder, z the spine's upward direction made orthogonal), with
    origin at ``RightShoulder``; the arm's keypoints are expressed in it, so the torso's
    own motion is removed. One constant rotation and offset map this frame to the model's
-   chest frame; they are calibrated on a subset of frames, alternating per-frame IK and
-   a least-squares rigid fit (Kabsch), from an initial guess that matches "right" and "up".
+   chest frame; they are calibrated on a subset of frames, alternating per-frame IK,
+   marker placement and a least-squares rigid fit (Kabsch), from an initial guess that
+   matches "right" and "up". Marker placement (as OpenSim's scale tool does): each
+   keypoint is a point fixed on its body, the body origin moved by a constant offset in
+   the body's frame (at most `MARKER_BOUND`), since the capture skeleton's joint centres
+   are not the MyoArm's body origins; the offsets are part of `Calibration`.
+   Optionally (`RootOffset`) the arm's root also translates freely per frame, for the
+   shoulder girdle motion the MyoArm's coupled girdle cannot make; off by default.
 3. Per-frame IK on the independent coordinates z (q = S z + c), with the box of z that
    keeps every joint (independent and dependent) inside its file range; Levenberg-
    Marquardt-type trust-region least squares (scipy, analytic Jacobian S^T J^T),
@@ -55,6 +61,24 @@ class ArmFit(NamedTuple):
     residual: np.ndarray  # (T, K) keypoint distances after smoothing [m]
     residual_raw: np.ndarray  # (T, K) before smoothing [m]
     at_limit: np.ndarray  # (T,) frames with a coordinate on its bound
+    root_offset: np.ndarray  # (T, 3) smoothed offset d of the arm's root [m] (zeros if fixed)
+
+
+class RootOffset(NamedTuple):
+    """A free translation d of the arm's root (the clavicle's base) relative to the thorax,
+    solved per frame with the joint angles.
+
+    The MyoArm's shoulder girdle is driven by ``shoulder_elv_r`` alone (the file's
+    equalities): it cannot protract, retract or shrug on its own, which the captured
+    shoulder does while climbing. ``d`` stands for that missing motion: each fitted
+    keypoint is ``p(z) + d``, ``|d_i| <= bound`` and ``weight * d`` is added to the
+    least-squares residual (so d is used only where it lowers the keypoint error by more
+    than ``weight * |d|``). It is reported (`ArmFit.root_offset`); the joint angles z are
+    what the rest of the study uses.
+    """
+
+    bound: float = 0.05  # [m] per axis
+    weight: float = 0.2  # [1] (residual metres per metre of offset)
 
 
 class Calibration(NamedTuple):
@@ -64,6 +88,8 @@ class Calibration(NamedTuple):
     t: np.ndarray  # (3,) translation [m]
     rms: float  # keypoint RMS on the calibration frames [m]
     rounds: int
+    markers: np.ndarray  # (K, 3) keypoint offsets in their bodies' frames [m] (`FITTED`)
+    root: RootOffset | None  # the free root offset used (None: root fixed)
 
 
 def coupling_of(robot: Robot) -> Coupling:
@@ -97,11 +123,20 @@ def segment_lengths(positions: np.ndarray) -> dict[str, float]:
     }
 
 
-def model_keypoints(robot: Robot, q: np.ndarray, names: Sequence[str] = FITTED) -> np.ndarray:
-    """(K, 3) model keypoints (body origins of `KEYPOINT_FRAMES`) at q [m]."""
+def model_keypoints(
+    robot: Robot,
+    q: np.ndarray,
+    names: Sequence[str] = FITTED,
+    markers: np.ndarray | None = None,
+) -> np.ndarray:
+    """(K, 3) model keypoints at q [m]: the body origins of `KEYPOINT_FRAMES`, moved by
+    ``markers`` (K, 3) [m] given in each body's frame (`Calibration.markers`)."""
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, q)
-    return np.array([data.oMf[robot.frame_id(KEYPOINT_FRAMES[n])].translation for n in names])
+    frames = [data.oMf[robot.frame_id(KEYPOINT_FRAMES[n])] for n in names]
+    if markers is None:
+        return np.array([f.translation for f in frames])
+    return np.array([f.act(m) for f, m in zip(frames, markers, strict=True)])
 
 
 def model_segment_lengths(robot: Robot) -> dict[str, float]:
@@ -144,38 +179,71 @@ def local_keypoints(positions: np.ndarray) -> np.ndarray:
     return np.einsum("tji,tkj->tki", R, P)
 
 
-class _Solver:
-    """Per-frame IK on z (analytic Jacobian); allocates one Pinocchio data."""
+MARKER_BOUND = 0.02
+"""Largest keypoint marker offset [m] `calibrate` places by default (see there)."""
 
-    def __init__(self, robot: Robot) -> None:
+
+class _Solver:
+    """Per-frame IK on z, optionally with the arm's root offset d (analytic Jacobian);
+    allocates one Pinocchio data."""
+
+    def __init__(
+        self, robot: Robot, root: RootOffset | None = None, markers: np.ndarray | None = None
+    ) -> None:
         self.robot, self.model = robot, robot.model
+        self.markers = np.zeros((len(FITTED), 3)) if markers is None else np.asarray(markers)
         self.data = robot.model.createData()
         self.S, self.c = coupling_of(robot).S, coupling_of(robot).c
         self.frames = [robot.frame_id(KEYPOINT_FRAMES[n]) for n in FITTED]
         lo, hi = z_box(robot)
         self.lo, self.hi = lo + 1e-9, hi - 1e-9
+        self.nz = len(lo)
+        self.root = root
+        if root is not None:
+            self.lo = np.concatenate([self.lo, np.full(3, -root.bound)])
+            self.hi = np.concatenate([self.hi, np.full(3, root.bound)])
 
-    def residual(self, z: np.ndarray, target: np.ndarray) -> np.ndarray:
+    def residual(self, x: np.ndarray, target: np.ndarray) -> np.ndarray:
+        z, d = x[: self.nz], x[self.nz :] if self.root is not None else np.zeros(3)
         pin.framesForwardKinematics(self.model, self.data, self.S @ z + self.c)
-        return np.concatenate(
-            [self.data.oMf[f].translation - p for f, p in zip(self.frames, target, strict=True)]
-        )
+        r = [
+            self.data.oMf[f].act(m) + d - p
+            for f, m, p in zip(self.frames, self.markers, target, strict=True)
+        ]
+        if self.root is not None:
+            r.append(self.root.weight * d)
+        return np.concatenate(r)
 
-    def jacobian(self, z: np.ndarray, target: np.ndarray) -> np.ndarray:
-        q = self.S @ z + self.c
+    def jacobian(self, x: np.ndarray, target: np.ndarray) -> np.ndarray:
+        q = self.S @ x[: self.nz] + self.c
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
         rf = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        J = [pin.getFrameJacobian(self.model, self.data, f, rf)[:3] for f in self.frames]
-        return np.vstack(J) @ self.S
+        rows = []
+        for f, m in zip(self.frames, self.markers, strict=True):
+            J6 = pin.getFrameJacobian(self.model, self.data, f, rf)
+            r = self.data.oMf[f].rotation @ m  # the point moves by v + w x r
+            rows.append(J6[:3] - pin.skew(r) @ J6[3:])
+        J = np.vstack(rows) @ self.S
+        if self.root is None:
+            return J
+        K = len(self.frames)
+        top = np.hstack([J, np.tile(np.eye(3), (K, 1))])
+        bottom = np.hstack([np.zeros((3, self.nz)), self.root.weight * np.eye(3)])
+        return np.vstack([top, bottom])
 
-    def solve(self, target: np.ndarray, z0: np.ndarray) -> np.ndarray:
-        z0 = np.clip(z0, self.lo, self.hi)
+    def solve(self, target: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """(nz,) or (nz + 3,) solution (z, then d when the root is free)."""
+        x0 = np.clip(x0, self.lo, self.hi)
         sol = scipy.optimize.least_squares(
-            self.residual, z0, jac=self.jacobian, bounds=(self.lo, self.hi), args=(target,),
+            self.residual, x0, jac=self.jacobian, bounds=(self.lo, self.hi), args=(target,),
             method="trf", xtol=1e-10, ftol=1e-12, max_nfev=100,
         )  # fmt: skip
         return np.asarray(sol.x)
+
+    def start(self) -> np.ndarray:
+        """The reference posture (z = 0 clipped into the box), offset 0."""
+        return np.clip(np.zeros(len(self.lo)), self.lo, self.hi)
 
 
 def solve_frame(robot: Robot, target: np.ndarray, z0: np.ndarray) -> np.ndarray:
@@ -192,39 +260,86 @@ def solve_frame(robot: Robot, target: np.ndarray, z0: np.ndarray) -> np.ndarray:
     return _Solver(robot).solve(np.asarray(target, dtype=np.float64), np.asarray(z0, dtype=float))
 
 
-def _solve_all(solver: _Solver, targets: np.ndarray, z0: np.ndarray) -> np.ndarray:
-    z, out = z0, np.empty((len(targets), len(z0)))
+def _solve_all(solver: _Solver, targets: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    x, out = x0, np.empty((len(targets), len(x0)))
     for i, target in enumerate(targets):
-        z = solver.solve(target, z)
-        out[i] = z
+        x = solver.solve(target, x)
+        out[i] = x
     return out
 
 
+def _place_markers(solver: _Solver, X: np.ndarray, target: np.ndarray, bound: float) -> np.ndarray:
+    """(K, 3) marker offsets: the mean keypoint error in each body's frame at the IK
+    solutions X (N, nz [+ 3]) of targets (N, K, 3), each clipped to norm ``bound`` [m]."""
+    err = np.zeros((len(X), len(FITTED), 3))
+    for i, x in enumerate(X):
+        q = solver.S @ x[: solver.nz] + solver.c
+        pin.framesForwardKinematics(solver.model, solver.data, q)
+        d = x[solver.nz :] if solver.root is not None else np.zeros(3)
+        for k, f in enumerate(solver.frames):
+            pose = solver.data.oMf[f]
+            err[i, k] = pose.rotation.T @ (target[i, k] - d - pose.translation)
+    markers = err.mean(axis=0)
+    norm = np.linalg.norm(markers, axis=1, keepdims=True)
+    return np.asarray(markers * np.minimum(1.0, bound / np.maximum(norm, 1e-12)))
+
+
 def calibrate(
-    robot: Robot, local: np.ndarray, *, frames: int = 120, rounds: int = 8
+    robot: Robot,
+    local: np.ndarray,
+    *,
+    frames: int = 120,
+    rounds: int = 8,
+    root: RootOffset | None = None,
+    marker_bound: float = MARKER_BOUND,
 ) -> Calibration:
-    """The constant map from the capture's thorax frame to the model (see the module doc).
+    """The constant map from the capture's thorax frame to the model, and the keypoints'
+    places on the model's bodies (see the module doc).
+
+    Each round solves the IK of the calibration frames, then sets each keypoint's marker
+    offset (in its body's frame) to the mean remaining error there, its norm clipped to
+    ``marker_bound`` (the capture's joint centres are not exactly the model's body
+    origins: OpenSim's marker placement step), then refits the rigid map (Kabsch).
 
     Args:
         robot: the (scaled) arm.
         local: (T, K, 3) keypoints in the capture's thorax frame [m].
         frames: number of evenly spaced calibration frames.
-        rounds: alternations of IK and rigid fit.
+        rounds: alternations of IK, marker placement and rigid fit.
+        root: the free root offset solved with z (None: the arm's root is fixed).
+        marker_bound: largest marker offset [m] (0: keypoints at the body origins).
+
+    Raises:
+        InvalidSynergyInput: ``marker_bound`` negative.
     """
-    solver = _Solver(robot)
+    if not marker_bound >= 0.0:
+        raise InvalidSynergyInput(
+            f"marker_bound must be >= 0 m, got {marker_bound!r}", "marker_bound"
+        )
+    markers = np.zeros((len(FITTED), 3))
+    solver = _Solver(robot, root, markers)
+    nz = solver.nz
     sub = local[np.linspace(0, len(local) - 1, frames).astype(int)]
-    q0 = coupling_of(robot).q(np.clip(np.zeros(coupling_of(robot).nz), solver.lo, solver.hi))
+    q0 = coupling_of(robot).q(solver.start()[:nz])
     kp = model_keypoints(robot, q0, ("RightShoulder", "RightArm"))
     right = kp[1] - kp[0]
     up = np.array([0.0, 0.0, 1.0])
     x = right - (right @ up) * up
     x /= np.linalg.norm(x)
     R, t = np.column_stack([x, np.cross(up, x), up]), kp[0]
-    z = np.clip(np.zeros(coupling_of(robot).nz), solver.lo, solver.hi)
+    x0 = solver.start()
     rms = np.inf
     for _ in range(rounds):
-        Z = _solve_all(solver, sub @ R.T + t, z)
-        model = np.array([model_keypoints(robot, coupling_of(robot).q(zz)) for zz in Z])
+        target = sub @ R.T + t
+        X = _solve_all(solver, target, x0)
+        if marker_bound > 0:
+            markers = _place_markers(solver, X, target, marker_bound)
+            solver.markers = markers
+        model = np.array(
+            [model_keypoints(robot, coupling_of(robot).q(xx[:nz]), FITTED, markers) for xx in X]
+        )
+        if root is not None:
+            model = model + X[:, None, nz:]
         A, B = sub.reshape(-1, 3), model.reshape(-1, 3)
         ca, cb = A.mean(axis=0), B.mean(axis=0)
         U, _, Vt = np.linalg.svd((A - ca).T @ (B - cb))
@@ -232,19 +347,24 @@ def calibrate(
         R = (U @ D @ Vt).T
         t = cb - R @ ca
         rms = float(np.sqrt(np.mean(np.sum((A @ R.T + t - B) ** 2, axis=1))))
-        z = Z[0]
-    return Calibration(R, t, rms, rounds)
+        x0 = X[0]
+    return Calibration(R, t, rms, rounds, markers, root)
 
 
 def fit_sequence(
-    robot: Robot, seq: MocapSequence, calib: Calibration, *, cutoff: float = 6.0
+    robot: Robot,
+    seq: MocapSequence,
+    calib: Calibration,
+    *,
+    cutoff: float = 6.0,
 ) -> ArmFit:
     """Per-frame IK of one sequence, then zero-phase smoothing (see the module doc).
 
     Args:
         robot: the (scaled) arm.
         seq: the capture.
-        calib: from `calibrate`.
+        calib: from `calibrate` (its marker offsets and root offset are used; the root
+            offset is solved per frame, smoothed like z and included in the residuals).
         cutoff: low-pass cut-off [Hz] (below the Nyquist frequency ``fps / 2``).
 
     Raises:
@@ -255,21 +375,31 @@ def fit_sequence(
             f"cutoff must be in (0, {seq.fps / 2:g}) Hz for {seq.fps:g} fps, got {cutoff!r}",
             "cutoff",
         )
-    solver = _Solver(robot)
+    root = calib.root
+    solver = _Solver(robot, root, calib.markers)
+    nz = solver.nz
     targets = local_keypoints(seq.positions) @ calib.R.T + calib.t
-    z0 = np.clip(np.zeros(coupling_of(robot).nz), solver.lo, solver.hi)
-    z0 = _solve_all(solver, targets[:1], z0)[0]
-    z_raw = _solve_all(solver, targets, z0)
+    x0 = _solve_all(solver, targets[:1], solver.start())[0]
+    x_raw = _solve_all(solver, targets, x0)
     b, a = scipy.signal.butter(2, cutoff / (seq.fps / 2))
-    z = np.clip(scipy.signal.filtfilt(b, a, z_raw, axis=0), solver.lo, solver.hi)
+    x = np.clip(scipy.signal.filtfilt(b, a, x_raw, axis=0), solver.lo, solver.hi)
 
-    def dist(Z: np.ndarray) -> np.ndarray:
-        P = np.array([model_keypoints(robot, coupling_of(robot).q(zz)) for zz in Z])
+    def dist(X: np.ndarray) -> np.ndarray:
+        P = np.array(
+            [
+                model_keypoints(robot, coupling_of(robot).q(xx[:nz]), FITTED, calib.markers)
+                for xx in X
+            ]
+        )
+        if root is not None:
+            P = P + X[:, None, nz:]
         return np.asarray(np.linalg.norm(P - targets, axis=2))
 
-    at_limit = np.any((z_raw <= solver.lo + 1e-6) | (z_raw >= solver.hi - 1e-6), axis=1)
-    t = np.arange(len(z)) / seq.fps
-    return ArmFit(seq.name, t, z, z_raw, targets, dist(z), dist(z_raw), at_limit)
+    z_raw = x_raw[:, :nz]
+    at_limit = np.any((z_raw <= solver.lo[:nz] + 1e-6) | (z_raw >= solver.hi[:nz] - 1e-6), axis=1)
+    t = np.arange(len(x)) / seq.fps
+    offset = x[:, nz:] if root is not None else np.zeros((len(x), 3))
+    return ArmFit(seq.name, t, x[:, :nz], z_raw, targets, dist(x), dist(x_raw), at_limit, offset)
 
 
 def scale_factors(sequences: Sequence[MocapSequence], robot: Robot) -> dict[str, float]:

@@ -159,11 +159,19 @@ def transfer_capture(
     subject: Subject,
     fits: Sequence[ik.ArmFit],
     segments: Sequence[sg.Segment],
-) -> tuple[tr.HandMap, list[tr.Transferred]]:
+    *,
+    torque_margin: float | None = 0.7,
+    mirror: bool = False,
+) -> tuple[tr.HandMap, tr.ScaleFit | None, list[tr.Transferred]]:
     """The segments of one subject's sequences on a robot (see `transfer`).
 
+    Args:
+        torque_margin: `transfer.fit_scale`'s margin (None: keep the reach ratio).
+        mirror: carry the human right arm to a left arm (the path mirrored left-right).
+
     Returns:
-        The task-space map and one `Transferred` per segment of the subject.
+        The task-space map, how its scale was chosen (None without ``torque_margin``)
+        and one `Transferred` per segment of the subject.
     """
     arm = subject.arm.robot
     coupling = ik.coupling_of(arm)
@@ -182,8 +190,12 @@ def transfer_capture(
         shoulder_frame,
         np.concatenate(list(wrist.values())),
         np.concatenate(shoulders),
-        human_axes(subject.arm),
+        human_axes(subject.arm, mirror=mirror),
     )
+    all_wrist = np.concatenate(list(wrist.values()))
+    scale_fit = None
+    if torque_margin is not None:
+        hmap, scale_fit = tr.fit_scale(robot, hmap, all_wrist, q_home, torque_margin=torque_margin)
     kin = {n: tr.kinematic_retarget(robot, hmap(wrist[n]), q_home)[0] for n in names}
     out = []
     fps = seqs[subject.members[0]].fps
@@ -195,12 +207,14 @@ def transfer_capture(
         out.append(
             tr.transfer_segment(metric, robot, t, target, kin[s.sequence][s.start : s.stop + 1])
         )
-    return hmap, out
+    return hmap, scale_fit, out
 
 
-def human_axes(arm: HumanArm) -> np.ndarray:
+def human_axes(arm: HumanArm, *, mirror: bool = False) -> np.ndarray:
     """(3, 3) columns forward, left, up of the human arm model (forward: the forearm's
-    horizontal direction with the elbow flexed 90 degrees, up: +z)."""
+    horizontal direction with the elbow flexed 90 degrees, up: +z); with ``mirror``,
+    the second column points right instead (a right arm's motion carried to a left
+    arm, mirrored in the sagittal plane)."""
     robot = arm.robot
     coupling = ik.coupling_of(robot)
     lo, hi = ik.z_box(robot)
@@ -211,4 +225,5 @@ def human_axes(arm: HumanArm) -> np.ndarray:
     fwd = kp[1] - kp[0]
     fwd = fwd - (fwd @ up) * up
     fwd /= np.linalg.norm(fwd)
-    return np.column_stack([fwd, np.cross(up, fwd), up])
+    left = np.cross(up, fwd)
+    return np.column_stack([fwd, -left if mirror else left, up])

@@ -7,7 +7,15 @@ Method (stated, after Klein et al. 2022's per-synergy transfer):
    (forward, left, up) axes onto the robot's (x, y, z); ``p_mean`` is the mean human
    wrist position, ``p_home`` the robot's hand at its home posture, and ``s`` the ratio
    of the robot's shoulder-to-hand distance at home to the human's mean
-   shoulder-to-wrist distance ("after scaling").
+   shoulder-to-wrist distance ("after scaling"). `fit_scale` then lowers ``s`` (never
+   raises it) to the largest value for which the robot can follow the mapped path
+   (workspace scaling): on evenly spaced frames, the kinematic retargeting reaches the
+   targets (95th percentile of the hand error <= ``reach_tol``) and holding each of its
+   postures against gravity takes at most ``torque_margin`` of every joint's torque
+   limit (the rest is left to the motion, the feedback and a push). A geodesic of the
+   kinetic-energy metric needs no torque but gravity's (M q'' + C q' = 0 along it), so
+   slowing it down would not lower the torque: where a robot saturated, it was holding
+   a posture its limits cannot hold.
 2. Kinematic retargeting (the baseline, as GMR-style tools do): per-frame position IK of
    the robot's hand on the mapped path, joint limits as bounds, a small pull towards
    the home posture for the redundant joints, warm-started from the previous frame.
@@ -43,6 +51,7 @@ class HandMap(NamedTuple):
     scale: float
     p_mean: np.ndarray  # (3,) mean human wrist [m]
     p_home: np.ndarray  # (3,) robot hand at home [m]
+    reach_scale: float  # the reach ratio (``scale`` before `fit_scale`)
 
     def __call__(self, p_h: np.ndarray) -> np.ndarray:
         """(T, 3) robot hand targets of human wrist positions (T, 3) [m]."""
@@ -95,7 +104,100 @@ def hand_map(
     p_sh = np.array(data.oMf[robot.frame_id(shoulder_frame)].translation)
     reach_h = float(np.mean(np.linalg.norm(human_wrist - human_shoulder, axis=1)))
     scale = float(np.linalg.norm(p_home - p_sh)) / reach_h
-    return HandMap(human_axes.T.copy(), scale, human_wrist.mean(axis=0), p_home)
+    return HandMap(human_axes.T.copy(), scale, human_wrist.mean(axis=0), p_home, scale)
+
+
+class ScaleFit(NamedTuple):
+    """How `fit_scale` chose the map's scale."""
+
+    reach_scale: float  # the reach ratio
+    scale: float  # the scale kept (<= reach_scale)
+    reach_error_p95: float  # at that scale: 95th percentile of the hand error [m]
+    gravity_ratio: float  # max over frames and joints of |g_j(q)| / tau_max_j
+    frames: int  # frames checked
+    trials: int  # scales tried
+
+
+def _feasibility(
+    robot: Robot, hmap: HandMap, wrist: np.ndarray, q_home: np.ndarray
+) -> tuple[float, float]:
+    """(95th percentile of the hand error [m], max |g| / tau_max) of the kinematic
+    retargeting of ``wrist`` (N, 3) through ``hmap``."""
+    Q, err = kinematic_retarget(robot, hmap(wrist), q_home)
+    data = robot.model.createData()
+    g = np.array([pin.computeGeneralizedGravity(robot.model, data, q) for q in Q])
+    return float(np.percentile(err, 95)), float(np.max(np.abs(g) / robot.tau_max))
+
+
+def fit_scale(
+    robot: Robot,
+    hmap: HandMap,
+    human_wrist: np.ndarray,
+    q_home: np.ndarray,
+    *,
+    torque_margin: float = 0.7,
+    reach_tol: float = 0.005,
+    frames: int = 200,
+    trials: int = 8,
+) -> tuple[HandMap, ScaleFit]:
+    """Lower the map's scale until the robot can follow the path (see the module doc).
+
+    Bisection on the scale between ``0`` and ``hmap.reach_scale`` (feasibility is
+    monotone in practice: a smaller scale keeps the hand closer to its home posture).
+
+    Args:
+        robot: the robot (finite ``tau_max``).
+        hmap: from `hand_map`.
+        human_wrist: (T, 3) human wrist positions [m] (all the frames to be carried).
+        q_home: (n,) home posture [rad].
+        torque_margin: largest share of each joint's torque limit that holding a posture
+            against gravity may take, in (0, 1].
+        reach_tol: largest 95th-percentile hand error of the kinematic retargeting [m].
+        frames: evenly spaced frames checked (per scale tried).
+        trials: bisection steps.
+
+    Returns:
+        The map with the scale kept, and the record of the choice.
+
+    Raises:
+        InvalidSynergyInput: ``torque_margin`` not in (0, 1], ``reach_tol`` <= 0,
+            ``frames`` < 2, or the home posture itself violates the margin.
+    """
+    if not 0.0 < torque_margin <= 1.0 or not reach_tol > 0 or frames < 2:
+        raise InvalidSynergyInput(
+            f"torque_margin in (0, 1], reach_tol > 0, frames >= 2 expected, got"
+            f" {torque_margin!r}, {reach_tol!r}, {frames!r}",
+            "torque_margin",
+        )
+    wrist = np.asarray(human_wrist)[np.linspace(0, len(human_wrist) - 1, frames).astype(int)]
+
+    def ok(scale: float) -> tuple[bool, float, float]:
+        e, g = _feasibility(robot, hmap._replace(scale=scale), wrist, q_home)
+        return e <= reach_tol and g <= torque_margin, e, g
+
+    good, e, g = ok(hmap.reach_scale)
+    best = (hmap.reach_scale, e, g) if good else None
+    lo, hi, done = 0.0, hmap.reach_scale, 1
+    while best is None or best[0] < hmap.reach_scale:
+        if done >= trials:
+            break
+        mid = 0.5 * (lo + hi)
+        good, e, g = ok(mid)
+        done += 1
+        if good:
+            best, lo = (mid, e, g), mid
+        else:
+            hi = mid
+    if best is None:
+        _, g0 = _feasibility(robot, hmap._replace(scale=0.0), wrist[:1], q_home)
+        raise InvalidSynergyInput(
+            f"no scale in (0, {hmap.reach_scale:.3g}] tried keeps the path reachable and the"
+            f" gravity torques <= {torque_margin:g} x tau_max (at home: {g0:.3g} x)",
+            "torque_margin",
+        )
+    scale, e, g = best
+    fit = ScaleFit(hmap.reach_scale, scale, e, g, len(wrist), done)
+    return hmap._replace(scale=scale), fit
 
 
 def kinematic_retarget(
@@ -181,7 +283,9 @@ def transfer_segment(
     """Geodesic transfer of one segment (see the module doc).
 
     One geodesic between the segment's ends; when the robot's hand strays more than
-    ``max_hand_dev`` (median) from the mapped human path, the segment is cut at evenly
+    ``max_hand_dev`` (median) farther from the mapped human path than the kinematic
+    retargeting's own hand (which misses targets out of the robot's reach), the segment
+    is cut at evenly
     spaced frames of the kinematic retargeting into 2, 4, ... ``max_pieces`` geodesics
     (each the energy-minimal path between its ends in its duration, so the total energy
     stays at most the kinematic path's; the velocity jumps at the cuts).
@@ -192,7 +296,8 @@ def transfer_segment(
         t: (T,) segment time stamps [s] (T >= 3).
         target: (T, 3) mapped human wrist path [m].
         q_kin: (T, n) kinematic retargeting of the segment [rad].
-        max_hand_dev: median hand distance allowed before cutting [m].
+        max_hand_dev: median hand distance allowed beyond the kinematic retargeting's
+            before cutting [m].
         max_pieces: most geodesic pieces.
 
     Raises:
@@ -212,11 +317,11 @@ def transfer_segment(
         hand = np.array([hand_position(robot, q) for q in Q])
         return float(np.median(np.linalg.norm(hand - target, axis=1)))
 
-    pieces = 1
+    pieces, d_kin = 1, dev(q_kin)
     while True:
         q_geo, v_geo = _piecewise_geodesic(metric, ts, q_kin, min(pieces, T - 1))
         d = dev(q_geo)
-        if d <= max_hand_dev or pieces >= min(max_pieces, T - 1):
+        if d <= d_kin + max_hand_dev or pieces >= min(max_pieces, T - 1):
             break
         pieces *= 2
     return Transferred(
@@ -225,7 +330,7 @@ def transfer_segment(
         q_kin,
         q_geo,
         v_geo,
-        dev(q_kin),
+        d_kin,
         d,
         path_energy(metric, ts, q_kin),
         path_energy(metric, ts, q_geo),
