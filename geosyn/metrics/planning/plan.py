@@ -37,6 +37,8 @@ class Plan(NamedTuple):
         exact_resolution: that joint-space resolution [rad].
         first_feasible_time: when the query's first plan passing every check was found,
             from the query's start [s].
+        nlp_build_time: time spent before the query's clock started building the NLPs
+            of its obstacle slot count (its first query with that count; else 0) [s].
     """
 
     result: CollocationResult
@@ -48,6 +50,7 @@ class Plan(NamedTuple):
     exact_clearance: float = math.nan
     exact_resolution: float = math.nan
     first_feasible_time: float = math.nan
+    nlp_build_time: float = 0.0
 
     @property
     def q(self) -> np.ndarray:

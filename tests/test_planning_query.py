@@ -1,0 +1,82 @@
+"""One planning query (`geosyn.metrics.planning.query`, issue 22): the homotopy rule
+(other seeds on by default, never a path longer than the straight line's) and the NLPs
+of the query's own obstacle slot count.
+
+References: metric lengths summed in the test with Pinocchio's mass matrix (``crba``) on
+the paths resampled 16x; exact sphere-obstacle distances of `ObstacleTerm.clearances` on
+the path checked 64x finer than its nodes; a planner built with exactly the slots a
+query uses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning.planner import densify
+from geosyn.metrics.shaping import CapacityExceeded
+from geosyn.robots import load_robot
+from geosyn.world import Box, Sphere
+
+ROBOT = dataclasses.replace(
+    load_robot("planar2"), q_min=np.full(2, -np.pi), q_max=np.full(2, np.pi)
+)
+Q0, Q1 = np.array([-0.6, 0.4]), np.array([0.6, 0.4])
+
+
+def tip_ball() -> Sphere:
+    """A ball on the tip's path halfway along the straight joint line."""
+    mid = 0.5 * (Q0 + Q1)
+    return Sphere(
+        (np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum()), 0.0), 0.15
+    )
+
+
+def length(path: np.ndarray) -> float:
+    """Metric length with Pinocchio's mass matrix (midpoint rule, 16x resampled)."""
+    dense = densify(path, 16)
+    data = ROBOT.model.createData()
+    total = 0.0
+    for a, b in zip(dense[:-1], dense[1:], strict=True):
+        M = pin.crba(ROBOT.model, data, 0.5 * (a + b))
+        M = np.triu(M) + np.triu(M, 1).T
+        total += float(np.sqrt((b - a) @ M @ (b - a)))
+    return total
+
+
+def planner(**options: object) -> Planner:
+    with pytest.warns(UserWarning, match="capsule spheres only"):
+        return Planner(KineticEnergyMetric(ROBOT), nodes=16, margin=0.01, **options)  # type: ignore[arg-type]
+
+
+def test_default_tries_other_seeds_and_never_returns_a_longer_path() -> None:
+    obstacles = [tip_ball()]
+    line = planner(capacity=1, alternatives=0).plan(Q0, Q1, obstacles, budget=20.0)
+    assert line.seed == "straight line" and line.result.kind == "constrained"
+    plan = planner(capacity=1).plan(Q0, Q1, obstacles, budget=20.0, seed=2)
+    assert any(a.startswith("RRT-Connect") for a in plan.attempts)  # other seeds tried
+    assert length(plan.q) <= length(line.q) * (1.0 + 1e-6)
+    assert plan.result.energy <= line.result.energy * (1.0 + 1e-9)
+    term = planner(capacity=1).term
+    term.set_obstacles(obstacles)
+    assert min(term.min_clearance(q) for q in densify(plan.q, 64)) > 0.0
+
+
+def test_a_query_solves_the_nlps_of_its_own_slot_count() -> None:
+    big = planner(capacity=4, alternatives=0)
+    assert [big.slots(k) for k in range(6)] == [1, 1, 2, 4, 4, 4]
+    ball = tip_ball()
+    first = big.plan(Q0, Q1, [ball], budget=20.0)
+    again = big.plan(Q0, Q1, [ball], budget=20.0)
+    assert first.nlp_build_time > 0.0 and again.nlp_build_time == 0.0
+    exact = planner(capacity=1, alternatives=0).plan(Q0, Q1, [ball], budget=20.0)
+    np.testing.assert_allclose(first.result.nodes, exact.result.nodes, atol=1e-9)
+    assert big.term.capacity == 4 and len(big.term.obstacles) == 1  # the last query's
+    far = Box((5.0, 5.0, 0.0), (0.1, 0.1, 0.1))
+    with pytest.raises(CapacityExceeded):
+        big.plan(Q0, Q1, [ball, far, far, far, far], budget=5.0)
