@@ -175,7 +175,7 @@ def test_mx_riccati_step_equals_the_sx_one() -> None:
             rng.normal(size=2 * n), rng.normal(size=n),
             np.concatenate([np.full(2 * n, 10.0), np.full(n, 1e-3), np.full(2 * n, 100.0),
                             np.full(n, -3.0), np.full(n, 3.0), np.full(n, 2.0),
-                            np.full(n, tau_scale), [1e6, 1e-9]]),
+                            np.full(n, tau_scale), np.zeros(n), [0.01, 1e6, 1e-9]]),
         ]  # fmt: skip
         out_sx, out_mx = sx(*args), mx(*args)
         for a, b in zip(out_sx, out_mx, strict=True):

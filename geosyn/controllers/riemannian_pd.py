@@ -10,6 +10,7 @@ import pinocchio as pin
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.reference import Reference
 from geosyn.core.types import Vector
+from geosyn.core.validation import check_positive
 from geosyn.robots.robot import Robot
 
 if TYPE_CHECKING:
@@ -27,7 +28,8 @@ class RiemannianPD(Controller):
         \\quad s = \\dot q - v_r = \\dot e + \\Lambda e,
 
     .. math::
-        \\tau = M(q) a_r + C(q, \\dot q) v_r + g(q) + D v_r - K s,
+        \\tau = M(q) a_r + C(q, \\dot q) v_r + g(q) + D v_r
+               + f_c \\tanh(v_r / v_s) - K s,
 
     where ``C_ij = sum_k Gamma_ijk qdot_k`` is built from the Christoffel symbols of the
     first kind of the kinetic-energy metric ``M`` (``pin.computeCoriolisMatrix``), the
@@ -36,7 +38,11 @@ class RiemannianPD(Controller):
 
     ``D`` is the robot file's viscous joint damping (``robot.damping``; zero when the file
     has none), the plant's ``-D qdot`` compensated along ``v_r`` so that the closed loop
-    keeps its form with ``K + D`` in place of ``K``.
+    keeps its form with ``K + D`` in place of ``K``. ``f_c`` is the file's dry joint
+    friction (``robot.frictionloss``), compensated along ``v_r`` too, smoothed over
+    ``v_s`` (``friction_velocity``): the mismatch with the plant's ``f_c sign(qdot)`` adds
+    ``s^T f_c (tanh(v_r / v_s) - sign(qdot))`` to ``Vdot`` below, which is ``<= 0`` up to
+    the smoothing (``s = qdot - v_r`` and the sign is monotone), so passivity is kept.
 
     Stability. With an exact model the closed loop is ``M s' + C s + (K + D) s = 0``. Because
     ``Mdot - 2C`` is skew-symmetric for the Christoffel ``C``, the function
@@ -63,6 +69,8 @@ class RiemannianPD(Controller):
         k: ``K``, scalar or (nv,) [N m s/rad], > 0 for convergence.
         metric: optional metric used only for reference generation and replanning.
         reference: optional reference to track.
+        friction_velocity: velocity [rad/s or m/s] over which the dry-friction
+            compensation goes smoothly from 0 to ``f_c`` (a smoothed sign), > 0.
 
     `compute` allocates the reference sample, ``M`` and ``C`` (Pinocchio returns copies).
     """
@@ -74,6 +82,8 @@ class RiemannianPD(Controller):
         k: float | np.ndarray,
         metric: Metric | None = None,
         reference: Reference | None = None,
+        *,
+        friction_velocity: float = 0.01,
     ) -> None:
         super().__init__(robot, reference, metric)
         self.lam = check_gain(lam, self.nv, "lam")
@@ -85,6 +95,14 @@ class RiemannianPD(Controller):
         if self._damping is not None:
             self.diagnostics.notes["damping"] = (
                 f"joint damping {self._damping.tolist()} compensated along v_r"
+            )
+        self.friction_velocity = check_positive(friction_velocity, "friction_velocity")
+        friction = np.asarray(robot.frictionloss, dtype=np.float64)
+        self._friction = friction.copy() if friction.size and np.any(friction) else None
+        if self._friction is not None:
+            self.diagnostics.notes["frictionloss"] = (
+                f"dry joint friction {self._friction.tolist()} compensated along v_r"
+                f" (f_c tanh(v_r / {self.friction_velocity:g}))"
             )
 
     def lyapunov(self, t: float, q: Vector, v: Vector) -> float:
@@ -119,6 +137,8 @@ class RiemannianPD(Controller):
         tau += pin.computeGeneralizedGravity(model, data, q)
         if self._damping is not None:
             tau += self._damping * v_ref
+        if self._friction is not None:
+            tau += self._friction * np.tanh(v_ref / self.friction_velocity)
         tau -= self.k * s
         self.diagnostics.extra["lyapunov"] = 0.5 * float(s @ M @ s) + float(e @ (lam * self.k * e))
         return tau

@@ -61,7 +61,7 @@ from geosyn.controllers.mpc.nlp.builder import OCPBuilder
 from geosyn.controllers.mpc.nlp.open_loop import OpenLoopOCP, OpenLoopSolution
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.nlp.tracking import tracking_parameters
-from geosyn.controllers.mpc.ocp.dynamics import joint_damping
+from geosyn.controllers.mpc.ocp.dynamics import FRICTION_VELOCITY, joint_damping, joint_friction
 from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots
 from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan, ReferenceSampler, ReferenceSamples
 from geosyn.controllers.mpc.ocp.settings import HESSIANS, ocp_settings, outside_state_margin
@@ -98,14 +98,6 @@ def _within_budget(plan: MPCPlan, budget: float) -> MPCPlan:
         status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
         return plan._replace(success=False, status=f"{status} ({plan.status})")
     return plan
-
-
-#: What the MPC says of a robot file's dry joint friction, which its smooth OCP cannot hold.
-_DRY_FRICTION = (
-    "the file's dry joint friction {} N m is not modelled (a non-smooth force the OCP"
-    " cannot hold; its viscous damping is); expect a tracking error of the order of the"
-    " friction over the feedback gain, or compensate it outside the MPC"
-)
 
 
 class GeodesicMPC(Controller):
@@ -232,7 +224,7 @@ class GeodesicMPC(Controller):
         damping = joint_damping(robot)
         self._follower = PlanFollower(
             self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance,
-            robot.tau_max, damping,
+            robot.tau_max, damping, joint_friction(robot),
         )  # fmt: skip
         open_loop_options = self.solver_options
         if not isinstance(open_loop_options, NLPOptions):  # a terminal equality: IPOPT
@@ -244,8 +236,12 @@ class GeodesicMPC(Controller):
         self._sampler = ReferenceSampler(self._model, self._data, damping)
         if damping is not None:
             self.diagnostics.notes["damping"] = f"joint damping {damping.tolist()} modelled"
-        if np.any(robot.frictionloss):
-            self._note("frictionloss", _DRY_FRICTION.format(robot.frictionloss.tolist()))
+        if np.any(robot.frictionloss):  # ocp.dynamics: a known torque of each stage
+            self.diagnostics.notes["frictionloss"] = (
+                f"dry joint friction {robot.frictionloss.tolist()} modelled: fed forward as"
+                f" f_c tanh(v_r / {FRICTION_VELOCITY}) on the reference velocity, within the"
+                " torque limits"
+            )
         problem = TrackingProblem(
             robot, metric, s, self.hessian, self.obstacles, self.kp, self.kd,
             self.max_solve_time, _report_progress,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from geosyn.controllers.mpc.ocp.dynamics import dry_friction
 from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan
 from geosyn.controllers.reference import Reference
 from geosyn.core.interpolation import hermite_point
@@ -49,7 +50,9 @@ class PlanFollower:
     (acceleration control), with ``(q^*, v^*)`` the cubic Hermite interpolation of the
     planned states (`plan_state`). A plan with DDP gains (``plan.K``) is followed by its
     own feedback, saturated at the torque limits like the DDP rollout:
-    ``tau = clip(u^*_j + K_j ((q, v) - (q^*, v^*)), -tau_max, tau_max)``.
+    ``tau = clip(u^*_j + K_j ((q, v) - (q^*, v^*)), -tau_max, tau_max)``. A plan's
+    dry-friction feed-forward of the stage (`MPCPlan.friction`) is added to each of
+    these torques; the computed torque on the reference adds ``f_c tanh(v_r / v_s)``.
 
     Args:
         model: Pinocchio model of the plant.
@@ -63,6 +66,8 @@ class PlanFollower:
             with gains is expected).
         damping: (nv,) the robot file's viscous joint damping D [N m s/rad] added to
             the inverse dynamics (``RNEA + D v``), or None.
+        friction: (nv,) the robot file's dry joint friction ``f_c`` [N m], fed forward
+            on the reference velocity by `reference_torque`, or None.
 
     Each method allocates only (nv,) arrays (and ``M`` in torque control).
     """
@@ -78,9 +83,11 @@ class PlanFollower:
         plan_tolerance: float,
         tau_max: Vector | None = None,
         damping: Vector | None = None,
+        friction: Vector | None = None,
     ) -> None:
         self._model, self._data = model, data
         self._damping = damping
+        self._friction = friction
         self.tau_max = None if tau_max is None else np.asarray(tau_max, dtype=np.float64)
         self.torque_control = control == "torque"
         self.dt, self.kp, self.kd = dt, kp, kd
@@ -89,14 +96,15 @@ class PlanFollower:
     def torque(self, plan: MPCPlan, t: float, q: Vector, v: Vector) -> Vector:
         """(nv,) torque [N m] that follows ``plan`` at time ``t`` from the state ``(q, v)``."""
         j, q_p, v_p = plan_state(plan, t, self.dt)
+        f = 0.0 if plan.friction is None else plan.friction[j]
         if plan.K is not None and self.tau_max is not None:
-            tau = plan.u[j] + plan.K[j] @ np.concatenate([q - q_p, v - v_p])
+            tau = plan.u[j] + f + plan.K[j] @ np.concatenate([q - q_p, v - v_p])
             return np.clip(tau, -self.tau_max, self.tau_max)
         fb = self.kp * (q_p - q) + self.kd * (v_p - v)
         if self.torque_control:
             M = pin.crba(self._model, self._data, q)
-            return plan.u[j] + M @ fb
-        return self._inverse_dynamics(q, v, plan.u[j] + fb)
+            return plan.u[j] + f + M @ fb
+        return self._inverse_dynamics(q, v, plan.u[j] + fb) + f
 
     def usable(self, plan: MPCPlan | None, t: float, q: Vector) -> bool:
         """A successful plan that still covers ``t`` and is within tolerance of ``q``."""
@@ -111,7 +119,10 @@ class PlanFollower:
         """(nv,) computed torque [N m] on ``reference`` with the same gains (no plan)."""
         q_ref, v_ref, a_ref = reference.sample(t)
         a = a_ref + self.kp * (q_ref - q) + self.kd * (v_ref - v)
-        return self._inverse_dynamics(q, v, a)
+        tau = self._inverse_dynamics(q, v, a)
+        if self._friction is not None:
+            tau += dry_friction(self._friction, v_ref)
+        return tau
 
     def _inverse_dynamics(self, q: Vector, v: Vector, a: Vector) -> Vector:
         """(nv,) ``RNEA(q, v, a) + D v`` [N m] (a new array)."""

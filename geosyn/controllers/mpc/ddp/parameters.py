@@ -2,8 +2,12 @@
 
 Every stage function of `geosyn.controllers.mpc.ddp.parts` takes one parameter vector ``P``
 (`parameter_vector`): tracking, effort and terminal weights, joint and torque limits,
-the soft-limit weight and the control regularisation, then (with obstacles) the
-clearance margin, its weight and the obstacle slots' parameters. `DDPCosts` says which
+the dry joint friction and its smoothing velocity, the soft-limit weight and the control
+regularisation (last, so that a solver raising it finds it at ``P[10 n + 2]``), then (with obstacles) the clearance margin, its weight and the
+obstacle slots' parameters. The stage's control is the torque net of the known
+dry-friction feed-forward ``f = f_c tanh(v_r / v_s)`` on the reference velocity
+(`geosyn.controllers.mpc.ocp.dynamics`): `torque_box` bounds it so that the commanded
+torque ``u + f`` stays within the torque limits. `DDPCosts` says which
 effort, which tracking norm and which clearance the stage costs use; `stage_terms` and
 `terminal_terms` build them as the shared cost terms of
 `geosyn.controllers.mpc.ocp.costs` (their Gauss-Newton derivatives, written once), with
@@ -24,6 +28,7 @@ from geosyn.controllers.mpc.ocp.costs import (
     StateTracking,
     TerminalStateTracking,
 )
+from geosyn.controllers.mpc.ocp.dynamics import FRICTION_VELOCITY
 from geosyn.controllers.mpc.ocp.penalties import ClearancePenalty, StateLimitPenalty
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
@@ -36,6 +41,7 @@ __all__ = [
     "split_parameters",
     "stage_terms",
     "terminal_terms",
+    "torque_box",
 ]
 
 
@@ -73,6 +79,8 @@ def parameter_vector(
     tau_max: np.ndarray,
     limit_weight: float,
     regularisation: float,
+    friction: np.ndarray | None = None,
+    friction_velocity: float = FRICTION_VELOCITY,
 ) -> np.ndarray:
     """The parameter vector ``P`` of the stage functions (infinite limits -> `BOUND_INF`).
 
@@ -84,7 +92,11 @@ def parameter_vector(
         tau_max: (n,) torque limits [N m].
         limit_weight: weight of the soft state limits.
         regularisation: added to the diagonal of each stage's control Hessian.
+        friction: (n,) dry joint friction ``f_c`` [N m] (None: zeros).
+        friction_velocity: ``v_s`` of the feed-forward ``f_c tanh(v_r / v_s)`` [rad/s].
     """
+    n = np.asarray(q_weight).size
+    f_c = np.zeros(n) if friction is None else np.asarray(friction, dtype=np.float64)
 
     def finite(a: np.ndarray) -> np.ndarray:
         return np.clip(np.asarray(a, dtype=np.float64), -BOUND_INF, BOUND_INF)
@@ -99,7 +111,8 @@ def parameter_vector(
             finite(q_max),
             finite(v_max),
             finite(tau_max),
-            [limit_weight, regularisation],
+            f_c,
+            [friction_velocity, limit_weight, regularisation],
         ]
     ).astype(np.float64)
 
@@ -112,13 +125,15 @@ class _Params(NamedTuple):
     q_max: Any
     v_max: Any
     tau_max: Any
+    friction: Any
+    v_s: Any
     w_lim: Any
     reg: Any
 
 
 def split_parameters(P: Any, n: int) -> _Params:
     """The named slices of ``P`` (`parameter_vector`'s layout)."""
-    sizes = (2 * n, n, 2 * n, n, n, n, n, 1, 1)
+    sizes = (2 * n, n, 2 * n, n, n, n, n, n, 1, 1, 1)
     parts, i = [], 0
     for s in sizes:
         parts.append(P[i : i + s])
@@ -127,10 +142,20 @@ def split_parameters(P: Any, n: int) -> _Params:
 
 
 def n_parameters(n: int, clearance: ca.Function | None = None) -> int:
-    """Length of ``P`` for ``n`` joints: ``9 n + 2``, plus ``2 + m_p`` with a clearance
+    """Length of ``P`` for ``n`` joints: ``10 n + 3``, plus ``2 + m_p`` with a clearance
     function (margin [m], weight [1/m^2], the obstacle slots' ``m_p`` parameters)."""
-    base = 9 * n + 2
+    base = 10 * n + 3
     return base if clearance is None else base + 2 + clearance.size1_in("p")
+
+
+def torque_box(P: Any, n: int, xr: Any) -> tuple[Any, Any]:
+    """Bounds ``(lo, hi)`` (n,) of a stage's control, the torque net of the stage's
+    dry-friction feed-forward ``f = f_c tanh(v_r / v_s)`` (``v_r = xr[n:]``, the reference
+    velocity): ``-tau_max - f <= u <= tau_max - f``, so that the commanded ``u + f`` is
+    within the limits (``f`` is zero without friction)."""
+    p = split_parameters(P, n)
+    f = p.friction * ca.tanh(xr[n:] / p.v_s)
+    return -p.tau_max - f, p.tau_max - f
 
 
 def _model(costs: DDPCosts) -> Any:

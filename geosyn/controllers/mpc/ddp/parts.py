@@ -19,7 +19,9 @@ function has named inputs and outputs (listed in `DDPParts`); callers pass them 
 Costs (`geosyn.controllers.mpc.ddp.parameters.stage_terms`): per stage the tracking, the
 effort (``"torque"`` or ``"metric"``), the soft state limits and (with obstacles) the
 clearance penalty; terminal: tracking, soft limits, clearance. The torque limits are hard
-(the box QP, and the clip of the rollout). Parameters ``P``:
+(the box QP, and the clip of the rollout), on the commanded torque: the control is the
+torque net of the dry-friction feed-forward
+(`geosyn.controllers.mpc.ddp.parameters.torque_box`). Parameters ``P``:
 `geosyn.controllers.mpc.ddp.parameters.parameter_vector`.
 """
 
@@ -42,6 +44,7 @@ from geosyn.controllers.mpc.ddp.parameters import (
     split_parameters,
     stage_terms,
     terminal_terms,
+    torque_box,
 )
 from geosyn.controllers.mpc.ocp import costs as costs_module
 from geosyn.controllers.mpc.ocp import penalties as penalties_module
@@ -149,7 +152,8 @@ def riccati_step(n: int, sym: Any = None, costs: DDPCosts | None = None) -> ca.F
     Qux = d["lux"] + B.T @ VA
     Quu = d["luu"] + ca.diag(p.reg * ca.DM.ones(n, 1)) + B.T @ VB
     Quu = 0.5 * (Quu + Quu.T)
-    k, free, H_free = box_qp(Quu, Qu, -p.tau_max - u, p.tau_max - u, BOX_ITERATIONS)
+    lo, hi = torque_box(P, n, xr)
+    k, free, H_free = box_qp(Quu, Qu, lo - u, hi - u, BOX_ITERATIONS)
     K = -spd_solve(H_free, (free @ ca.DM.ones(1, nx)) * Qux)
     Vx_new = Qx + K.T @ (Quu @ k + Qu) + Qux.T @ k
     # K is zero on the clamped rows and -Quu_ff^-1 Qux_f on the free ones, so
@@ -191,8 +195,8 @@ def _forward(n: int, F: ca.Function, costs: DDPCosts) -> ca.Function:
         ca.MX.sym("P", n_parameters(n, costs.clearance)),
     )  # fmt: skip
     x, xb, ub, k, K, alpha, xr, tr, P = ins
-    tau_max = split_parameters(P, n).tau_max
-    u = ca.fmin(ca.fmax(ub + alpha * k + K @ (x - xb), -tau_max), tau_max)
+    lo, hi = torque_box(P, n, xr)
+    u = ca.fmin(ca.fmax(ub + alpha * k + K @ (x - xb), lo), hi)
     sx = ca.SX.sym("x", nx), ca.SX.sym("u", n), ca.SX.sym("xr", nx), ca.SX.sym("tr", n)
     sP = ca.SX.sym("P", P.numel())
     s = StageSymbols(sx[0], sx[1], sx[1], sx[2][:n], sx[2][n:], sx[3], ca.SX(0, 1))

@@ -24,6 +24,7 @@ from geosyn.controllers.mpc.ddp.parameters import DDPCosts, parameter_vector
 from geosyn.controllers.mpc.ddp.parts import ForwardInputs, ddp_parts
 from geosyn.controllers.mpc.ddp.riccati import RiccatiSolver
 from geosyn.controllers.mpc.ocp.costs import is_robot_kinetic_metric
+from geosyn.controllers.mpc.ocp.dynamics import dry_friction, joint_friction
 from geosyn.controllers.mpc.ocp.plan import MPCPlan, ReferenceSamples
 from geosyn.core.calls import numpy_function
 from geosyn.core.codegen import CodegenError
@@ -107,10 +108,11 @@ class DDPTracking:
         s, robot = problem.settings, problem.robot
         n = robot.nv
         self.N, self.n, self.dt = s.N, n, s.dt
+        self._friction = joint_friction(robot)  # the stage torque f_c tanh(v_r / v_s)
         P = parameter_vector(
             s.q_weight, s.v_weight, s.effort_weight, s.terminal_weight, robot.q_min,
             robot.q_max, robot.v_max, robot.tau_max, options.limit_weight,
-            options.regularisation,
+            options.regularisation, self._friction,
         )  # fmt: skip
         self._slots = problem.obstacles if s.clearance_margin is not None else None
         clearance = None
@@ -164,8 +166,10 @@ class DDPTracking:
             K = np.array([-pin.crba(self._model, self._data, q) @ self._pd for q in ref.q[:N]])
             res = self.solver.solve(x_init, x_r, ref.tau, x_r, ref.tau, warm=False, K_guess=K)
         ok = res.success and bool(np.all(np.isfinite(res.x)) and np.all(np.isfinite(res.u)))
+        friction = None if self._friction is None else dry_friction(self._friction, ref.v[:N])
+        tau = res.u.copy() if friction is None else res.u + friction
         return MPCPlan(
-            t, res.x, res.u, res.u.copy(), res.status, res.iterations, ok, math.nan, res.K
+            t, res.x, res.u, tau, res.status, res.iterations, ok, math.nan, res.K, friction
         )
 
     def _shifted(

@@ -102,6 +102,8 @@ class NLPGraph(NamedTuple):
         ubg: per row upper bound.
         g_blocks: per stage, the indices of its rows in ``g`` (stage 0 holds the
             initial-condition rows).
+        torque_rows: (N, nv) the rows of the torque path constraint (acceleration
+            control), else None.
     """
 
     nlp: dict[str, Any]
@@ -109,6 +111,7 @@ class NLPGraph(NamedTuple):
     lbg: np.ndarray
     ubg: np.ndarray
     g_blocks: list[np.ndarray]
+    torque_rows: np.ndarray | None = None
 
 
 def transcribe(problem: ShootingProblem, symbol: type[_Sym], mapped: bool) -> NLPGraph:
@@ -162,6 +165,7 @@ def transcribe(problem: ShootingProblem, symbol: type[_Sym], mapped: bool) -> NL
         ubg.append(hi)
 
     g_blocks: list[np.ndarray] = []
+    torque_rows: list[np.ndarray] = []
     ng = 0
     for k in range(N):
         start = ng
@@ -171,6 +175,7 @@ def transcribe(problem: ShootingProblem, symbol: type[_Sym], mapped: bool) -> NL
             m0 = n if problem.free_v0 else nx
             add(init, np.zeros(m0), np.zeros(m0), True)
         if problem.control == "acceleration":
+            torque_rows.append(np.arange(len(equality), len(equality) + n))
             add(taus[k], -problem.tau_max, problem.tau_max, False)
         if problem.open_loop and k == N - 1:
             add(X[N][:n] - q_goal, np.zeros(n), np.zeros(n), True)
@@ -178,7 +183,8 @@ def transcribe(problem: ShootingProblem, symbol: type[_Sym], mapped: bool) -> NL
         g_blocks.append(np.arange(start, ng))
     p = ca.vertcat(x_init, q_goal, ca.vec(qr), ca.vec(vr), ca.vec(tr), mp)
     nlp = {"x": ca.vertcat(*w), "f": J, "g": ca.vertcat(*g), "p": p}
-    return NLPGraph(nlp, equality, np.concatenate(lbg), np.concatenate(ubg), g_blocks)
+    rows = np.array(torque_rows) if torque_rows else None
+    return NLPGraph(nlp, equality, np.concatenate(lbg), np.concatenate(ubg), g_blocks, rows)
 
 
 def pack_parameters(
@@ -243,6 +249,8 @@ class ShootingNLP:
         ubg: constraint upper bounds.
         g_blocks: per stage, indices into g (stage 0 includes the init block).
         tau_fn: ``(x (2 nv, N), u (nv, N)) -> tau (nv, N)``, planned torques [N m].
+        torque_rows: (N, n) rows of ``g`` bounding the torque (acceleration control),
+            or None (torque control: the controls are the torques).
     """
 
     solver: ca.Function
@@ -255,6 +263,7 @@ class ShootingNLP:
     ubg: np.ndarray
     g_blocks: list[np.ndarray]
     tau_fn: ca.Function
+    torque_rows: np.ndarray | None = None
 
     @classmethod
     def from_problem(
@@ -278,6 +287,7 @@ class ShootingNLP:
             ubg=graph.ubg,
             g_blocks=graph.g_blocks,
             tau_fn=tau_fn,
+            torque_rows=graph.torque_rows,
         )
 
     def cold(self) -> ca.Function:
@@ -339,13 +349,47 @@ class ShootingNLP:
             "lam_g0": lam_g,
         }
 
-    def run(self, solver: ca.Function, p: np.ndarray, guess: dict[str, np.ndarray]) -> SolveResult:
+    def net_bounds(self, offset: np.ndarray) -> dict[str, np.ndarray]:
+        """The bounds with the torque limits moved onto the torque net of a known stage
+        torque (allocates): each stage's torque box shifted by ``-offset`` (the controls'
+        bounds in torque control, the torque rows of ``g`` in acceleration control), so
+        that the torque plus ``offset`` keeps the limits.
+
+        Args:
+            offset: (N, n) known torque of each stage [N m] (the dry-friction
+                feed-forward, `geosyn.controllers.mpc.ocp.dynamics.stage_friction`).
+
+        Returns:
+            ``{"lbx", "ubx", "lbg", "ubg"}`` for `run`.
+        """
+        lbx, ubx, lbg, ubg = self.lbx, self.ubx, self.lbg, self.ubg
+        if self.torque_rows is None:
+            n = self.n
+            idx = (np.arange(self.N) * 3 * n + 2 * n)[:, None] + np.arange(n)
+            lbx, ubx = lbx.copy(), ubx.copy()
+            lbx[idx] -= offset
+            ubx[idx] -= offset
+        else:
+            lbg, ubg = lbg.copy(), ubg.copy()
+            lbg[self.torque_rows] -= offset
+            ubg[self.torque_rows] -= offset
+        return {"lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
+
+    def run(
+        self,
+        solver: ca.Function,
+        p: np.ndarray,
+        guess: dict[str, np.ndarray],
+        bounds: dict[str, np.ndarray] | None = None,
+    ) -> SolveResult:
         """One call of ``solver`` (allocates the result arrays).
 
         Args:
             solver: `solver` or the result of `cold`.
             p: parameter vector (`pack_parameters`).
             guess: ``{"x0"}`` and optionally ``{"lam_x0", "lam_g0"}``.
+            bounds: ``{"lbx", "ubx", "lbg", "ubg"}`` (`net_bounds`), or None: the
+                problem's own.
 
         Returns:
             The `SolveResult` (``success`` False on a failed solve).
@@ -353,7 +397,9 @@ class ShootingNLP:
         Raises:
             RuntimeError: CasADi or the solver plugin raised.
         """
-        res = solver(p=p, lbx=self.lbx, ubx=self.ubx, lbg=self.lbg, ubg=self.ubg, **guess)
+        if bounds is None:
+            bounds = {"lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+        res = solver(p=p, **bounds, **guess)
         stats = solver.stats()
         status = str(stats.get("return_status", stats.get("unified_return_status", "?")))
         w = np.asarray(res["x"]).ravel()

@@ -4,9 +4,12 @@
 
 Each solve warm-starts from the previous plan shifted by the elapsed stages (its
 multipliers too, which IPOPT uses and fatrop ignores), else cold-starts from the
-reference samples. `nlp_backend` builds it: with ``hessian="gauss-newton"`` on the
-compiled, curvature-free stage dynamics (`geosyn.controllers.mpc.ocp.compiled`), or,
-without a C compiler, on an SX graph with exact Hessians (recorded in ``notes``).
+reference samples. With the robot file's dry joint friction, the controls are the
+torques net of its feed-forward and the torque limits move with it
+(`geosyn.controllers.mpc.nlp.problem.ShootingNLP.net_bounds`). `nlp_backend` builds it:
+with ``hessian="gauss-newton"`` on the compiled, curvature-free stage dynamics
+(`geosyn.controllers.mpc.ocp.compiled`), or, without a C compiler, on an SX graph with
+exact Hessians (recorded in ``notes``).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from geosyn.controllers.mpc.nlp.builder import OCPBuilder
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.nlp.problem import ShootingNLP, SolveResult, pack_parameters
 from geosyn.controllers.mpc.ocp.compiled import cached_stage_dynamics
+from geosyn.controllers.mpc.ocp.dynamics import joint_friction, stage_friction
 from geosyn.controllers.mpc.ocp.plan import MPCPlan, ReferenceSamples
 from geosyn.core.codegen import CodegenError
 from geosyn.core.errors import InvalidArgument
@@ -97,15 +101,21 @@ class NLPTracking:
             x0[0] = x_init
             u0 = ref.tau if s.control == "torque" else ref.a[:N]
             solver, guess = nlp.cold(), {"x0": nlp.pack(x0, u0)}
+        friction = stage_friction(self.builder.robot, ref.v, N)
+        bounds = None if friction is None else nlp.net_bounds(friction)
         try:
-            res = nlp.run(solver, tracking_parameters(self.builder, x_init, ref), guess)
+            res = nlp.run(solver, tracking_parameters(self.builder, x_init, ref), guess, bounds)
         except RuntimeError as err:
             nan_u, nan_x = np.full((N, n), np.nan), np.full((N + 1, 2 * n), np.nan)
             status = f"exception: {err}".splitlines()[0][:200]
             res = SolveResult(nan_x, nan_u, nan_u.copy(), math.nan, status, 0, False, None)
         if res.success:
             self._lam = res.multipliers
-        return MPCPlan(t, res.x, res.u, res.tau, res.status, res.iterations, res.success, math.nan)
+        tau = res.tau if friction is None else res.tau + friction
+        return MPCPlan(
+            t, res.x, res.u, tau, res.status, res.iterations, res.success, math.nan, None,
+            friction,
+        )  # fmt: skip
 
 
 def nlp_backend(problem: TrackingProblem, options: NLPOptions) -> NLPTracking:
@@ -121,6 +131,7 @@ def nlp_backend(problem: TrackingProblem, options: NLPOptions) -> NLPTracking:
             f"clearance_margin needs solver='ddp' (a stiff clearance penalty), got "
             f"solver={options.solver!r}"
         )
+    joint_friction(problem.robot)  # refuses a dry friction at or over a torque limit
     builder = OCPBuilder(problem.robot, problem.metric, s, options, problem.max_solve_time)
     if problem.hessian == "gauss-newton":
         try:

@@ -5,8 +5,15 @@ State ``x = (q, v)`` of size 2 nv; control ``u`` of size nv, either the joint to
 accelerations (acceleration control: the exact double integrator, with the torque
 ``RNEA(q, v, u) + D v`` as an output for the limits). Both are SX functions built once.
 ``D`` is the robot file's viscous joint damping (`joint_damping`; MuJoCo applies it as
-``-D v``); the file's dry friction cannot be written as a smooth ODE and is reported by
-the controller instead.
+``-D v``).
+
+The file's dry joint friction ``f_c`` (`joint_friction`) is not a smooth function of the
+state, so the OCP does not hold it as such: like `ComputedTorque`, the MPC feeds it
+forward on the reference velocity, ``f_k = f_c tanh(v^r_k / v_s)`` (`dry_friction`,
+``v_s`` = `FRICTION_VELOCITY`), a known torque of stage ``k``. The solvers' control is
+then the torque net of it (what ``F`` and ``TAU`` above take), the commanded torque is
+``u_k + f_k`` (`geosyn.controllers.mpc.ocp.plan.MPCPlan.friction`), and the torque
+limits bound the commanded torque, ``-tau_max - f_k <= u_k <= tau_max - f_k``.
 """
 
 from __future__ import annotations
@@ -16,10 +23,25 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
 
-__all__ = ["StageDynamics", "joint_damping", "stage_dynamics", "stage_step", "stage_torque"]
+__all__ = [
+    "FRICTION_VELOCITY",
+    "StageDynamics",
+    "dry_friction",
+    "joint_damping",
+    "joint_friction",
+    "stage_dynamics",
+    "stage_friction",
+    "stage_step",
+    "stage_torque",
+]
+
+FRICTION_VELOCITY = 0.01
+"""Reference velocity [rad/s or m/s] over which the dry-friction feed-forward goes
+smoothly from 0 to ``f_c`` (``tanh(v_r / FRICTION_VELOCITY)``; `ComputedTorque`'s default)."""
 
 
 def joint_damping(robot: Robot) -> np.ndarray | None:
@@ -28,6 +50,52 @@ def joint_damping(robot: Robot) -> np.ndarray | None:
     robot)."""
     d = np.asarray(robot.damping, dtype=np.float64)
     return d.copy() if d.size and np.any(d) else None
+
+
+def joint_friction(robot: Robot) -> np.ndarray | None:
+    """(nv,) the robot file's dry joint friction ``f_c`` [N m or N], or None without any.
+
+    Raises:
+        InvalidArgument: a joint's friction is not below its torque limit (no torque
+            within the limits would move it; the MPC's torque box would be empty).
+    """
+    f = np.asarray(robot.frictionloss, dtype=np.float64)
+    if not (f.size and np.any(f)):
+        return None
+    tau_max = np.asarray(robot.tau_max, dtype=np.float64)
+    bad = np.flatnonzero(f >= tau_max)
+    if bad.size:
+        i = int(bad[0])
+        raise InvalidArgument(
+            f"robot {robot.name!r}: joint {robot.joint_names[i]!r} has frictionloss {f[i]:g},"
+            f" not below its torque limit {tau_max[i]:g}; the MPC needs frictionloss <"
+            " tau_max on every joint"
+        )
+    return f.copy()
+
+
+def dry_friction(
+    friction: np.ndarray, v_ref: np.ndarray, velocity: float = FRICTION_VELOCITY
+) -> np.ndarray:
+    """The dry-friction feed-forward ``f_c tanh(v_r / v_s)`` (a new array).
+
+    Args:
+        friction: (nv,) dry friction ``f_c`` [N m].
+        v_ref: (..., nv) reference velocities [rad/s].
+        velocity: ``v_s`` [rad/s], > 0.
+
+    Returns:
+        (..., nv) torques [N m].
+    """
+    return friction * np.tanh(np.asarray(v_ref, dtype=np.float64) / velocity)
+
+
+def stage_friction(robot: Robot, v_ref: np.ndarray, N: int) -> np.ndarray | None:
+    """(N, nv) the known dry-friction torque of each stage [N m] (`dry_friction` of the
+    reference velocities ``v_ref`` (>= N, nv) [rad/s] at the stage starts), or None for a
+    robot without dry friction."""
+    f = joint_friction(robot)
+    return None if f is None else dry_friction(f, np.asarray(v_ref)[:N])
 
 
 def damped_torque(robot: Robot, v: ca.SX, tau: ca.SX) -> ca.SX:

@@ -29,14 +29,18 @@ class MPCPlan(NamedTuple):
     Attributes:
         t: time of the solve [s]; stage k is at ``t + k dt``.
         x: (N+1, 2 nv) planned states ``(q, v)`` [rad, rad/s].
-        u: (N, nv) planned controls (torques [N m] or accelerations [rad/s^2]).
-        tau: (N, nv) planned torques [N m].
+        u: (N, nv) planned controls (torques [N m] or accelerations [rad/s^2]); with
+            ``friction``, torques net of it.
+        tau: (N, nv) planned commanded torques [N m] (``friction`` included).
         status: solver status string.
         iterations: solver iterations.
         success: the solver reported success and the result is finite.
         solve_time: wall-clock time of the solver call [s].
         K: (N, nv, 2 nv) feedback gains of a DDP solve (``solver="ddp"``), else None:
             the torque ``u_j + K_j (x - x^*)`` minimises the stage's local model.
+        friction: (N, nv) the known dry-friction feed-forward of each stage [N m]
+            (`geosyn.controllers.mpc.ocp.dynamics.stage_friction`), added to the
+            controls' torque when commanding, or None for a robot without dry friction.
     """
 
     t: float
@@ -48,6 +52,7 @@ class MPCPlan(NamedTuple):
     success: bool
     solve_time: float
     K: np.ndarray | None = None
+    friction: np.ndarray | None = None
 
 
 class ReferenceSamples(NamedTuple):
