@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from geosyn.controllers import (
@@ -284,17 +285,20 @@ def test_property_reaches_the_controller(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("solver", ["ddp", "fatrop"])
-def test_mpc_commanded_torque_with_friction_keeps_the_limits(cases, solver) -> None:
+@pytest.mark.parametrize(
+    ("solver", "control"), [("ddp", "torque"), ("fatrop", "torque"), ("fatrop", "acceleration")]
+)
+def test_mpc_commanded_torque_with_friction_keeps_the_limits(cases, solver, control) -> None:
     """The dry-friction feed-forward is part of the commanded torque the limits bound: j2's
     reference needs -5.94 N m for the rigid body plus -0.3 N m friction, and its limit
-    is 6.15 N m (between the two). The plan's commanded torque ``u + friction`` reaches
-    the limit and stays within it; its control ``u`` is the torque net of the friction
-    (bounding ``u`` alone would command up to 6.45 N m)."""
+    is 6.15 N m (between the two). The plan's commanded torque (its torque plus the
+    friction) reaches the limit and stays within it; the torque the solver bounds is net
+    of the friction (bounding it alone would command up to 6.45 N m)."""
     case = cases["frictionloss"]
     tau_max = np.array([20.0, 6.15, 20.0])
     robot = dataclasses.replace(case.robot, tau_max=tau_max)
-    mpc = _mpc(solver)(robot)
+    metric = KineticEnergyMetric(robot)
+    mpc = GeodesicMPC(robot, metric, horizon=10, dt=0.02, control=control, solver=solver)
     assert "modelled" in mpc.diagnostics.notes["frictionloss"]
     mpc.set_reference(case.ref)
     plan = mpc.solve(0.0, Q0, V0)
@@ -302,10 +306,16 @@ def test_mpc_commanded_torque_with_friction_keeps_the_limits(cases, solver) -> N
     assert plan.friction is not None
     v_ref = np.array([case.ref.sample(k * 0.02).v for k in range(10)])  # stage starts
     np.testing.assert_allclose(plan.friction, 0.3 * np.tanh(v_ref / 0.01), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(plan.tau, plan.u + plan.friction, rtol=0, atol=1e-12)
+    if control == "torque":  # the controls are the torques net of the friction
+        net = plan.u
+    else:  # the controls are accelerations: the torque is the inverse dynamics (Pinocchio)
+        data = robot.model.createData()
+        x, u = plan.x, plan.u
+        net = np.array([pin.rnea(robot.model, data, x[k, :3], x[k, 3:], u[k]) for k in range(10)])
+    np.testing.assert_allclose(plan.tau, net + plan.friction, rtol=0, atol=1e-9)
     assert np.all(np.abs(plan.tau) <= tau_max + 1e-6), np.abs(plan.tau).max(axis=0)
     assert np.max(np.abs(plan.tau[:, 1])) > 6.15 - 1e-3  # the limit is active
-    assert np.max(np.abs(plan.u[:, 1])) < 6.15 - 0.29  # the control is net of the friction
+    assert np.max(np.abs(net[:, 1])) < 6.15 - 0.29  # what the solver bounds is net of it
 
 
 @pytest.mark.slow
