@@ -33,11 +33,15 @@ What is compared, on the same problem and the same plant:
   torque controls, RK4 nodes, BoxFDDP, 1 warm-started iteration per solve, first control
   plus Riccati feedback ``-K_0 dx`` between solves, single-threaded like geosyn's solver
   (``--croc-threads``; see ``croc_runner.THREADS`` for why); see its docstring.
-- geosyn (`run_geosyn`): ``GeodesicMPC(control="torque", solver="ddp")`` with its
-  default weights: box-DDP with compiled RK4-on-ABA Jacobians and Riccati steps, one
-  warm-started iteration per solve, its Riccati feedback saturated at the torque limits
-  between solves (``effort="torque"``). ``--geosyn-option solver=fatrop`` times the
-  interior-point solver instead (Gauss-Newton Hessian of the compiled RK4 step).
+- geosyn (`run_geosyn`): ``GeodesicMPC(control="torque")`` with its defaults (since
+  issue 21 the default torque-level solver is box-DDP, ``solver=None``, and the
+  joint-limit guard is on): box-DDP with compiled RK4-on-ABA Jacobians and Riccati
+  steps, one warm-started iteration per solve, its Riccati feedback saturated at the
+  torque limits between solves (``effort="torque"``), every torque through the
+  joint-limit guard (`geosyn.controllers.limit_guard`; its cost is in the timed call).
+  ``--geosyn-option solver=fatrop`` times the interior-point solver instead
+  (Gauss-Newton Hessian of the compiled RK4 step), ``joint_limit_guard=False`` the
+  unguarded controller.
 - Both: N in {10, 40}, dt = 20 ms, re-solve every 20 ms, the same weights (geosyn's
   defaults), costs tracking (q, v) of the reference and regularising the torque around
   the reference's inverse dynamics, torque limits. Scenarios: ``on_reference`` (start on
@@ -50,7 +54,8 @@ What is compared, on the same problem and the same plant:
   tick (reference update, warm start, solver, first command); the first (cold) solve of
   each run is left out of median and p99. Tracking RMS is over all joints and 1 kHz
   ticks of the 1.5 s run; "ticks over" counts ticks whose commanded (unclipped) torque
-  exceeds a limit by more than 1e-6 N m.
+  exceeds a limit by more than 1e-6 N m; "joint-limit violations" counts the plant's
+  states (1 kHz) outside the model's position limits or over its velocity limits.
 
 Timings are wall-clock and depend on the machine's load; numbers go to RESULTS.md.
 """
@@ -232,7 +237,7 @@ class GeosynSide:
 def run_geosyn(side: GeosynSide, ref: ReferenceSamples, scenario: str, horizon: int) -> dict:
     """geosyn's torque-level MPC on the shared plant: a summary and arrays like the runner's.
 
-    The controller is ``GeodesicMPC(control="torque", **options)`` (``solver="ddp"``
+    The controller is ``GeodesicMPC(control="torque", **options)`` (its default solver
     unless ``--geosyn-option`` says otherwise) with its default weights; its own plan
     following runs between solves (ddp: ``u_0 + K_0 dx`` saturated at the torque limits;
     fatrop/ipopt: planned torque + M(q) PD). The command recorded is the controller's
@@ -252,7 +257,26 @@ def run_geosyn(side: GeosynSide, ref: ReferenceSamples, scenario: str, horizon: 
     summary = summarize(scenario, horizon, roll, ref, model)
     at_limit = np.abs(roll.tau_cmd) >= np.asarray(model.effortLimit) * (1.0 - 1e-12)
     summary["ticks_at_limit"] = int(np.count_nonzero(at_limit.any(axis=1)))
+    summary["joint_limit_violations"], summary["max_joint_limit_excess"] = joint_limit_violations(
+        roll, model
+    )
+    summary["guard_ticks"] = int(mpc.command.count)
+    summary["solver"] = mpc.solver_options.name
     return summary
+
+
+def joint_limit_violations(roll: Rollout, model: pin.Model) -> tuple[int, float]:
+    """States of the closed loop outside the position limits or over the velocity limits
+    (count), and the largest excess ([rad] or [rad/s]; 0 when none)."""
+    excess = np.concatenate(
+        [
+            roll.q - np.asarray(model.upperPositionLimit),
+            np.asarray(model.lowerPositionLimit) - roll.q,
+            np.abs(roll.v) - np.asarray(model.velocityLimit),
+        ],
+        axis=1,
+    )
+    return int(np.count_nonzero((excess > 0.0).any(axis=1))), float(max(0.0, excess.max()))
 
 
 def summarize(
@@ -330,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"creating the reference {REFERENCE.relative_to(HERE.parent)} (geosyn exp)")
         ref = make_reference()
     results: dict[tuple[str, int, str], list[dict]] = {}
-    options: dict = {"solver": "ddp"}  # geosyn's torque-level default is fatrop
+    options: dict = {}  # GeodesicMPC's defaults (torque level: box-DDP and the guard)
     for item in args.geosyn_option:
         key, _, value = item.partition("=")
         try:
@@ -383,14 +407,23 @@ def main(argv: list[str] | None = None) -> int:
                             results.setdefault(("geosyn", horizon, scenario), []).append(run)
             print(f"round {rnd + 1}/{args.rounds} done", flush=True)
     print()
+    built = next(iter(side.mpcs.values()), None) if side is not None else None
+    default = built.solver_options.name if built is not None else "default"  # type: ignore[attr-defined]
     solver, control = (
-        str(options.get(k, d)) for k, d in (("solver", "ddp"), ("control", "torque"))
+        str(options.get(k, d)) for k, d in (("solver", default), ("control", "torque"))
     )
     print(table(results, croc_info.get("crocoddyl", "?"), solver, control))
     for (who, horizon, scenario), runs in sorted(results.items()):
         if who == "geosyn":
             ticks = max(int(r.get("ticks_at_limit", 0)) for r in runs)
-            print(f"geosyn N={horizon} {scenario}: command at a torque limit on {ticks} ticks")
+            viol = max(int(r["joint_limit_violations"]) for r in runs)
+            excess = max(float(r["max_joint_limit_excess"]) for r in runs)
+            guard = max(int(r["guard_ticks"]) for r in runs)
+            print(
+                f"geosyn {runs[0]['solver']} N={horizon} {scenario}: command at a torque limit"
+                f" on {ticks} ticks; joint-limit violations {viol} (max excess {excess:.2e});"
+                f" guard changed the torque on {guard} ticks"
+            )
     if side is not None:
         print(
             "geosyn build times [s]: "

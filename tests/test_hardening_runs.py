@@ -65,6 +65,7 @@ def _controllers(robot, metric, ref):
             horizon=5,
             dt=0.02,
             control="torque",
+            solver="fatrop",
             max_solve_time=MPC_SOLVE_TIME,
             reference=ref,
         ),

@@ -8,8 +8,8 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
-from geosyn.controllers.base import check_gain
 from geosyn.controllers.computed_torque import ComputedTorque
+from geosyn.controllers.limit_bounds import AccelerationBounds, check_braking_acceleration
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
@@ -27,10 +27,6 @@ _STATUS = {
     "PROXQP_DUAL_INFEASIBLE": "dual_infeasible",
     "PROXQP_NOT_RUN": "failed",
 }
-
-#: Magnitude standing in for "no bound" on the accelerations [rad/s^2].
-_BIG = 1e6
-
 
 MAX_DT = 1.0
 """Longest control period [s] the QP accepts (its constraints look one period ahead)."""
@@ -159,13 +155,7 @@ class QPController(ComputedTorque):
         if horizon < self.dt:
             raise InvalidArgument(f"position_horizon must be >= dt={self.dt} [s], got {horizon}")
         self.position_horizon = horizon
-        if braking_acceleration is None:
-            self.braking_acceleration: np.ndarray | None = None
-        else:
-            b = check_gain(braking_acceleration, n, "braking_acceleration")
-            if np.any(b <= 0.0):
-                raise InvalidArgument(f"braking_acceleration must be > 0, got {b}")
-            self.braking_acceleration = b
+        self.braking_acceleration = check_braking_acceleration(braking_acceleration, n)
         self.eps_abs = check_float(eps_abs, "eps_abs", low=MIN_EPS_ABS, high=1.0)
         self.max_iter = check_int(max_iter, "max_iter", low=1, high=MAX_ITER)
         self.max_inner_iter = check_int(max_inner_iter, "max_inner_iter", low=1, high=MAX_ITER)
@@ -175,20 +165,12 @@ class QPController(ComputedTorque):
                 f" bound on proxsuite's inner iterations), got {self.max_iter} *"
                 f" {self.max_inner_iter} = {self.max_iter * self.max_inner_iter}"
             )
-        # Bounds are computed for both sides at once on stacked (2 nv,) arrays: the upper
-        # limit as is, the lower one mirrored (distance q - q_min, velocity -v).
-        self._lim = np.concatenate([robot.q_max, -np.asarray(robot.q_min)]).astype(np.float64)
-        self._q_max = self._lim[:n]  # a view (tests move a limit through it)
-        self._v_max2 = np.concatenate([robot.v_max, robot.v_max]).astype(np.float64)
-        self._brake2 = (
-            None
-            if self.braking_acceleration is None
-            else 2.0 * np.concatenate([self.braking_acceleration, self.braking_acceleration])
+        # The acceleration box (`geosyn.controllers.limit_bounds`, shared with the MPC's
+        # joint-limit guard); its q_max is a view (tests move a limit through it).
+        self._bounds = AccelerationBounds(
+            robot.q_min, robot.q_max, robot.v_max, horizon, self.braking_acceleration
         )
-        self._x2 = np.zeros(2 * n)  # (q, -q)
-        self._w2 = np.zeros(2 * n)  # (v, -v)
-        self._d2 = np.zeros(2 * n)
-        self._bound2 = np.zeros(2 * n)
+        self._q_max = self._bounds.q_max
         self._zero = np.zeros(n)
         # Preallocated QP data.
         self._H = np.zeros((2 * n, 2 * n))
@@ -217,37 +199,10 @@ class QPController(ComputedTorque):
         np.negative(pin.rnea(model, data, q, v, self._zero), out=self._b)
         if self.compensate_friction:  # joint friction joins the bias torques
             self._b -= self.joint_friction(v, self._v_ref)
-        dt = self.dt
-        x, w, d, bound = self._x2, self._w2, self._d2, self._bound2
-        x[:n] = q
-        np.negative(q, out=x[n:])
-        w[:n] = v
-        np.negative(v, out=w[n:])
-        # Velocity limits one step ahead: w + qdd dt <= v_max.
-        np.subtract(self._v_max2, w, out=bound)
-        bound *= 1.0 / dt
-        # Position limits T ahead: x + w T + 1/2 qdd T^2 <= lim.
-        T = self.position_horizon
-        np.multiply(w, T, out=d)
-        d += x
-        np.subtract(self._lim, d, out=d)
-        d *= 2.0 / (T * T)
-        np.minimum(bound, d, out=bound)
-        if self._brake2 is not None:
-            # Braking curve: w + qdd dt <= sqrt(2 b (lim - x - w dt)).
-            np.multiply(w, dt, out=d)
-            d += x
-            np.subtract(self._lim, d, out=d)
-            np.maximum(d, 0.0, out=d)
-            d *= self._brake2
-            np.sqrt(d, out=d)
-            d -= w
-            d *= 1.0 / dt
-            np.minimum(bound, d, out=bound)
-        np.minimum(bound, _BIG, out=bound)
-        np.maximum(bound, -_BIG, out=bound)
-        self._ubox[:n] = bound[:n]
-        np.negative(bound[n:], out=self._lbox[:n])
+        bounds = self._bounds
+        bounds.update(q, v, self.dt)
+        self._ubox[:n] = bounds.upper
+        self._lbox[:n] = bounds.lower
 
     def _init_qp(self) -> None:
         s = self.qp.settings

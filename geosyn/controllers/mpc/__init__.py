@@ -57,10 +57,16 @@ option                  selects
                         zero curvature, found on disk by a recipe (`.ocp.compiled`), one
                         MX graph; ``"exact"``: an SX graph with exact Hessians on
                         CasADi's virtual machine (no compiler needed).
-``solver``              ``"fatrop"`` (default): interior point on the stage structure
+``solver``              None (default): ``"ddp"`` with torque control where the DDP
+                        solves the problem, else ``"fatrop"`` (`.families`);
+                        ``"fatrop"``: interior point on the stage structure
                         (Riccati); ``"ipopt"``: general sparse interior point;
                         ``"ddp"``: box-DDP (torque control); or the options objects
                         `NLPOptions`, `DDPOptions` (YAML: ``solver: {type: ddp, ...}``).
+``joint_limit_guard``   True (default): every torque passes
+                        `geosyn.controllers.limit_guard` (joint position and velocity
+                        limits hard in closed loop, torque inside its limits);
+                        False: the torque is only clamped to its limits.
 ``max_solve_time``      the wall-time budget of one solve (IPOPT stops at it; a longer
                         fatrop or DDP solve is discarded); over it, the controller
                         falls back.

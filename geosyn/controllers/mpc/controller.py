@@ -40,6 +40,11 @@ within ``plan_tolerance`` of it (``extra["fallback"] == 1``), else to a computed
 the reference (``extra["fallback"] == 2``, clipped to the limits by `Controller.compute`).
 A setting changed at build time (no C compiler: ``hessian`` ``"exact"``) is warned and
 recorded in ``diagnostics.notes``.
+
+Every torque (plan, previous plan or fallback) then passes the joint-limit guard
+(`geosyn.controllers.limit_guard`; ``joint_limit_guard=False``: a clamp to the torque
+limits); a law torque over a limit is flagged in ``diagnostics.saturated``, and each tick
+the guard changed is counted and described in the diagnostics.
 """
 
 from __future__ import annotations
@@ -53,9 +58,10 @@ import numpy as np
 
 from geosyn.controllers.base import Controller, check_gain
 from geosyn.controllers.errors import NoReference
+from geosyn.controllers.limit_guard import GuardedCommand
 from geosyn.controllers.mpc.backend import TrackingBackend, TrackingProblem
 from geosyn.controllers.mpc.ddp.options import DDPOptions
-from geosyn.controllers.mpc.families import BACKENDS, solver_options
+from geosyn.controllers.mpc.families import BACKENDS, default_solver_options, solver_options
 from geosyn.controllers.mpc.follow import PlanFollower
 from geosyn.controllers.mpc.nlp.builder import OCPBuilder
 from geosyn.controllers.mpc.nlp.open_loop import OpenLoopOCP, OpenLoopSolution
@@ -105,22 +111,27 @@ class GeodesicMPC(Controller):
     shooting) or by box-DDP (``solver="ddp"``, torque control). The OCP, the efforts and
     the fallbacks: `geosyn.controllers.mpc.controller`.
 
-    Defaults: ``control="acceleration"`` with ``effort="acceleration"`` and fatrop. At
-    the torque level, ``solver="ddp"`` is the fast choice (faster than Crocoddyl's
-    BoxFDDP on the same problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of
-    the RK4 step on the ABA over several interior-point iterations. fatrop stays the
-    default even for ``control="torque"`` because the DDP keeps only the torque box as a
-    hard constraint: its joint position and velocity limits are stiff penalties, which
-    can be violated in closed loop, while fatrop and IPOPT hold them as constraints of
-    the NLP. Choose ``solver="ddp"`` when speed matters more than hard joint limits.
+    Defaults: ``control="acceleration"`` with ``effort="acceleration"`` and fatrop; with
+    ``control="torque"``, box-DDP (``solver=None`` picks it wherever it solves the
+    problem, `geosyn.controllers.mpc.families.default_solver_options`). Box-DDP is the
+    fastest torque-level solver (0.3-0.4x Crocoddyl's BoxFDDP CPU time per solve on the
+    same problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of the RK4 step on
+    the ABA over several interior-point iterations. The DDP keeps only the torque box as
+    a hard constraint of its OCP (its position and velocity limits are stiff penalties);
+    the joint-limit guard (``joint_limit_guard``, on by default) makes them hard in
+    closed loop for every solver. fatrop stays the default at the acceleration level
+    (the DDP solves torque controls only), and is what ``solver=None`` takes where the
+    DDP refuses the problem (an exact Hessian, a metric effort on another metric).
 
     Args:
         robot: the robot (its model is the OCP's dynamics).
         metric: the metric of the geodesic reference; weighs the ``"metric"`` effort.
         horizon: number of stages N (>= 1).
         dt: stage length and re-solve period [s] (> 0).
-        solver: ``"fatrop"``, ``"ipopt"`` or ``"ddp"`` (each its family's default
-            options), or the options themselves: `NLPOptions` (fatrop or IPOPT on the
+        solver: None (default: ``"ddp"`` with torque control where the DDP solves the
+            problem, else ``"fatrop"``; the choice is ``solver_options``), ``"fatrop"``,
+            ``"ipopt"`` or ``"ddp"`` (each its family's default options), or the options
+            themselves: `NLPOptions` (fatrop or IPOPT on the
             multiple-shooting NLP: tolerance, iterations, barrier parameters, plugin
             options) or `DDPOptions` (box-constrained DDP with compiled stage
             derivatives and Riccati feedback between solves, the fastest torque-level
@@ -160,6 +171,10 @@ class GeodesicMPC(Controller):
         tracking: ``"euclidean"`` or ``"metric"``: the errors in the kinetic-energy
             metric's norm at the reference (`geosyn.controllers.mpc.ocp.costs.StateTracking`;
             the weights then carry [1/(kg m^2)] more).
+        joint_limit_guard: pass every torque through the joint-limit guard
+            (`geosyn.controllers.limit_guard.GuardedCommand`: joint position and
+            velocity limits hard in closed loop, over the time between the last two
+            `compute` calls, and the torque limits). False: the torque is only clamped.
         reference: optional reference.
 
     Attributes:
@@ -170,6 +185,8 @@ class GeodesicMPC(Controller):
         ocp: the `OCPBuilder` of the open-loop NLP.
         build_time: wall-clock time of building the tracking backend [s].
         solve_count: number of `solve` calls.
+        command: the `GuardedCommand` (``command.guard`` the `JointLimitGuard` or None;
+            ``command.count`` the ticks it changed since the last reset).
 
     Raises:
         InvalidArgument: a bad argument (the message names it and lists what is allowed).
@@ -185,7 +202,7 @@ class GeodesicMPC(Controller):
         horizon: int = 40,
         dt: float = 0.02,
         *,
-        solver: str | NLPOptions | DDPOptions = "fatrop",
+        solver: str | NLPOptions | DDPOptions | None = None,
         q_weight: float | np.ndarray = 1e4,
         v_weight: float | np.ndarray = 1e1,
         tau_weight: float | np.ndarray | None = None,
@@ -201,6 +218,7 @@ class GeodesicMPC(Controller):
         clearance_margin: float | None = None,
         obstacles: Sequence[Shape] | None = None,
         tracking: str = "euclidean",
+        joint_limit_guard: bool = True,
         reference: Reference | None = None,
     ) -> None:
         super().__init__(robot, None)
@@ -214,14 +232,25 @@ class GeodesicMPC(Controller):
         self.settings = s = ocp_settings(
             n, horizon, dt, control, effort, rk4_steps, *weights, clearance_margin, tracking
         )
-        self.solver_options = solver_options(solver)
         self.max_solve_time = check_positive(max_solve_time, "max_solve_time", "s")
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.kp, self.kd = check_gain(kp, n, "kp"), check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
         self.obstacles = _obstacle_slots(robot, s.clearance_margin, obstacles)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
+        if not isinstance(joint_limit_guard, bool):
+            raise InvalidArgument(
+                f"joint_limit_guard must be True or False, got {joint_limit_guard!r}"
+            )
         damping = joint_damping(robot)
+        problem = TrackingProblem(
+            robot, metric, s, self.hessian, self.obstacles, self.kp, self.kd,
+            self.max_solve_time, _report_progress,
+        )  # fmt: skip
+        self.solver_options = (
+            default_solver_options(problem) if solver is None else solver_options(solver)
+        )
+        self.command = GuardedCommand(robot, joint_limit_guard, s.dt, damping)
         self._follower = PlanFollower(
             self._model, self._data, s.control, s.dt, self.kp, self.kd, self.plan_tolerance,
             robot.tau_max, damping, joint_friction(robot),
@@ -242,10 +271,6 @@ class GeodesicMPC(Controller):
                 f" f_c tanh(v_r / {FRICTION_VELOCITY}) on the reference velocity, within the"
                 " torque limits"
             )
-        problem = TrackingProblem(
-            robot, metric, s, self.hessian, self.obstacles, self.kp, self.kd,
-            self.max_solve_time, _report_progress,
-        )  # fmt: skip
         start = time.perf_counter()
         self._tracker: TrackingBackend = BACKENDS[type(self.solver_options)](
             problem, self.solver_options
@@ -277,6 +302,8 @@ class GeodesicMPC(Controller):
     def _on_reset(self, q: Vector, v: Vector, t: float) -> None:
         self._on_reference_changed()
         self._using_fallback = False
+        self.command.reset()
+        self.diagnostics.notes.pop("joint_limit_guard", None)
 
     def _on_reference_changed(self) -> None:
         # A new reference invalidates the warm start (a different task).
@@ -350,7 +377,22 @@ class GeodesicMPC(Controller):
         )
 
     # -- control ---------------------------------------------------------------------
+    def compute(self, t: float, q: Vector, v: Vector) -> Vector:
+        """`Controller.compute`; a joint whose torque the law asked over its limit (then
+        guarded or clamped inside) is flagged in ``diagnostics.saturated``."""
+        tau = super().compute(t, q, v)
+        sat = self.diagnostics.saturated
+        if sat is not None and self.command.over_box.any():
+            np.logical_or(sat, self.command.over_box, out=sat)
+        return tau
+
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:
+        tau = self._law(t, q, v)
+        return self.command.apply(t, q, v, tau, self.diagnostics)
+
+    def _law(self, t: float, q: Vector, v: Vector) -> Vector:
+        """The MPC's torque before the guard: re-solve when due, follow the plan, or fall
+        back (see the module)."""
         d = self.diagnostics
         if t - self._t_solve >= self.dt - EPS_T:
             self._t_solve = t

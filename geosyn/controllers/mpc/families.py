@@ -13,13 +13,13 @@ from typing import Any
 
 from geosyn.controllers.mpc.backend import TrackingBackend, TrackingProblem
 from geosyn.controllers.mpc.ddp.options import DDPOptions
-from geosyn.controllers.mpc.ddp.tracking import ddp_backend
+from geosyn.controllers.mpc.ddp.tracking import check_ddp_problem, ddp_backend
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.nlp.tracking import nlp_backend
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_choice
 
-__all__ = ["BACKENDS", "SOLVERS", "SolverOptions", "solver_options"]
+__all__ = ["BACKENDS", "SOLVERS", "SolverOptions", "default_solver_options", "solver_options"]
 
 SolverOptions = NLPOptions | DDPOptions
 """The options classes of the solver families."""
@@ -53,3 +53,21 @@ def solver_options(solver: object) -> SolverOptions:
             f"({', '.join(t.__name__ for t in BACKENDS)}), got {solver!r}"
         )
     return solver  # type: ignore[return-value]
+
+
+def default_solver_options(problem: TrackingProblem) -> SolverOptions:
+    """The options ``GeodesicMPC(solver=None)`` means: box-DDP (`DDPOptions()`) wherever
+    it solves the problem (`check_ddp_problem`: ``control="torque"``, effort ``"torque"``
+    or ``"metric"`` with the robot's own kinetic-energy metric, ``hessian="gauss-newton"``,
+    obstacles given with a ``clearance_margin``), else fatrop (``NLPOptions("fatrop")``:
+    acceleration control, the acceleration effort, an exact Hessian, other metrics).
+
+    Box-DDP is the fastest torque-level solver (benchmarks/RESULTS.md, against
+    Crocoddyl); its soft joint limits are made hard in closed loop by the controller's
+    joint-limit guard (`geosyn.controllers.limit_guard`).
+    """
+    try:
+        check_ddp_problem(problem)
+    except InvalidArgument:
+        return NLPOptions("fatrop")
+    return DDPOptions()

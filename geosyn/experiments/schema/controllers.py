@@ -125,15 +125,20 @@ class MPCConfig(_ControllerBase):
     a section of the family's options, e.g. ``{type: ddp, warm_iterations: 2}`` or
     ``{type: ipopt, max_iter: 100, plugin_options: {...}}`` (`NLPSolverConfig`,
     `DDPSolverConfig`); ``clearance_margin`` [m] (``solver: ddp``) keeps the scene's
-    obstacles away. The default stays ``fatrop`` for torque control too: ``ddp`` is about
-    3x faster but holds joint position and velocity limits only as stiff penalties."""
+    obstacles away. ``solver`` null (default): ``ddp`` with ``control: torque`` (the
+    fastest torque-level solver) wherever the DDP solves the problem, ``fatrop``
+    otherwise (acceleration control, ``hessian: exact``). ``joint_limit_guard`` (default
+    true): every torque passes the joint-limit guard, which keeps joint positions and
+    velocities inside their limits in closed loop (hard, whatever the solver; the DDP's
+    own limits are penalties) and the torque inside its limits; false: the torque is
+    only clamped. Each tick the guard changed is counted in the diagnostics."""
 
     builds = (GeodesicMPC,)
     to_python = {"solver": _solver_options}
     type: Literal["mpc"]
     horizon: Annotated[int, Field(ge=1, le=1000)] = _MPC["horizon"]
     dt: PositiveFloat = _MPC["dt"]
-    solver: Literal["fatrop", "ipopt", "ddp"] | SolverConfig = _MPC["solver"]
+    solver: Literal["fatrop", "ipopt", "ddp"] | SolverConfig | None = _MPC["solver"]
     q_weight: NonNegFloat = _MPC["q_weight"]
     v_weight: NonNegFloat = _MPC["v_weight"]
     tau_weight: NonNegFloat | None = _MPC["tau_weight"]
@@ -148,6 +153,7 @@ class MPCConfig(_ControllerBase):
     max_solve_time: PositiveFloat = _MPC["max_solve_time"]
     clearance_margin: PositiveFloat | None = _MPC["clearance_margin"]
     tracking: Literal["euclidean", "metric"] = _MPC["tracking"]
+    joint_limit_guard: bool = _MPC["joint_limit_guard"]
 
 
 class WholeBodyConfig(_ControllerBase):
