@@ -114,8 +114,8 @@ class GeodesicMPC(Controller):
     Defaults: ``control="acceleration"`` with ``effort="acceleration"`` and fatrop; with
     ``control="torque"``, box-DDP (``solver=None`` picks it wherever it solves the
     problem, `geosyn.controllers.mpc.families.default_solver_options`). Box-DDP is the
-    fastest torque-level solver (0.3-0.4x Crocoddyl's BoxFDDP CPU time per solve on the
-    same problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of the RK4 step on
+    fastest torque-level solver (faster per solve than Crocoddyl's BoxFDDP on the same
+    problem, benchmarks/RESULTS.md); fatrop pays for the Jacobian of the RK4 step on
     the ABA over several interior-point iterations. The DDP keeps only the torque box as
     a hard constraint of its OCP (its position and velocity limits are stiff penalties);
     the joint-limit guard (``joint_limit_guard``, on by default) makes them hard in
