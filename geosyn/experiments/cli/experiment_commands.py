@@ -1,5 +1,5 @@
-"""The commands that list, run, sweep and report experiments: ``robots``, ``list``,
-``run``, ``sweep``, ``report``.
+"""The commands that list, run, sweep, report and clean up experiments: ``robots``,
+``list``, ``run``, ``sweep``, ``report``, ``clean``.
 
 The library is imported inside each command, not here: ``geosyn --help`` and ``geosyn
 list`` must answer without importing MuJoCo, CasADi or Matplotlib (`tests/test_cli.py`).
@@ -227,6 +227,31 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _clean_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "folder",
+        nargs="?",
+        default="runs",
+        metavar="FOLDER",
+        help="folder of run and sweep directories (default runs)",
+    )
+
+
+def cmd_clean(args: argparse.Namespace) -> int:
+    from geosyn.experiments.run import rundir
+
+    folder = Path(args.folder)
+    if not folder.is_dir():
+        raise ConfigError(str(folder), None, "is not a folder (geosyn clean FOLDER)")
+    removed, kept = rundir.clean(folder)
+    for path in removed:
+        print(f"removed {path}")
+    for path in kept:
+        print(f"kept {path} (a live process is writing it)")
+    print(f"geosyn clean: {len(removed)} removed, {len(kept)} kept in {folder}")
+    return 0
+
+
 COMMANDS = (
     Command(
         "robots",
@@ -256,6 +281,13 @@ COMMANDS = (
         "regenerate summary.md, summary.json and plots of a run directory (of a sweep"
         " directory: its tables and a plot per grid axis)",
         _report_arguments,
+    ),
+    Command(
+        "clean",
+        cmd_clean,
+        "remove what killed runs and sweeps left under a folder (partial directories of"
+        " dead writers, lock files nobody holds); never a complete run",
+        _clean_arguments,
     ),
 )
 

@@ -10,6 +10,13 @@ removed, so a crash in between loses neither.
 
 The lock file is removed on release. A writer that locked a lock file another one had just
 removed (and replaced) notices by the inode and locks the new file instead.
+
+A writer runs into ``<parent>/.<name>.partial-<id>`` while it holds the lock, so a partial
+directory whose lock nobody holds was left by a dead writer (``kill -9``, power loss):
+`claim` removes those of its own ``out`` and of every other name in its folder whose lock
+is free, and ``geosyn clean`` (`clean`) those under a folder. A cleaner holds a free lock
+for milliseconds; a writer that finds a lock held waits up to `LOCK_PATIENCE` before it
+concludes that a live writer holds it.
 """
 
 from __future__ import annotations
@@ -18,7 +25,9 @@ import contextlib
 import errno
 import fcntl
 import os
+import re
 import shutil
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -29,6 +38,13 @@ from geosyn.experiments.errors import OutputNotWritable, RunDirectoryExists
 WRITE_ERRNOS = frozenset(
     {errno.ENOSPC, errno.EROFS, errno.EACCES, errno.EPERM, errno.EDQUOT, errno.EFBIG}
 )
+
+
+#: How long a writer retries a held lock before it reports the holder [s]: longer than a
+#: cleaner holds a dead writer's lock, far shorter than any run.
+LOCK_PATIENCE = 0.5
+
+_PARTIAL = re.compile(r"^\.(?P<name>.+)\.partial-[0-9a-f]+$")
 
 
 def lock_path(out: Path) -> Path:
@@ -44,14 +60,16 @@ def _holder(fd: int) -> str:
     return text or "?"
 
 
-def acquire(out: Path) -> int:
-    """Take the lock of ``out`` without waiting; returns its file descriptor.
+def acquire(out: Path, patience: float = LOCK_PATIENCE) -> int:
+    """Take the lock of ``out``, retrying a held lock for ``patience`` seconds; returns its
+    file descriptor.
 
     Raises:
         RunDirectoryExists: another live process holds it.
         OutputNotWritable: the lock file cannot be created (read-only, disk full, ...).
     """
     path = lock_path(out)
+    give_up = time.monotonic() + patience
     while True:
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
@@ -62,6 +80,9 @@ def acquire(out: Path) -> int:
         except BlockingIOError:
             holder = _holder(fd)
             os.close(fd)
+            if time.monotonic() < give_up:  # perhaps a cleaner, holding it for a moment
+                time.sleep(0.02)
+                continue
             raise RunDirectoryExists(
                 out,
                 f"is being written by another process (pid {holder}); wait for it or choose"
@@ -90,9 +111,9 @@ def release(out: Path, fd: int) -> None:
 
 
 def is_locked(out: Path) -> bool:
-    """True if a live process holds the lock of ``out`` (without taking it)."""
+    """True if a live process holds the lock of ``out`` (taken and released if free)."""
     try:
-        fd = acquire(out)
+        fd = acquire(out, patience=0.0)
     except RunDirectoryExists:
         return True
     except OutputNotWritable:
@@ -131,9 +152,84 @@ def claim(out: Path, force: bool) -> Iterator[None]:
             raise RunDirectoryExists(
                 out, "already exists; choose another --out or pass --force to replace it"
             )
+        remove_dead_partials(out.parent, own=out)
         yield
     finally:
         release(out, fd)
+
+
+def _partials(folder: Path, name: str) -> list[Path]:
+    return sorted(p for p in folder.glob(f".{glob_escape(name)}.partial-*") if p.is_dir())
+
+
+def glob_escape(name: str) -> str:
+    """``name`` with the glob metacharacters ``*?[`` taken literally."""
+    return re.sub(r"([*?\[])", r"[\1]", name)
+
+
+def remove_dead_partials(folder: Path, own: Path | None = None) -> list[Path]:
+    """Remove the partial directories in ``folder`` whose writer is dead.
+
+    Args:
+        folder: the folder to clean (not recursive).
+        own: a run directory in ``folder`` whose lock the caller holds: its partial
+            directories are removed without taking the lock.
+
+    Returns:
+        The directories removed, and the dead writers' lock files (a partial that cannot be
+        removed is skipped).
+    """
+    names = {m["name"] for p in _safe_iterdir(folder) if (m := _PARTIAL.match(p.name))}
+    removed: list[Path] = []
+    for name in sorted(names):
+        out = folder / name
+        if own is not None and out == own:
+            removed += _rmtree_all(_partials(folder, name))
+            continue
+        stale_lock = lock_path(out).exists()
+        try:
+            fd = acquire(out, patience=0.0)
+        except (RunDirectoryExists, OutputNotWritable):
+            continue  # a live writer (or a folder we may not write): leave it
+        try:
+            removed += _rmtree_all(_partials(folder, name))
+        finally:
+            release(out, fd)  # removes the dead writer's lock file too
+        removed += [lock_path(out)] if stale_lock else []
+    return removed
+
+
+def clean(folder: Path) -> tuple[list[Path], list[Path]]:
+    """Remove, under ``folder`` (recursively), the partial directories of dead writers and
+    the lock files nobody holds (``geosyn clean``).
+
+    Returns:
+        ``(removed, kept)``: the partial directories and lock files removed, and the
+        partial directories kept because a live process is writing them.
+    """
+    removed: list[Path] = []
+    folders = {p.parent for p in folder.rglob(".*.partial-*") if _PARTIAL.match(p.name)}
+    for sub in sorted(folders):
+        removed += remove_dead_partials(sub)
+    for lock in sorted(folder.rglob(".*.lock")):
+        out = lock.with_name(lock.name[1 : -len(".lock")])
+        if lock.is_file() and not is_locked(out):  # taking and releasing it removes it
+            removed.append(lock)
+    kept = sorted(p for p in folder.rglob(".*.partial-*") if _PARTIAL.match(p.name))
+    return removed, kept
+
+
+def _safe_iterdir(folder: Path) -> list[Path]:
+    try:
+        return list(folder.iterdir())
+    except OSError:
+        return []
+
+
+def _rmtree_all(paths: list[Path]) -> list[Path]:
+    for path in paths:
+        shutil.rmtree(path, ignore_errors=True)
+    return [p for p in paths if not p.exists()]
 
 
 def commit(tmp: Path, out: Path) -> None:
@@ -151,4 +247,16 @@ def commit(tmp: Path, out: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
-__all__ = ["WRITE_ERRNOS", "acquire", "claim", "commit", "is_locked", "lock_path", "release"]
+__all__ = [
+    "LOCK_PATIENCE",
+    "WRITE_ERRNOS",
+    "acquire",
+    "claim",
+    "clean",
+    "commit",
+    "glob_escape",
+    "is_locked",
+    "lock_path",
+    "release",
+    "remove_dead_partials",
+]
