@@ -11,9 +11,11 @@ For the Panda and the UR5, computed torque and the Riemannian PD are exported wi
 Prints a Markdown table with the ratios Python / C (as pasted into RESULTS.md).
 
 ``--mpc``: the torque-level box-DDP MPC instead (`mpc_main`): the Panda's
-``GeodesicMPC(control="torque", solver="ddp")`` (default weights, dt 20 ms) exported
-(``-O3 -march=native``; its megabyte of generated solver code at ``-O1``, as the Python
-solver compiles it, or with ``--fast-solver`` at ``-O2 -march=native``) and timed in the same run, rounds alternating, on
+``GeodesicMPC(control="torque", solver="ddp", joint_limit_guard=False)`` (default
+weights, dt 20 ms; the exported driver has no joint-limit guard, so neither has the
+Python MPC it is compared with) exported with `export_controller`'s default flags
+(``-O3``), or with ``--native`` at ``-O3 -march=native`` (a tuned build for this CPU only),
+and timed in the same run, rounds alternating, on
 ``benchmarks/mpc_vs_crocoddyl.py``'s problem (its 1 kHz Pinocchio plant and geodesic
 reference, scenario ``on_reference``, 1.5 s, a solve every 20 ms; the first, cold solve
 left out): the Python MPC, the C MPC through ctypes, and Crocoddyl's BoxFDDP (one
@@ -21,7 +23,7 @@ iteration per solve, its venv ``.venv-croc``; skipped when it is missing), N = 1
 Then the shipped MuJoCo loop (``loop.c``, 1 kHz, a 60 N push) times the C MPC from C:
 solve ticks and the between-solve feedback ticks (``u + K dx``) apart.
 
-Run: ``nice -n 10 .venv/bin/python benchmarks/export_c.py [--mpc [--rounds 3]]``.
+Run: ``nice -n 10 .venv/bin/python benchmarks/export_c.py [--mpc [--rounds 3] [--native]]``.
 """
 
 from __future__ import annotations
@@ -166,14 +168,15 @@ def c_policy(c: CController):
     return policy
 
 
-def mpc_main(rounds: int, horizons: list[int], solver_flags: tuple[str, ...] | None) -> None:
+def mpc_main(rounds: int, horizons: list[int], flags: tuple[str, ...]) -> None:
     """The MPC comparison (see the module docstring); prints a Markdown table."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import mpc_vs_crocoddyl as mvc
     from mpc_plant import initial_state, panda_model, run_closed_loop
 
     ref = mvc.ReferenceSamples.load(mvc.REFERENCE)
-    side = mvc.GeosynSide(ref, {"solver": "ddp", "max_solve_time": 1e9})
+    # the exported driver has no joint-limit guard: the Python MPC runs without it too
+    side = mvc.GeosynSide(ref, {"solver": "ddp", "max_solve_time": 1e9, "joint_limit_guard": False})
     croc = mvc.DEFAULT_CROC_PYTHON.is_file()
     if not croc:
         print(f"Crocoddyl skipped: no venv at {mvc.DEFAULT_CROC_PYTHON}", flush=True)
@@ -184,8 +187,7 @@ def mpc_main(rounds: int, horizons: list[int], solver_flags: tuple[str, ...] | N
             mpc = side.mpc(N)
             exports[N] = export_controller(
                 "panda", mpc, Path(tmp) / f"mpc{N}", reference=side.reference,
-                sample_dt=1e-3, max_samples=4096, flags=("-O3", "-march=native"),
-                solver_flags=solver_flags,
+                sample_dt=1e-3, max_samples=4096, flags=flags,
             )  # fmt: skip
         q0, v0 = initial_state("on_reference", ref)
         for r in range(rounds):
@@ -271,13 +273,12 @@ if __name__ == "__main__":
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--horizon", type=int, nargs="+", default=[10, 40])
     parser.add_argument(
-        "--fast-solver",
+        "--native",
         action="store_true",
-        help="compile the MPC's generated solver code at -O2 -march=native (default -O1, as"
-        " geosyn compiles it for the Python solver)",
+        help="export the MPC with -O3 -march=native (default: export_controller's -O3)",
     )
     args = parser.parse_args()
     if args.mpc:
-        mpc_main(args.rounds, args.horizon, ("-O2", "-march=native") if args.fast_solver else None)
+        mpc_main(args.rounds, args.horizon, ("-O3", "-march=native") if args.native else ("-O3",))
     else:
         main()

@@ -8,6 +8,7 @@ well as geosyn's Python loop."""
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import shutil
 import subprocess
 from pathlib import Path
@@ -19,6 +20,7 @@ from geosyn.controllers import ComputedTorque, JointTrajectoryReference, Riemann
 from geosyn.export import CController, ExportError, ExportResult, export_controller, load_library
 from geosyn.export.binding import pointer
 from geosyn.robots import load_robot
+from geosyn.robots.robot import Robot
 from geosyn.sim import Push, Simulation
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler")
@@ -121,6 +123,37 @@ def test_friction_compensation_equals_python(tmp_path: Path) -> None:
     res = export_controller("xarm7", ctl, tmp_path, sample_dt=0.02)
     assert "| compensate_friction | True |" in res.readme.read_text()
     assert_same_torques(CController(res.shared_library), python_twin(res), states(res, seed=4))
+
+
+ARM_FIXTURE = Path(__file__).parent / "fixtures" / "arm_root_quat.xml"
+
+
+def fixture_arm() -> Robot:
+    """The fixture arm: viscous joint damping (0.4 and 1.5 N m s/rad), dry friction
+    (0.1 N m), armature, a slide joint, three kinds of torque limit."""
+    with pytest.warns(Warning):  # the file states no velocity limits (defaults, reported)
+        robot = load_robot(str(ARM_FIXTURE))
+    assert np.any(robot.damping) and np.any(robot.frictionloss)
+    return robot
+
+
+def test_riemannian_pd_with_damping_and_friction_equals_python(tmp_path: Path) -> None:
+    """The PD compensates the file's damping and dry friction along v_r (D v_r +
+    f_c tanh(v_r / v_s)): the C law carries both, to 1e-12; the same law without them
+    differs by far more (the test can fail)."""
+    robot = fixture_arm()
+    t = np.linspace(0.0, 1.0, 21)
+    q0 = np.array([0.3, 0.2, -0.2, 0.05, 0.3])
+    ref = JointTrajectoryReference(t, q0 + 0.05 * np.sin(np.outer(t, np.linspace(1, 2.5, 5))))
+    res = export_controller(robot, RiemannianPD(robot, 5.0, 20.0, reference=ref), tmp_path)
+    py = RiemannianPD(robot, 5.0, 20.0, reference=res.samples.reference())
+    seq = states(res, seed=5)
+    assert_same_torques(CController(res.shared_library), py, seq)
+    zero = np.zeros(robot.nv)
+    plain_robot = dataclasses.replace(robot, damping=zero, frictionloss=zero)
+    plain = RiemannianPD(plain_robot, 5.0, 20.0, reference=res.samples.reference())
+    gap = max(float(np.max(np.abs(py.compute(*s) - plain.compute(*s)))) for s in seq)
+    assert gap > 1e-2, gap
 
 
 def test_bad_input_gives_error_codes_and_leaves_the_controller_usable(exports) -> None:

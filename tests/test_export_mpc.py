@@ -16,13 +16,14 @@ from typing import NamedTuple
 
 import numpy as np
 import pytest
-from test_export import count_allocations
+from test_export import count_allocations, fixture_arm
 
 from geosyn.controllers import GeodesicMPC, JointTrajectoryReference
 from geosyn.export import CController, ExportError, ExportResult, export_controller
 from geosyn.export.binding import pointer
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.robots import load_robot
+from geosyn.robots.robot import Robot
 from geosyn.sim import Push, Simulation
 
 # slow: with a cold compile cache, the Python solver's and the export's C compile for
@@ -38,10 +39,13 @@ RTOL = 1e-9
 
 
 def make_mpc(
-    reference: JointTrajectoryReference | None = None, robot_name: str = "panda"
+    reference: JointTrajectoryReference | None = None,
+    robot_name: str = "panda",
+    joint_limit_guard: bool = False,
 ) -> GeodesicMPC:
     """The robot's torque-level DDP MPC, N = 10, on a smooth 1 s joint motion; no solve
-    time budget (the budget check would make the Python side depend on the clock)."""
+    time budget (the budget check would make the Python side depend on the clock); no
+    joint-limit guard (the exported driver has none; the export refuses an MPC with it)."""
     robot = load_robot(robot_name)
     if reference is None:
         t = np.linspace(0.0, 1.0, 21)
@@ -51,6 +55,7 @@ def make_mpc(
     return GeodesicMPC(
         robot, KineticEnergyMetric(robot), horizon=10, dt=0.02, control="torque",
         solver="ddp", max_solve_time=1e9, reference=reference,
+        joint_limit_guard=joint_limit_guard,
     )  # fmt: skip
 
 
@@ -83,8 +88,12 @@ def python_loop(export: ExportResult) -> PythonLoop:
     return run_python_loop(export, 60.0)
 
 
-def run_python_loop(res: ExportResult, force: float) -> PythonLoop:
-    ctl = python_twin(res)
+def run_python_loop(
+    res: ExportResult, force: float, ctl: GeodesicMPC | None = None, robot: Robot | None = None
+) -> PythonLoop:
+    """The Python loop of ``ctl`` (default: `python_twin`) on ``robot`` (default: the
+    export's robot by name)."""
+    ctl = python_twin(res) if ctl is None else ctl
     calls = []
     compute = ctl.compute
 
@@ -95,7 +104,8 @@ def run_python_loop(res: ExportResult, force: float) -> PythonLoop:
 
     ctl.compute = recorded  # type: ignore[method-assign]
     push = Push(str(res.push.body), [force * d for d in res.push.direction], 0.5, 0.1)
-    log = Simulation(load_robot(res.robot), ctl, disturbances=[push]).run(
+    robot = load_robot(res.robot) if robot is None else robot
+    log = Simulation(robot, ctl, disturbances=[push]).run(
         res.samples.q[0], duration=2.0, reference=res.samples.reference()
     )
     assert log.rms_error() > 1e-3  # the push moves the arm
@@ -137,6 +147,44 @@ def test_ur5_mpc_torques_equal_python_along_a_closed_loop(tmp_path: Path) -> Non
     )
     print(f"ur5: largest difference {worst:.3g} (relative to tau_max)")
     assert worst <= RTOL
+    assert mpc_info(c)[0][0] == loop.solves
+
+
+def test_damped_rough_mpc_torques_equal_python_along_a_closed_loop(tmp_path: Path) -> None:
+    """The fixture arm's viscous joint damping is in the MPC's dynamics (ABA on u - D v),
+    its reference torques and its fallback (RNEA + D v); its dry friction is fed forward
+    (f_c tanh(v_r / v_s), the controls net of it): the exported MPC gives the Python
+    MPC's torques to 1e-9 over a 2 s closed loop with a push (MuJoCo's plant with the
+    file's damping and friction), after the first (cold) solve's 20 ms. That cold solve,
+    from rest, is a discontinuous function of its data at the rounding level on this arm
+    (line-search and box-QP decisions on near-ties; without friction the Python MPC's own
+    torques move by 3.8e-9 of tau_max when q moves by 1e-13 rad), and the C backward
+    pass sums in another order: 1e-8 allowed there; the warm solves then agree to about
+    1e-12. (Without D v or f_c in the C torques they would differ by ~0.1 N m.)"""
+    robot = fixture_arm()
+    t = np.linspace(0.0, 1.0, 21)
+    q0 = np.array([0.3, 0.2, -0.2, 0.05, 0.3])
+    amplitude = np.array([0.2, 0.2, 0.2, 0.03, 0.2])
+    ref = JointTrajectoryReference(t, q0 + amplitude * np.sin(np.outer(t, np.linspace(1, 2, 5))))
+
+    def mpc(r: Robot, reference: JointTrajectoryReference) -> GeodesicMPC:
+        return GeodesicMPC(
+            r, KineticEnergyMetric(r), horizon=10, dt=0.02, control="torque", solver="ddp",
+            max_solve_time=1e9, reference=reference, joint_limit_guard=False,
+        )  # fmt: skip
+
+    res = export_controller(robot, mpc(robot, ref), tmp_path / "o", sample_dt=0.02)
+    loop = run_python_loop(res, 20.0, mpc(robot, res.samples.reference()), robot)
+    c = CController(res.shared_library)
+    c.reset(res.samples.q[0].copy(), np.zeros(res.nq))
+    scale = np.asarray(robot.tau_max)
+    gaps = [float(np.max(np.abs(c.compute(t, q, v) - tau) / scale)) for t, q, v, tau in loop.calls]
+    first = [g for (t, *_), g in zip(loop.calls, gaps, strict=True) if t < 0.02 - 1e-9]
+    later = gaps[len(first) :]
+    print(f"fixture arm: largest difference {max(first):.3g} in the first solve's period,")
+    print(f"{max(later):.3g} after it (relative to tau_max)")
+    assert len(first) == 20 and max(first) <= 1e-8
+    assert max(later) <= RTOL
     assert mpc_info(c)[0][0] == loop.solves
 
 
@@ -235,6 +283,10 @@ def test_export_refuses_an_mpc_it_cannot_export(tmp_path: Path) -> None:
     with pytest.raises(ExportError, match="solver='ddp', control='torque'"):
         export_controller("panda", ctl, tmp_path / "a")
     assert not (tmp_path / "a").exists()
+    # the joint-limit guard (GeodesicMPC's default) is not in the C driver: refused by name
+    with pytest.raises(ExportError, match="joint_limit_guard"):
+        export_controller("panda", make_mpc(joint_limit_guard=True), tmp_path / "b")
+    assert not (tmp_path / "b").exists()
 
 
 def test_c_loop_with_the_mpc_tracks_as_the_python_loop(

@@ -79,20 +79,6 @@ def test_mpc_notes_the_dry_friction_it_models(damped):
     assert "modelled" in mpc.diagnostics.notes["damping"]
 
 
-def test_c_export_refuses_the_damped_mpc_it_cannot_match(damped, tmp_path):
-    """The exported MPC driver's reference and fallback torques are RNEA alone: a damped
-    robot's MPC is refused by name rather than exported with a different model."""
-    from geosyn.export import ExportError, export_controller
-
-    robot, ref = damped
-    mpc = GeodesicMPC(
-        robot, KineticEnergyMetric(robot), horizon=10, dt=0.02, control="torque", solver="ddp"
-    )
-    with pytest.raises(ExportError, match="joint damping"):
-        export_controller(robot, mpc, tmp_path / "out", reference=ref)
-    assert not (tmp_path / "out").exists()
-
-
 def test_riemannian_pd_compensates_the_files_damping(damped):
     """Referee: MuJoCo's compile of the damped file. Measured: 1.7e-6 rad RMS with D v_r
     in the law against 3.1e-4 with the damping removed from its model."""

@@ -152,7 +152,7 @@ def export_controller(
     sample_dt: float = 0.01,
     max_samples: int = 2048,
     compiler: str | None = None,
-    flags: Sequence[str] = ("-O2",),
+    flags: Sequence[str] = ("-O3",),
     solver_flags: Sequence[str] | None = None,
     push: LoopPush | None = None,
     overwrite: bool = False,
@@ -173,10 +173,12 @@ def export_controller(
         sample_dt: sample spacing of the built-in reference [s], > 0.
         max_samples: largest reference ``set_reference`` accepts (memory:
             ``48 nq max_samples`` bytes), >= the built-in sample count.
-        compiler: C compiler (default ``cc``). flags: its optimisation flags.
-        solver_flags: flags of a generated source of megabytes (the MPC's solver
-            functions); None: ``-O1``, as geosyn compiles them for the Python solver
-            (``-O2 -march=native``: ~15 % faster solves, a compile of ~25 s for 7 joints).
+        compiler: C compiler (default ``cc``). flags: its optimisation flags (default
+            ``-O3``, portable; ``("-O3", "-march=native")`` gives the MPC ~15 % faster
+            solves, for the compiling machine's CPU only).
+        solver_flags: flags of a generated source of half a megabyte or more (the MPC's
+            per-stage functions of a robot with many joints; 7 joints give 0.36 MB);
+            None: ``-O1``, as geosyn compiles such sources for the Python solver.
         push: default push of the loop program (`LoopPush`).
         overwrite: write into a non-empty ``out_dir``.
 

@@ -59,19 +59,15 @@ def computed_torque_law(ctl: ComputedTorque) -> ControlLaw:
 
 
 def riemannian_pd_law(ctl: RiemannianPD) -> ControlLaw:
-    """`ControlLaw` of a `RiemannianPD`: ``M a_x + C(q, v) v_x + g`` in C.
+    """`ControlLaw` of a `RiemannianPD`: ``M a_x + C(q, v) v_x + g + D v_x`` in C (``D``
+    the robot file's viscous joint damping), the dry friction ``f_c tanh(v_x / v_s)`` in
+    the driver, as the Python controller compensates them.
 
     ``C(q, v) w`` with the Christoffel-symbol Coriolis matrix is the symmetric bilinear
     form of the velocity terms, so by polarization
     ``C(q, v) w = (c(q, v + w) - c(q, v - w)) / 4`` with ``c(q, v) = RNEA(q, v, 0) - g``;
     ``M a_x + g = RNEA(q, 0, a_x)``. Three RNEA passes, no mass matrix.
     """
-    if np.any(ctl.robot.damping):
-        raise ExportError(
-            f"controller: RiemannianPD of robot {ctl.robot.name!r} compensates joint damping"
-            f" {np.asarray(ctl.robot.damping).tolist()} along v_r, which the exported C law"
-            " does not yet; export ComputedTorque (which carries it) instead"
-        )
     robot, n = ctl.robot, ctl.nv
     q, v, vx, ax = _symbols(n, "q v v_x a_x")
     model, g, zero = robot.model, _gravity(robot), np.zeros(n)
@@ -79,18 +75,31 @@ def riemannian_pd_law(ctl: RiemannianPD) -> ControlLaw:
         rnea(model, q, v + vx, zero, np.zeros(3)) - rnea(model, q, v - vx, zero, np.zeros(3))
     ) / 4
     out = rnea(model, q, zero, ax, g) + coriolis
+    damping = np.asarray(robot.damping, dtype=np.float64)
+    if np.any(damping):  # the file's viscous damping compensated along v_r (= v_x)
+        out = out + ca.DM(damping) * vx
     fun = ca.Function(LAW_FUNCTION, [q, v, vx, ax], [out], ["q", "v", "v_x", "a_x"], ["tau"])
+    friction = np.asarray(robot.frictionloss, dtype=np.float64)
+    compensated = bool(friction.size and np.any(friction))  # as RiemannianPD decides
     arrays = {
         "geosyn_tau_max": np.asarray(robot.tau_max, dtype=np.float64),
         "geosyn_lam": ctl.lam,
         "geosyn_k": ctl.k,
+        "geosyn_frictionloss": friction,
+    }
+    scalars = {
+        "GEOSYN_FRICTION": int(compensated),
+        "GEOSYN_FRICTION_VELOCITY": ctl.friction_velocity,
     }
     settings = {
+        "joint damping D [N m s/rad] (compensated along v_r)": damping.tolist(),
+        "dry friction f_c [N m] (compensated along v_r, f_c tanh(v_r / v_s))": friction.tolist(),
+        "v_s [rad/s]": ctl.friction_velocity,
         "lam [1/s]": ctl.lam.tolist(),
         "k [N m s/rad]": ctl.k.tolist(),
         "tau_max [N m]": robot.tau_max.tolist(),
     }
-    return ControlLaw("riemannian_pd", fun, arrays, {}, settings)
+    return ControlLaw("riemannian_pd", fun, arrays, scalars, settings)
 
 
 #: Exportable controller classes and the function that reads their law.

@@ -317,6 +317,13 @@ class GeodesicMPC(Controller):
         """The plan of the last successful solve (None before)."""
         return self._plan
 
+    @property
+    def backend(self) -> TrackingBackend:
+        """The solver family's built backend (for ``solver="ddp"`` a
+        `geosyn.controllers.mpc.ddp.tracking.DDPTracking`, whose ``graphs()`` and
+        ``parameters`` give its solver to code generation)."""
+        return self._tracker
+
     # -- solving ---------------------------------------------------------------------
     def problem_parameters(
         self, t: float, x_init: np.ndarray

@@ -9,8 +9,9 @@
  *     (+ D v + f_c tanh(v_r / v_s) when friction is compensated)
  *   Riemannian PD (GEOSYN_LAW_RIEMANNIAN_PD), Slotine-Li with the Christoffel C:
  *     e = q - q_r, a_x = a_r - lam (v - v_r), v_x = v_r - lam e, s = v - v_x,
- *     law(q, v, v_x, a_x) = M a_x + C(q, v) v_x + g,   tau = law - k s
- *   box-DDP MPC (GEOSYN_LAW_DDP_MPC): geosyn_mpc.c (law(q, v, a) = RNEA(q, v, a))
+ *     law(q, v, v_x, a_x) = M a_x + C(q, v) v_x + g + D v_x,
+ *     tau = law (+ f_c tanh(v_x / v_s) with dry friction) - k s
+ *   box-DDP MPC (GEOSYN_LAW_DDP_MPC): geosyn_mpc.c (law(q, v, a) = RNEA(q, v, a) + D v)
  *
  * in the order of operations of geosyn.controllers (ComputedTorque, RiemannianPD), then
  * clipped to [-tau_max, tau_max] like Controller.compute. The reference is sampled like
@@ -248,6 +249,10 @@ static int control_law(geosyn_controller* ctl, double t, const double* q, const 
     ctl->arg[3] = x2;
     ctl->res[0] = ctl->tau_raw;
     geosyn_law(ctl->arg, ctl->res, ctl->iw, ctl->w, 0);
+#if GEOSYN_FRICTION
+    for (int j = 0; j < NQ; ++j)
+        ctl->tau_raw[j] += geosyn_frictionloss[j] * tanh(x1[j] / GEOSYN_FRICTION_VELOCITY);
+#endif
     for (int j = 0; j < NQ; ++j) ctl->tau_raw[j] -= geosyn_k[j] * (v[j] - x1[j]);
 #else
 #error "unknown GEOSYN_LAW"

@@ -32,7 +32,15 @@ import numpy as np
 from geosyn.controllers.mpc.ddp.parts import DDPParts
 from geosyn.core.calls import numpy_function
 
-__all__ = ["LINE_SEARCH_STEPS", "MAX_REGULARISATION", "ROUNDING", "RiccatiResult", "RiccatiSolver"]
+__all__ = [
+    "LINE_SEARCH_STEPS",
+    "MAX_REGULARISATION",
+    "ROUNDING",
+    "RiccatiResult",
+    "RiccatiSolver",
+    "backward_graph",
+    "forward_graph",
+]
 
 LINE_SEARCH_STEPS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125)
 """Step lengths ``alpha`` tried by a cold solve, longest first."""
@@ -92,8 +100,8 @@ class RiccatiSolver:
     ) -> None:
         self.N, self.n, self.P = N, n, np.asarray(P, dtype=np.float64)
         self.tol, self.max_iter, self.warm_iterations = tol, max_iter, warm_iterations
-        self._backward = _matrix_function(_backward_graph(parts, N, n), N, (0,))
-        self._forward = _matrix_function(_forward_graph(parts, N, n), N, (1,))
+        self._backward = _matrix_function(backward_graph(parts, N, n), N, (0,))
+        self._forward = _matrix_function(forward_graph(parts, N, n), N, (1,))
         self._zero_k = np.zeros((n, N))
         self._zero_K = np.zeros((n, 2 * n * N))
 
@@ -244,7 +252,7 @@ def _inputs(N: int, n: int, n_p: int) -> _Inputs:
     )
 
 
-def _backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
+def backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     """``(X, U, XR, TR, P) -> (k (n, N), K (n, 2n N), dV (2,))`` (MX, N calls per piece)."""
     nx = 2 * n
     s = _inputs(N, n, parts.riccati.size1_in("P"))
@@ -270,7 +278,7 @@ def _backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     )
 
 
-def _forward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
+def forward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     """``(x0, X, U, k, K, alpha, XR, TR, P) -> (X', U', cost)`` (MX, N forward steps)."""
     nx = 2 * n
     s = _inputs(N, n, parts.riccati.size1_in("P"))

@@ -14,15 +14,17 @@ clearance penalty (`geosyn.controllers.mpc.ocp.penalties.ClearancePenalty`).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
+import casadi as ca
 import numpy as np
 import pinocchio as pin
 
 from geosyn.controllers.mpc.backend import TrackingProblem
 from geosyn.controllers.mpc.ddp.options import DDPOptions
 from geosyn.controllers.mpc.ddp.parameters import DDPCosts, parameter_vector
-from geosyn.controllers.mpc.ddp.parts import ForwardInputs, ddp_parts
-from geosyn.controllers.mpc.ddp.riccati import RiccatiSolver
+from geosyn.controllers.mpc.ddp.parts import DDPParts, ForwardInputs, ddp_parts
+from geosyn.controllers.mpc.ddp.riccati import RiccatiSolver, backward_graph, forward_graph
 from geosyn.controllers.mpc.ocp.costs import is_robot_kinetic_metric
 from geosyn.controllers.mpc.ocp.dynamics import dry_friction, joint_friction
 from geosyn.controllers.mpc.ocp.plan import MPCPlan, ReferenceSamples
@@ -30,7 +32,33 @@ from geosyn.core.calls import numpy_function
 from geosyn.core.codegen import CodegenError
 from geosyn.core.errors import InvalidArgument
 
-__all__ = ["DDPTracking", "check_ddp_problem", "ddp_backend"]
+__all__ = ["DDPGraphs", "DDPTracking", "check_ddp_problem", "ddp_backend"]
+
+
+class DDPGraphs(NamedTuple):
+    """The solver of a `DDPTracking` as uncompiled CasADi graphs (for code generation,
+    e.g. `geosyn.export`): the same functions the compiled solver evaluates.
+
+    Attributes:
+        parts: the stage functions (`DDPParts`: ``lin``, ``riccati``, ``forward``,
+            ``terminal``) on CasADi's virtual machine.
+        backward: ``(X (2n, N+1), U (n, N), XR (2n, N+1), TR (n, N), P) -> (k (n, N),
+            K (n, 2n N), dV (2,))``, one backward pass over the horizon.
+        rollout: ``(x0, X_bar, U_bar, k, K, alpha, XR, TR, P) -> (X, U, cost)``, one
+            closed-loop rollout.
+        P: (n_p,) a copy of the parameter vector the solver uses
+            (`geosyn.controllers.mpc.ddp.parameters.parameter_vector`, then the
+            clearance's values with obstacles).
+        N: stages; n: joints; dt: stage length [s].
+    """
+
+    parts: DDPParts
+    backward: ca.Function
+    rollout: ca.Function
+    P: np.ndarray
+    N: int
+    n: int
+    dt: float
 
 
 def check_ddp_problem(problem: TrackingProblem) -> None:
@@ -126,6 +154,7 @@ class DDPTracking:
         parts = ddp_parts(
             robot, s.dt, s.rk4_steps, costs, compiled=compiled, progress=problem.progress
         )
+        self._costs, self._rk4_steps, self._robot = costs, s.rk4_steps, robot
         self.solver = RiccatiSolver(
             parts, s.N, n, P, tol=options.tol, max_iter=options.max_iter,
             warm_iterations=options.warm_iterations,
@@ -134,6 +163,21 @@ class DDPTracking:
         self._pd = np.hstack([np.diag(problem.kp), np.diag(problem.kd)])  # (n, 2n)
         self._step = numpy_function(parts.forward)
         self._zero_K = np.zeros((n, 2 * n))
+
+    @property
+    def parameters(self) -> np.ndarray:
+        """(n_p,) a copy of the parameter vector ``P`` of the solver (see `DDPGraphs`)."""
+        return self.solver.P.copy()
+
+    def graphs(self) -> DDPGraphs:
+        """The solver's functions as uncompiled CasADi graphs (`DDPGraphs`; builds
+        graphs, about a second for 7 joints; allocates)."""
+        parts = ddp_parts(self._robot, self.dt, self._rk4_steps, self._costs, compiled=False)
+        N, n = self.N, self.n
+        return DDPGraphs(
+            parts, backward_graph(parts, N, n), forward_graph(parts, N, n), self.parameters,
+            N, n, self.dt,
+        )  # fmt: skip
 
     def forget(self) -> None:
         """Nothing to drop: a DDP warm start is the previous plan itself (with its
