@@ -38,11 +38,21 @@ class ReachOutsideLimits(SynergyError):
         value: its position [rad or m] (at time ``t``).
         limit: the limit it passes [rad or m].
         t: time along the motion [s].
+        segment: index of the segment of a sequence (`reach_sequence`), or None.
     """
 
-    def __init__(self, message: str, joint: str, value: float, limit: float, t: float) -> None:
+    def __init__(
+        self,
+        message: str,
+        joint: str,
+        value: float,
+        limit: float,
+        t: float,
+        segment: int | None = None,
+    ) -> None:
         super().__init__(message)
         self.joint, self.value, self.limit, self.t = joint, float(value), float(limit), float(t)
+        self.segment = segment
 
 
 def _limits(robot: Robot, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -166,8 +176,10 @@ def reach(
     q_s = syns[0].q0.copy() if q_start is None else as_vector(q_start, n, "q_start")
     lo, hi = _limits(robot, n)
     _check_within(robot, Geodesic(np.zeros(1), q_s[None, :], np.zeros((1, n))), lo, hi, "q_start")
-    lo_in = np.where(np.isfinite(lo), np.minimum(lo + LIMIT_MARGIN, (lo + hi) / 2), lo)
-    hi_in = np.where(np.isfinite(hi), np.maximum(hi - LIMIT_MARGIN, (lo + hi) / 2), hi)
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    mid = np.where(finite, 0.5 * (np.where(finite, lo, 0.0) + np.where(finite, hi, 0.0)), 0.0)
+    lo_in = np.where(np.isfinite(lo), np.minimum(lo + LIMIT_MARGIN, np.where(finite, mid, hi)), lo)
+    hi_in = np.where(np.isfinite(hi), np.maximum(hi - LIMIT_MARGIN, np.where(finite, mid, lo)), hi)
     Vt = transported_velocities(syns, q_s, steps=steps)
     m = Vt.shape[1]
     data = robot.model.createData()

@@ -38,7 +38,7 @@ from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic import exp
 from geosyn.robots.robot import Robot
 from geosyn.synergies.errors import InvalidSynergyInput, synergy_input
-from geosyn.synergies.reach import reach
+from geosyn.synergies.reach import ReachOutsideLimits, reach
 from geosyn.synergies.synergy import (
     GeodesicSynergy,
     as_vector,
@@ -62,7 +62,8 @@ class SequenceSegment:
     """One segment: a path in its own parameter ``s`` in [0, 1], timed by the time law.
 
     Attributes:
-        metric: the metric whose geodesic the path is (None for a straight line).
+        metric: the metric whose geodesic the path is (None for a path that is not a
+            geodesic: a straight line, a planner's constrained path).
         s: (S,) path parameter samples, uniform in [0, 1].
         q: (S, n) path positions [rad].
         dq: (S, n) path derivative dq/ds [rad].
@@ -378,6 +379,8 @@ def reach_sequence(
 
     Raises:
         InvalidSynergyInput: bad input.
+        ReachOutsideLimits: no motion inside the joint limits reaches a goal (its
+            ``segment`` and message name the segment, its start and its target).
         SynergyNotConverged: a synergy base could not be joined to a segment start.
     """
     syns = list(synergies)
@@ -396,7 +399,18 @@ def reach_sequence(
     q = syns[0].q0.copy() if q_start is None else as_vector(q_start, metric.n, "q_start")
     segs, t = [], float(t0)
     for i, p in enumerate(P):
-        res = reach(syns, p, frame, robot, q_start=q, steps=steps, tol=tol)
+        try:
+            res = reach(syns, p, frame, robot, q_start=q, steps=steps, tol=tol)
+        except ReachOutsideLimits as err:
+            raise ReachOutsideLimits(
+                f"segment {i} (from q={np.round(q, 4).tolist()} to target"
+                f" {np.round(p, 4).tolist()}): {err}",
+                err.joint,
+                err.value,
+                err.limit,
+                err.t,
+                segment=i,
+            ) from err
         v0 = res.trajectory.v[0]
         seg = geodesic_segment(metric, q, v0, t, float(T[i]), steps, res.weights, res.error)
         segs.append(seg)

@@ -11,11 +11,16 @@ one of them); at each new image the controller estimates the ball's centre
 more than ``bound``), integrates the combined geodesic from the start and tracks it
 (computed torque, rest-to-rest time law over ``duration``).
 
-Reported: success rate (hand within ``success_radius`` of the true final target), the
-perception-to-torque latency (image in hand to torque out, rendering excluded), the
-perception error, the map's error before refinement and the error and time of `reach`
-alone on the same targets. ``--video`` films the first target's run (``example``) with
-the ball where the simulation put it at each tick (``example__target_position``).
+Each target is a run (`outcomes`): it fails when the simulation does not complete, when
+the hand ends farther than ``success_radius`` from the true final target, or when the
+reference it tracked leaves the joint limits, each with its reason in
+``target_<i>__status``; every summary counts them alike (``target_<i>.ok``,
+``failed_runs``). Reported: success rate, the perception-to-torque latency (image in hand
+to torque out, rendering excluded), the perception error, the map's error before
+refinement and the error and time of `reach` alone on the same targets (NaN, counted in
+``reach_outside_limits``, where no motion inside the joint limits reaches a target).
+``--video`` films the first target's run (``target_0``) with the ball where the
+simulation put it at each tick (``target_0__target_position``).
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from geosyn.controllers import JointTrajectoryReference as Hold
 from geosyn.core.types import Vector
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import Duration
+from geosyn.experiments.procedures.outcomes import fail_run, run_status, status_oks
 from geosyn.experiments.results.plots import COLORS, figure, save
 from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
@@ -42,7 +48,7 @@ from geosyn.robots.kinematics import frame_position
 from geosyn.sim import CameraView, Simulation
 from geosyn.sim.camera_sensor import CameraSensor, Frames
 from geosyn.sim.perception import estimate_ball
-from geosyn.synergies import reach
+from geosyn.synergies import ReachOutsideLimits, reach
 from geosyn.synergies.perception_map import SynergyMap
 from geosyn.world import Sphere
 
@@ -196,6 +202,9 @@ class PerceptionReach(Procedure):
         out = check_required(cfg, "synergies", "controllers")
         if cfg.controllers and cfg.controllers[0].type != "computed_torque":
             out.append(("controllers.0.type", "computed_torque"))
+        for section in ("obstacles", "payloads"):
+            if getattr(cfg.scene, section):
+                out.append((f"scene.{section}", "not simulated: the ball is the only body added"))
         return out
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
@@ -243,18 +252,23 @@ class PerceptionReach(Procedure):
                 rows["replans"].append(len(log))
                 rows["refined"].append(sum(r for *_, r in log))
                 rows["misses"].append(ctrl.misses)
-                rows["ok"].append(float(res.status == "ok"))
                 lat += ctrl.latencies
                 renders += frames.render_times
+                run = f"target_{i}"
                 if i == 0:  # the ball is the scene's only "obstacle": no clearance kept
-                    arrays = B.sim_arrays("example", res)
+                    arrays = B.sim_arrays(run, res)
                     out |= {k: v for k, v in arrays.items() if not k.endswith("__clearance")}
                     # the ball where the simulation put it at each tick (drawn in the video)
-                    out["example__target_position"] = np.array([path(t) for t in res.t])
-                    out["example__target_radius"] = np.array(p.radius)
+                    out[f"{run}__target_position"] = np.array([path(t) for t in res.t])
+                    out[f"{run}__target_radius"] = np.array(p.radius)
                     out["example_log_t"] = np.array([r[0] for r in log])
                     out["example_estimates"] = np.array([r[1] for r in log])
                     out["example_truth"] = np.array([r[2] for r in log])
+                else:
+                    out[f"{run}__status"] = np.array(res.status)
+                for reason in target_failures(robot, res.q_ref, rows["final_error"][-1], p):
+                    fail_run(out, run, reason)
+                rows["ok"].append(float(run_status(out, run) == "ok"))
                 advance()
         finally:
             sensor_copy = sim.disturbances[0]
@@ -276,8 +290,8 @@ class PerceptionReach(Procedure):
             "success_rate": 100.0 * float(np.mean(fe <= params.success_radius)),
             "final_error_median": float(np.median(fe)) * mm,
             "final_error_max": float(np.max(fe)) * mm,
-            "latency_median": float(np.median(lat)),
-            "latency_p95": float(np.percentile(lat, 95)),
+            "latency_median": float(np.median(lat)) if lat.size else float("nan"),
+            "latency_p95": float(np.percentile(lat, 95)) if lat.size else float("nan"),
             "render_median": float(np.median(results["render_times"])) * mm,
             "perception_error_median": float(np.nanmedian(results["target__perception_error"]))
             * mm,
@@ -288,11 +302,12 @@ class PerceptionReach(Procedure):
                 np.sum(results["target__refined"]) / max(np.sum(results["target__replans"]), 1)
             ),
             "misses": float(np.sum(results["target__misses"])),
-            "reach_error_median": float(np.median(results["reach_error"])) * mm,
+            "reach_error_median": float(np.nanmedian(results["reach_error"])) * mm,
             "reach_time_median": float(np.median(results["reach_time"])) * mm,
             "map_time_median": float(np.median(results["map_time"])) * mm,
             "ok_runs": float(np.sum(results["target__ok"])),
-        }
+            "reach_outside_limits": float(np.sum(np.isnan(results["reach_error"]))),
+        } | status_oks(results, {f"target_{i}": f"target_{i}" for i in range(1, len(fe))})
 
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
@@ -326,7 +341,7 @@ class PerceptionReach(Procedure):
         vals = [
             np.median(results["map_error"]),
             np.max(results["map_error"]),
-            np.median(results["reach_error"]),
+            np.nanmedian(results["reach_error"]),
         ]
         ax.bar(["map median", "map max", "reach median"], np.array(vals) * 1e3, color=COLORS[:3])
         ax.set_ylabel("hand error [mm]")
@@ -341,6 +356,36 @@ class PerceptionReach(Procedure):
 ROWS = ("final_error", "perception_error", "replans", "refined", "misses", "ok")
 
 
+def target_failures(
+    robot: Robot, q_ref: np.ndarray, final_error: float, p: PerceptionReachParams
+) -> list[str]:
+    """Why a target's run failed beyond the simulation's own status (none: it did not).
+
+    Args:
+        robot: the robot (its joint position limits).
+        q_ref: (T, n) the reference the controller tracked [rad].
+        final_error: distance of the hand from the true final target at the end [m].
+        p: the parameters (``success_radius`` [m]).
+    """
+    out = []
+    if not final_error <= p.success_radius:
+        out.append(
+            f"missed the target: the hand ends {final_error * 1e3:.4g} mm from it"
+            f" (success radius {p.success_radius * 1e3:.4g} mm)"
+        )
+    lo, hi = np.asarray(robot.q_min), np.asarray(robot.q_max)
+    q = np.asarray(q_ref, dtype=np.float64)
+    if q.ndim == 2 and q.shape[1] == lo.shape[0]:
+        over = np.nan_to_num(np.maximum(q - hi, 0.0) + np.maximum(lo - q, 0.0))
+        if over.size and float(over.max()) > 0.0:
+            k, j = np.unravel_index(int(np.argmax(over)), over.shape)
+            out.append(
+                f"the reference leaves the joint limits: joint {robot.joint_names[j]!r} at"
+                f" {q[k, j]:.4g} (limits [{lo[j]:.4g}, {hi[j]:.4g}]) at tick {int(k)}"
+            )
+    return out
+
+
 def map_vs_reach(
     smap: SynergyMap, syns: list[Any], targets: np.ndarray, frame: str, robot: Robot, p: Any
 ) -> dict[str, np.ndarray]:
@@ -352,9 +397,11 @@ def map_vs_reach(
         map_t.append(time.perf_counter() - c0)
         map_err.append(float(np.linalg.norm(smap.endpoint(w) - pt)))
         c0 = time.perf_counter()
-        res = reach(syns, pt, frame, robot, steps=p.steps, restarts=2)
+        try:
+            reach_err.append(reach(syns, pt, frame, robot, steps=p.steps, restarts=2).error)
+        except ReachOutsideLimits:  # counted in the summary (reach_outside_limits)
+            reach_err.append(float("nan"))
         reach_t.append(time.perf_counter() - c0)
-        reach_err.append(res.error)
     return {
         "map_error": np.array(map_err),
         "map_time": np.array(map_t),

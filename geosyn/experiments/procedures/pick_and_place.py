@@ -4,12 +4,21 @@ The hand reaches the object (``params.pick``) on the unloaded metric ``M(q)``, g
 (the scene's payload body, welded to the hand with mass 0, takes the object's mass:
 `geosyn.sim.PayloadChange`), carries it over ``params.via`` (around the obstacle) to
 ``params.place`` and releases it. The joint configurations of the task are found once by
-synergy reaching (`reach_sequence`); three plans join the same configurations:
+synergy reaching inside the joint limits (`task_sequence`: a goal missed by more than
+``params.reach_tol`` fails, naming its segment); three plans join the same configurations:
 
 - ``load_aware``: reach on ``M(q)``, carry on the load-shaped metric
   ``M(q) + J^T Lambda J`` (`LoadTerm`: the exact kinetic energy of the held object);
 - ``unloaded``: every segment a geodesic of ``M(q)`` (the load ignored in planning);
 - ``straight``: straight joint-space lines.
+
+Among the scene's obstacles, a segment of the first two whose geodesic comes closer than
+`segments.CLEARANCE` to an obstacle (on the robot file's own collision geometry) is the planner's
+minimum-energy collision-free path on the same metric instead (`avoiding_sequence`); a
+segment that cannot be joined fails, naming the segment, its start and goal and why. The
+straight lines are the baseline as they are: their exact clearance is reported. A run
+whose robot touches an obstacle in MuJoCo counts as failed, with the contact as reason
+(`outcomes.contact_reason`).
 
 All are tracked by computed torque whose model switches with the grasp: the robot's
 dynamics until the grasp, the robot with the object lumped into the hand link after it,
@@ -38,30 +47,38 @@ from geosyn.controllers import ComputedTorque, Controller, JointTrajectoryRefere
 from geosyn.core.types import Vector
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import EFFORT_LABEL, Duration, Steps
+from geosyn.experiments.procedures.outcomes import contact_reason, fail_run
+from geosyn.experiments.procedures.segments import (
+    avoiding_sequence,
+    exact_checker,
+    held_clearance,
+    path_clearance,
+    task_sequence,
+)
 from geosyn.experiments.results.plots import COLORS, figure, save, tracking_error_plot
 from geosyn.experiments.results.run_video import MARKERS
 from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
 from geosyn.metrics import KineticEnergyMetric, Metric
+from geosyn.metrics.planning import Planner
 from geosyn.metrics.shaping import LoadTerm, ShapedMetric
 from geosyn.robots import Robot
 from geosyn.robots.kinematics import frame_positions
 from geosyn.sim import PayloadChange
-from geosyn.synergies.sequence import (
-    SynergySequence,
-    geodesic_sequence,
-    reach_sequence,
-    straight_sequence,
-)
+from geosyn.synergies.sequence import SynergySequence, straight_sequence
 from geosyn.world import Payload
 
 PLANS = ("load_aware", "unloaded", "straight")
+#: The task's segments, named in messages.
+SEGMENTS = ("start -> pick", "pick -> via", "via -> place")
 
 
 class PickAndPlaceParams(Strict):
     """Parameters of `PickAndPlace`: hand positions of the pick, via and place points [m],
     the object's mass [kg], segment durations [s] (reach, carry to via, carry to place),
-    dwell at the grasp and release [s], geodesic steps, reference sample period [s]."""
+    dwell at the grasp and release [s], geodesic steps, reference sample period [s], the
+    largest distance of the hand from a point it should stop at [m], the planner's time
+    budget per segment [s]."""
 
     pick: Vec3
     via: Vec3
@@ -71,6 +88,8 @@ class PickAndPlaceParams(Strict):
     dwell: Duration = 0.2
     steps: Steps = 200
     sample_dt: Annotated[float, Field(gt=0.0, le=0.05)] = 0.005
+    reach_tol: PositiveFloat = 1e-3
+    plan_budget: Duration = 10.0
 
 
 def attach_payload(robot: Robot, payload: Payload) -> Robot:
@@ -158,6 +177,7 @@ class PickAndPlace(Procedure):
         "energy": "J s",
         "energy_saving": "%",
         "load_metric_error": "kg m^2",
+        "planned_clearance": "m",
     }
 
     @classmethod
@@ -182,7 +202,10 @@ class PickAndPlace(Procedure):
         loaded_metric = ShapedMetric(free, [LoadTerm.from_payload(obj)])
         loaded_robot = attach_payload(robot, obj)
         points = np.array([p.pick, p.via, p.place])
-        task = reach_sequence(syns, points, frame, robot, p.durations, steps=p.steps)
+        task = task_sequence(
+            syns, points, frame, robot, p.durations, steps=p.steps, tol=p.reach_tol,
+            names=SEGMENTS,
+        )  # fmt: skip
         W = task.waypoints
         advance()
         metrics: dict[str, list[Metric]] = {
@@ -190,11 +213,26 @@ class PickAndPlace(Procedure):
             "unloaded": [free, free, free],
         }
         truth: list[Metric] = [free, loaded_metric, loaded_metric]
-        plans = {
-            name: geodesic_sequence(ms, W, p.durations, steps=p.steps)
-            for name, ms in metrics.items()
-        }
+        obstacles = ctx.scene.obstacles
+        planners: dict[tuple[int, int], Planner] = {}  # one per metric and held ball
+        held: list[Payload | None] = [None, obj, obj]  # part of the robot while carried
+        plans: dict[str, SynergySequence] = {}
+        clearances: dict[str, list[float]] = {}
+        planned: dict[str, list[float]] = {}
+        for name, ms in metrics.items():
+            plans[name], how = avoiding_sequence(
+                ms, W, p.durations, obstacles, steps=p.steps, budget=p.plan_budget,
+                seed=cfg.seed, names=SEGMENTS, planners=planners, held=held,
+            )  # fmt: skip
+            clearances[name] = [h.clearance for h in how]
+            planned[name] = [float(h.planned) for h in how]
         plans["straight"] = straight_sequence(W, p.durations, steps=p.steps)
+        exact = exact_checker(robot, obstacles)
+        clearances["straight"] = [
+            min(path_clearance(exact, s.q, obstacles), held_clearance(robot, b, s.q, obstacles))
+            for s, b in zip(plans["straight"].segments, held, strict=True)
+        ]
+        planned["straight"] = [0.0] * (len(W) - 1)
         advance()
         t_carry = p.durations[0] + p.dwell
         t_grasp = p.durations[0] + 0.5 * p.dwell
@@ -226,6 +264,8 @@ class PickAndPlace(Procedure):
                     default=0.0,
                 )
             )
+            out[f"plan_{name}__segment_clearance"] = np.array(clearances[name])
+            out[f"plan_{name}__segment_planned"] = np.array(planned[name])
             reach, carry = split(seq, t_carry)
             ref = timed_reference(reach, carry, p.sample_dt)
             t, q, _, _ = carry.trajectory(p.sample_dt)
@@ -251,6 +291,9 @@ class PickAndPlace(Procedure):
                 scene=ctx.scene,
             )
             out |= B.sim_arrays(name, res)
+            if (reason := contact_reason(B.sim_view(out, name))) is not None:
+                planned_c = min(clearances[name])
+                fail_run(out, name, f"{reason} (planned path's exact clearance {planned_c:.3g} m)")
             advance()
         return out
 
@@ -270,6 +313,10 @@ class PickAndPlace(Procedure):
             out[f"{n}.energy"] = e[n]
             out[f"{n}.timed_energy"] = float(results[f"plan_{n}__timed_energy"])
             out[f"{n}.residual"] = float(results[f"plan_{n}__residual"])
+            clearance = results.get(f"plan_{n}__segment_clearance")
+            if clearance is not None:  # runs stored before the planner was used lack it
+                out[f"{n}.planned_clearance"] = float(np.min(clearance))
+                out[f"{n}.planned_segments"] = float(np.sum(results[f"plan_{n}__segment_planned"]))
         return out
 
     def plot(

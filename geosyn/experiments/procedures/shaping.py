@@ -19,7 +19,6 @@ the config's payloads and obstacles (the controllers' model does not include the
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -28,13 +27,13 @@ import numpy as np
 from geosyn.experiments.errors import ProcedureFailed
 from geosyn.experiments.procedures.base import RunContext, check_required, register
 from geosyn.experiments.procedures.common import PathComparison, track_with_each_controller
+from geosyn.experiments.procedures.outcomes import contact_reason, fail_run, run_status
 from geosyn.experiments.results.plots import COLORS, figure, save
 from geosyn.experiments.run import build as B
 from geosyn.experiments.run import references as R
 from geosyn.experiments.schema import ExperimentConfig, LogReference
 from geosyn.metrics import Geodesic, Metric, exp, log, path_energy
 from geosyn.metrics.shaping import ObstacleTerm, ShapedMetric
-from geosyn.sim.log import RUN_META
 
 
 def _geodesic(
@@ -47,21 +46,19 @@ def _geodesic(
     return exp(metric, q0, u / ref.duration, ref.duration, ref.steps), u
 
 
-def _with_contact_cause(status: str, run: dict[str, np.ndarray]) -> str:
-    """``status`` of a run, with the obstacle contact named as the cause of a stop.
+def _contact_cause(status: str, run: dict[str, np.ndarray]) -> str | None:
+    """The obstacle contact named as the cause of a stopped run, or None (the run
+    completed, or touched nothing: an unshaped path may touch an obstacle, which the
+    comparison reports as contact force and time, not as a failure).
 
     Args:
         status: the run's status (``ok``, ``diverged: ...``, ``controller failed: ...``).
         run: its arrays by field name (``t`` [s], ``contact_force`` [N]).
     """
-    force = run["contact_force"]
-    if status == "ok" or not force.size or not (force > 0.0).any():
-        return status
-    first = int(np.argmax(force > 0.0))
-    return (
-        f"{status}; cause: the robot hit an obstacle (scene.contact: true) from"
-        f" t={float(run['t'][first]):.4g} s, contact force up to {float(force.max()):.4g} N"
-    )
+    contact = contact_reason(run)
+    if status == "ok" or contact is None:
+        return None
+    return f"cause: the robot hit an obstacle (scene.contact: true): {contact}"
 
 
 class _Shaping(PathComparison):
@@ -138,11 +135,10 @@ class _Shaping(PathComparison):
                 cfg, ctx.scene, metrics["unshaped"], ref, q0, v0, f"{name}_", advance
             )
             out |= runs
-            for key in [k for k in runs if k.endswith("__status")]:
-                prefix = key[: -len("__status")]
-                status = _with_contact_cause(str(runs[key]), B.sim_view(runs, prefix))
-                meta = json.loads(str(runs[prefix + RUN_META])) | {"status": status}
-                out[key], out[prefix + RUN_META] = np.array(status), np.array(json.dumps(meta))
+            for prefix in [k[: -len("__status")] for k in runs if k.endswith("__status")]:
+                cause = _contact_cause(run_status(runs, prefix), B.sim_view(runs, prefix))
+                if cause is not None:
+                    fail_run(out, prefix, cause)
         return out
 
     def path_summary(

@@ -1,10 +1,15 @@
 """A task as a sequence of geodesic synergies: Cartesian goals reached one after the other.
 
 Each goal is reached from the previous segment's end by a combination of the config's
-synergies (transported to the segment's start, weights by `reach`); the segments meet at
-rest (`geosyn.synergies.sequence`). The baseline is the straight joint-space line through
-the same configurations with the same time law. Both are tracked in MuJoCo by every
-configured controller.
+synergies (transported to the segment's start, weights by `reach`, every sample inside
+the joint limits; a goal missed by more than ``params.reach_tol`` fails, naming its
+segment: `segments.task_sequence`); the segments meet at rest
+(`geosyn.synergies.sequence`). Among the scene's obstacles, a segment whose geodesic comes
+closer than `segments.CLEARANCE` to one (on the robot file's own collision geometry) is the
+planner's minimum-energy collision-free path instead (`segments.avoiding_sequence`). The
+baseline is the straight joint-space line through the same configurations with the same
+time law. Both are tracked in MuJoCo by every configured controller; a run whose robot
+touches an obstacle counts as failed, with the contact as reason.
 
 Reported: kinetic energy of each planned motion (``energy``: the paths at constant speed
 in their own parameter, which the geodesic minimises, and the geodesic's saving;
@@ -31,12 +36,14 @@ from geosyn.experiments.procedures.common import (
     robot_and_metric,
     track_with_each_controller,
 )
+from geosyn.experiments.procedures.outcomes import contact_reason, fail_run
+from geosyn.experiments.procedures.segments import avoiding_sequence, task_sequence
 from geosyn.experiments.results.plots import COLORS, figure, save
 from geosyn.experiments.results.run_video import MARKERS
 from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
 from geosyn.robots.kinematics import frame_positions
-from geosyn.synergies.sequence import SynergySequence, reach_sequence, straight_sequence
+from geosyn.synergies.sequence import SynergySequence, straight_sequence
 
 PLANS = ("geodesic", "straight")
 
@@ -44,13 +51,16 @@ PLANS = ("geodesic", "straight")
 class SynergySequenceParams(Strict):
     """Parameters of `SynergySequenceProcedure`: Cartesian goals [m], a duration per
     segment [s] (or one for all), geodesic steps, reference sample period [s], settling
-    time after the motion [s]."""
+    time after the motion [s], the largest distance of the hand from a goal [m], the
+    planner's time budget per segment [s]."""
 
     targets: Annotated[list[Vec3], Field(min_length=1)]
     durations: PositiveFloat | Annotated[list[PositiveFloat], Field(min_length=1)] = 1.0
     steps: Steps = 200
     sample_dt: Annotated[float, Field(gt=0.0, le=0.05)] = 0.005
     settle: Duration = 0.3
+    reach_tol: PositiveFloat = 1e-3
+    plan_budget: Duration = 10.0
 
     def segment_durations(self) -> list[float]:
         """Duration of each segment [s]."""
@@ -79,6 +89,7 @@ class SynergySequenceProcedure(Procedure):
         "max_residual": "rad",
         "max_reach_error": "m",
         "final_hand_error": "m",
+        "planned_clearance": "m",
     }
 
     @classmethod
@@ -96,7 +107,15 @@ class SynergySequenceProcedure(Procedure):
         targets = np.array(p.targets)
         durations = p.segment_durations()
         advance = ctx.progress(f"{cfg.name}: plans and runs", 1 + 2 * len(cfg.controllers))
-        geo = reach_sequence(syns, targets, frame, robot, durations, steps=p.steps)
+        names = [f"to goal {i}" for i in range(len(targets))]
+        task = task_sequence(
+            syns, targets, frame, robot, durations, steps=p.steps, tol=p.reach_tol, names=names
+        )
+        geo, how = avoiding_sequence(
+            [metric] * len(targets), task.waypoints, durations, ctx.scene.obstacles,
+            steps=p.steps, budget=p.plan_budget, seed=cfg.seed, names=names,
+            geodesics=task.segments,
+        )  # fmt: skip
         lin = straight_sequence(geo.waypoints, durations, steps=p.steps)
         advance()
         out: dict[str, np.ndarray] = {
@@ -105,9 +124,14 @@ class SynergySequenceProcedure(Procedure):
             "waypoints": geo.waypoints,
             "junction_times": geo.junction_times,
             "junction_jumps": geo.junction_jumps(),
-            "residuals": np.array([s.geodesic_residual() for s in geo.segments]),
-            "reach_errors": np.array([s.reach_error for s in geo.segments]),
-            "weights": np.array([s.weights for s in geo.segments]),
+            # NaN: a planned segment that is not a geodesic
+            "residuals": np.array(
+                [np.nan if s.metric is None else s.geodesic_residual() for s in geo.segments]
+            ),
+            "reach_errors": np.array([s.reach_error for s in task.segments]),
+            "weights": np.array([s.weights for s in task.segments]),
+            "segment_planned": np.array([float(h.planned) for h in how]),
+            "segment_clearance": np.array([h.clearance for h in how]),
         }
         duration = geo.duration + p.settle
         for name, seq in zip(PLANS, (geo, lin), strict=True):
@@ -117,9 +141,13 @@ class SynergySequenceProcedure(Procedure):
             out[f"{name}__hand"] = frame_positions(robot, q, frame)
             out[f"{name}__energy"] = np.array(seq.path_energy(metric))
             out[f"{name}__timed_energy"] = np.array(seq.energy(metric))
-            out |= track_with_each_controller(
+            runs = track_with_each_controller(
                 cfg, ctx.scene, metric, ref, q[0], v[0], f"{name}_", advance, duration=duration
             )
+            for prefix in [k[: -len("__status")] for k in runs if k.endswith("__status")]:
+                if (reason := contact_reason(B.sim_view(runs, prefix))) is not None:
+                    fail_run(runs, prefix, reason)
+            out |= runs
         return out
 
     def summarize(
@@ -135,9 +163,12 @@ class SynergySequenceProcedure(Procedure):
             "straight.timed_energy": float(results["straight__timed_energy"]),
             "energy_saving": 100.0 * (1.0 - e_geo / e_lin),
             "max_velocity_jump": float(np.max(results["junction_jumps"][:, 1], initial=0.0)),
-            "max_residual": float(np.max(results["residuals"])),
+            "max_residual": float(np.nanmax(results["residuals"], initial=0.0)),
             "max_reach_error": float(np.max(results["reach_errors"])),
         }
+        if "segment_planned" in results:  # runs stored before the planner was used lack it
+            out["planned_segments"] = float(np.sum(results["segment_planned"]))
+            out["planned_clearance"] = float(np.min(results["segment_clearance"]))
         # effort, rms_error, ok, min_clearance, ... of each run: the standard metrics
         # (`Procedure.full_summary`), in the rows `run_rows` names.
         goal = results["targets"][-1]
