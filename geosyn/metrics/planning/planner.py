@@ -16,8 +16,8 @@ One query, within a stated time budget:
 3. if that fails, RRT-Connect (`geosyn.metrics.planning.rrt`) for a global seed around
    the obstacles, then collocation from it; after a constrained straight-line result,
    up to ``alternatives`` RRT-Connect seeds (other homotopy classes round the
-   obstacles), each while the time left is at least the time the first plan took,
-   keeping the lowest-energy plan not longer than the straight line's
+   obstacles), each while the time left is at least the time the first plan took
+   (and bounded by about three times that), keeping the lowest-energy plan not longer than the straight line's
    (`geosyn.metrics.planning.query`);
 4. checks the result between the nodes (``check_factor`` times finer and at most
    ``check_step`` apart, linear between nodes) and, for a robot with a file, against its
@@ -102,7 +102,8 @@ class Planner:
             configurations [rad], > 0.
         alternatives: RRT-Connect seeds tried after a constrained straight-line plan,
             >= 0, each only while the time left of the budget is at least the time the
-            first plan took (each costs a sampling and a collocation); the lowest-energy
+            first plan took (each costs a sampling bounded by that time and a collocation
+            bounded by twice that); the lowest-energy
             plan whose metric length is not above the straight line's wins. 0: the first
             plan is returned as soon as it is found.
         coarse_nodes: segments of the coarse collocation that seeds the full one when
@@ -197,6 +198,15 @@ class Planner:
         """
         cap = self._full_term.capacity
         return cap if count >= cap else min(cap, 1 << max(count - 1, 0).bit_length())
+
+    def prepare(self, count: int) -> float:
+        """Build now the NLPs of queries with ``count`` obstacles (>= 0), rather than on
+        the first such query; the time spent [s] (0 when they exist)."""
+        count = check_int(count, "count", low=0)
+        try:
+            return self._use_slots(count)
+        finally:
+            self.term = self._full_term
 
     def _use_slots(self, count: int) -> float:
         """Make the NLPs of ``slots(count)`` the current ones (``term`` and

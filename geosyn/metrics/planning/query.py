@@ -7,7 +7,8 @@ by every query. The order of the search is stated in `geosyn.metrics.planning.pl
 Homotopy rule: after a constrained plan from the straight line, up to
 ``planner.alternatives`` RRT-Connect seeds (other ways round the obstacles) are solved,
 each only while the time left is at least the time the first plan took (a solve from a
-seed costs about as much). A plan from another seed replaces the kept one only when its
+seed costs about as much), its sampling bounded by that time and its collocation by
+twice that (so a seed that does not connect cannot take the rest of a long budget). A plan from another seed replaces the kept one only when its
 energy is lower and its metric length (midpoint rule on its nodes) is not longer, so the
 returned path is never longer than the straight-line seed's solution.
 """
@@ -106,14 +107,15 @@ class Query:
                 return None
         return None
 
-    def from_rrt(self, index: int) -> Plan | None:
-        """Collocation from an RRT-Connect seed (``seed + index``), or None."""
+    def from_rrt(self, index: int, cap: float = math.inf) -> Plan | None:
+        """Collocation from an RRT-Connect seed (``seed + index``), or None; the sampling
+        takes at most ``cap`` [s], the collocation at most twice that."""
         p, q0, q1 = self.p, self.q0, self.q1
         name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
         # the sampling box: the limits, or within pi of start and goal where infinite
         lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
         hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
-        path, grown = rrt_connect(p.valid, q0, q1, lo, hi, budget=0.6 * self.left(),
+        path, grown = rrt_connect(p.valid, q0, q1, lo, hi, budget=min(0.6 * self.left(), cap),
                                   seed=self.seed + index)  # fmt: skip
         if path is None:
             self.attempts.append(f"{name}: no connection after {grown} nodes")
@@ -125,7 +127,7 @@ class Query:
         self.attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
         if (remaining := self.left()) <= 0:
             return None
-        res = p.solve(p.collocation(p.nodes), q0, q1, init=path, budget=remaining)
+        res = p.solve(p.collocation(p.nodes), q0, q1, init=path, budget=min(remaining, 2 * cap))
         self.attempts.append(f"collocation from the {name} path: {res.message}")
         if not res.success:
             self.unfinished.extend([(res.nodes, f"the interrupted collocation from the {name} "
@@ -156,7 +158,7 @@ class Query:
     def alternatives(self, line: Plan) -> list[Plan]:
         """Plans from RRT-Connect seeds after the constrained ``line`` plan (the
         module's homotopy rule: each tried while the time left is at least the time
-        ``line`` took)."""
+        ``line`` took, its sampling bounded by that time and its collocation by twice)."""
         plans: list[Plan] = []
         for index in range(self.p.alternatives):
             if self.left() < line.wall_time:
@@ -165,7 +167,7 @@ class Query:
                     f"left, less than the first plan took ({line.wall_time:.2f} s)"
                 )
                 break
-            if (plan := self.from_rrt(index)) is not None:
+            if (plan := self.from_rrt(index, cap=line.wall_time)) is not None:
                 plans.append(plan)
         return plans
 

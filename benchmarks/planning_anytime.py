@@ -1,0 +1,172 @@
+"""Benchmark: metric length vs wall-time budget, geosyn's default `Planner` and geodex on
+the same scenes in one run (issue 22, "anytime behaviour").
+
+For each budget ``T`` (default 0.05, 0.1, 0.3, 1, 2 s), in turn: geodex plans every scene
+with ``PlanSettings.time = T`` (its venv, `planning_geodex.geodex_run`), then geosyn's
+default ``Planner(KineticEnergyMetric(panda))`` plans every scene with ``budget=T``
+(alternating A/B by budget, so both see the same machine load). geosyn's NLPs of every
+obstacle count are built before the first budget (`Planner.prepare`, timed and printed):
+the curve is the query's, not the first build's. Every returned path is then scored the
+same way, as in ``planning.py``: metric length under geosyn's Panda (armature 0), coal's
+exact distance to the URDF collision meshes and geodex's checker, on the path resampled
+every ``--check-step`` rad.
+
+Printed per budget: paths returned, median and largest wall time to the returned path
+(geosyn: also its CPU time and its first feasible path's time), the length ratio
+geosyn / geodex on the scenes both solved, how many of them geosyn is <= geodex on, and
+the paths that touch the meshes (< 0) or collide for geodex's checker.
+
+Run: ``bash benchmarks/setup_geodex.sh && nice -n 10 .venv/bin/python
+benchmarks/planning_anytime.py`` (results in ``runs/planning/anytime.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+import planning_scenes as ps  # noqa: E402
+from planning import CAPACITY, ROOT, metric_length, to_geosyn  # noqa: E402
+from planning_geodex import geodex_run  # noqa: E402
+
+from geosyn.metrics import KineticEnergyMetric  # noqa: E402
+from geosyn.metrics.planning import Planner, PlanningError  # noqa: E402
+from geosyn.robots import load_robot  # noqa: E402
+from geosyn.world.exact_clearance import ExactClearance  # noqa: E402
+
+
+def geosyn_runs(planner: Planner, scenes: list[ps.Scene], budget: float) -> dict[str, dict]:
+    """Each scene planned by ``planner`` within ``budget`` [s]: wall and CPU time to the
+    returned path, first feasible time, kind, path (None when refused)."""
+    out = {}
+    for sc in scenes:
+        obstacles = [to_geosyn(ob) for ob in sc.obstacles]
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            plan = planner.plan(np.array(sc.q_start), np.array(sc.q_goal), obstacles, budget=budget)
+        except PlanningError as err:
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            out[sc.name] = {"solved": False, "wall_time": wall, "cpu_time": cpu,
+                            "message": f"{type(err).__name__}"}  # fmt: skip
+            continue
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        out[sc.name] = {
+            "solved": True, "wall_time": wall, "cpu_time": cpu, "kind": plan.result.kind,
+            "seed": plan.seed, "first_feasible_time": plan.first_feasible_time,
+            "exact_clearance": plan.exact_clearance, "nlp_build_time": plan.nlp_build_time,
+            "path": np.asarray(plan.q).tolist(),
+        }  # fmt: skip
+    return out
+
+
+def _median(xs: list[float]) -> float:
+    return statistics.median(xs) if xs else math.nan
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description="length vs budget, geosyn and geodex")
+    p.add_argument("--budgets", default="0.05,0.1,0.3,1,2", help="budgets T [s]")
+    p.add_argument("--scenes", default="", help="comma-separated scene names (default: all)")
+    p.add_argument("--check-step", type=float, default=2e-3, help="resampling step [rad]")
+    p.add_argument("--geodex-seed", type=int, default=1)
+    p.add_argument("--out", default=str(ROOT / "runs" / "planning" / "anytime.json"))
+    args = p.parse_args(argv)
+    budgets = [float(b) for b in args.budgets.split(",")]
+    scenes = (
+        [ps.scene_by_name(n) for n in args.scenes.split(",")] if args.scenes else list(ps.SCENES)
+    )
+    work = Path(tempfile.mkdtemp(prefix="geosyn-anytime-"))
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start")
+    robot = load_robot("panda", armature=0.0)
+    metric = KineticEnergyMetric(robot)
+    t0 = time.perf_counter()
+    planner = Planner(metric, capacity=CAPACITY)
+    build = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for k in sorted({len(sc.obstacles) for sc in scenes}):
+        planner.prepare(k)
+    prepare = time.perf_counter() - t0
+    print(f"geosyn: Planner() {build:.2f} s, NLPs of every obstacle count {prepare:.2f} s")
+    mesh = ExactClearance(robot)
+    runs: dict[float, dict[str, dict]] = {}
+    for T in budgets:
+        geodex_run("plan", "--out", str(work / f"gdx_{T}.json"), "--time", str(T),
+                   "--seed", str(args.geodex_seed), "--check-step", str(args.check_step),
+                   "--scenes", ",".join(s.name for s in scenes))  # fmt: skip
+        gdx = json.loads((work / f"gdx_{T}.json").read_text())["scenes"]
+        gsy = geosyn_runs(planner, scenes, T)
+        runs[T] = {"geodex": gdx, "geosyn": gsy, "load": os.getloadavg()[0]}  # type: ignore[dict-item]
+        print(f"  T = {T:g} s done (load {os.getloadavg()[0]:.1f})", flush=True)
+    dense: dict[str, np.ndarray] = {}
+    for T, r in runs.items():
+        for who in ("geodex", "geosyn"):
+            for name, row in r[who].items():
+                if row.get("solved") and row.get("path"):
+                    dense[f"{name}/{who}/{T}"] = ps.resample(
+                        np.asarray(row["path"]), args.check_step
+                    )
+    np.savez(work / "paths.npz", **dense)
+    geodex_run("check", "--paths", str(work / "paths.npz"), "--out", str(work / "check.json"))
+    gcheck = json.loads((work / "check.json").read_text())
+    for key, path in dense.items():
+        name, who, T = key.split("/")
+        row = runs[float(T)][who][name]
+        mesh.set_obstacles([to_geosyn(ob) for ob in ps.scene_by_name(name).obstacles])
+        row["length"] = metric_length(metric, path)
+        row["mesh_clearance"] = mesh.path_clearance(path, args.check_step).clearance
+        row["geodex_free"] = bool(gcheck[key]["collision_free"])
+        row.pop("path", None)
+    print(f"\nmetric length [sqrt(kg) m] under geosyn's panda (armature 0); mesh = coal's "
+          f"distance to the URDF collision meshes; paths resampled every {args.check_step:g} rad")  # fmt: skip
+    print(f"{'T [s]':>6s} {'load':>5s} | {'gdx ok':>6s} {'gdx wall med/max':>16s} | "
+          f"{'gsy ok':>6s} {'gsy wall med/max':>16s} {'cpu med':>7s} {'1st med':>7s} | "
+          f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s}")  # fmt: skip
+    for T, r in runs.items():
+        g, s = r["geodex"], r["geosyn"]
+        g_ok = [n for n, x in g.items() if x["solved"]]
+        s_ok = [n for n, x in s.items() if x["solved"]]
+        both = [n for n in s_ok if n in g_ok]
+        ratios = [s[n]["length"] / g[n]["length"] for n in both]
+        gw = [g[n]["wall_time"] for n in g_ok]
+        sw = [s[n]["wall_time"] for n in s_ok]
+        print(
+            f"{T:6g} {r['load']:5.1f} | {len(g_ok):3d}/{len(g):<2d} "
+            f"{_median(gw):7.3f}/{max(gw, default=math.nan):<8.3f} | {len(s_ok):3d}/{len(s):<2d} "
+            f"{_median(sw):7.3f}/{max(sw, default=math.nan):<8.3f} "
+            f"{_median([s[n]['cpu_time'] for n in s_ok]):7.3f} "
+            f"{_median([s[n]['first_feasible_time'] for n in s_ok]):7.3f} | "
+            f"{_median(ratios):7.3f} [{min(ratios, default=math.nan):.3f}, "
+            f"{max(ratios, default=math.nan):.3f}] {sum(x <= 1.0 for x in ratios):4d}/{len(both):<3d} | "
+            f"{sum(g[n]['mesh_clearance'] < 0 for n in g_ok):6d}/{sum(s[n]['mesh_clearance'] < 0 for n in s_ok):<7d} "
+            f"{sum(not s[n]['geodex_free'] for n in s_ok):10d}"
+        )  # fmt: skip
+    print("\nper scene, geosyn length / geodex length (- : one of them returned nothing):")
+    print(f"{'scene':18s} " + " ".join(f"{T:>8g}" for T in runs))
+    for sc in scenes:
+        cells = []
+        for r in runs.values():
+            g, s = r["geodex"][sc.name], r["geosyn"][sc.name]
+            ok = g["solved"] and s["solved"]
+            cells.append(f"{s['length'] / g['length']:8.3f}" if ok else
+                         f"{'gsy only' if s['solved'] else ('gdx only' if g['solved'] else 'none'):>8s}")  # fmt: skip
+        print(f"{sc.name:18s} " + " ".join(cells))
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({"settings": vars(args), "build_time": build,
+                               "prepare_time": prepare,
+                               "runs": {str(T): r for T, r in runs.items()}}, indent=1, default=float))  # fmt: skip
+    print(f"\nresults: {out}")
+
+
+if __name__ == "__main__":
+    main()
