@@ -20,6 +20,9 @@ tick and joint, with the run and controller as columns.
 
 from __future__ import annotations
 
+import json
+import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,7 +30,7 @@ import numpy as np
 
 from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import ExperimentError
-from geosyn.sim.log import SimResult, saved_runs
+from geosyn.sim.log import LOG_FIELDS, RUN_META, SimResult, saved_runs
 
 if TYPE_CHECKING:
     import pandas
@@ -50,6 +53,41 @@ TICK_COLUMNS = (
     ("contact_force", "N"),
     ("fallback_used", ""),
 )
+
+
+#: Most characters of one CSV value: ``%.17g`` of a float64 (``-1.2345678901234567e-308``)
+#: and its separator.
+CSV_BYTES_PER_VALUE = 25
+
+
+def log_size(nq: int, nv: int, payloads: int, ticks: int) -> tuple[int, int]:
+    """The size of one closed-loop run's per-tick log [bytes]: in memory, and on disk.
+
+    In memory: the simulation's rows (`geosyn.sim.log.LOG_FIELDS`, ``"tick"`` and
+    ``"derived"`` fields): 219 B per tick on planar2, 584 B on a 7-DoF arm. Measured (issue
+    23, planar2, computed torque, 600 s at 1 kHz): 229 B per tick of resident memory, the
+    run's peak 394 MB against 247 MB before it simulates; the CSV is written in blocks and
+    adds nothing that grows with the run. On disk: ``data/<run>.csv``, at most
+    `CSV_BYTES_PER_VALUE` per value (measured 324 B per tick for planar2's 19 columns,
+    17 B per value); ``results.npz`` is compressed and far smaller (3 B per tick there).
+
+    Args:
+        nq: joint positions of the robot.
+        nv: joint velocities.
+        payloads: payloads of the scene.
+        ticks: control ticks of the run.
+
+    Returns:
+        ``(memory, disk)`` upper estimates [bytes].
+    """
+    dims = {"nq": nq, "nv": nv, "P": payloads}
+    per_tick = 0
+    for f in LOG_FIELDS:
+        if f.source in ("tick", "derived"):
+            n = math.prod(dims[d] for d in f.shape if d != "T")
+            per_tick += n * np.dtype(f.dtype).itemsize
+    columns = 1 + len(JOINT_COLUMNS) * nv + len(TICK_COLUMNS) + payloads
+    return per_tick * ticks, columns * CSV_BYTES_PER_VALUE * ticks
 
 
 def _results_file(run_dir: str | Path) -> Path:
@@ -79,53 +117,88 @@ def controller_of(run: str, labels: list[str]) -> str:
     return max(matches, key=len) if matches else run
 
 
+#: Rows formatted at a time by `write_csv`: a long run's CSV costs this many rows of
+#: memory, not a second copy of the run.
+CSV_BLOCK = 10_000
+
+
 def run_columns(res: SimResult) -> dict[str, np.ndarray]:
     """The named columns of one run (see the module doc), each (T,)."""
-    cols: dict[str, np.ndarray] = {"t": np.asarray(res.t)}
+    arrays = {name: getattr(res, name, None) for name in _CSV_FIELDS}
+    return _columns(arrays, res.joint_names)
+
+
+_CSV_FIELDS = ("t", *(n for n, _ in JOINT_COLUMNS), *(n for n, _ in TICK_COLUMNS), "payload_mass")
+
+
+def _columns(arrays: Mapping[str, Any], joint_names: Sequence[str]) -> dict[str, np.ndarray]:
+    """The named columns (views, no copies) of one run's arrays by `SimResult` field."""
+    cols: dict[str, np.ndarray] = {"t": np.asarray(arrays["t"])}
     for name, _unit in JOINT_COLUMNS:
-        arr = np.asarray(getattr(res, name))
-        for j, joint in enumerate(res.joint_names[: arr.shape[1]]):
+        arr = np.asarray(arrays[name])
+        for j, joint in enumerate(joint_names[: arr.shape[1]]):
             cols[f"{name}[{joint}]"] = arr[:, j]
     for name, _unit in TICK_COLUMNS:
-        if getattr(res, name, None) is not None:
-            cols[name] = np.asarray(getattr(res, name))
-    mass = np.asarray(res.payload_mass)
+        if arrays.get(name) is not None:
+            cols[name] = np.asarray(arrays[name])
+    mass = np.asarray(arrays.get("payload_mass", np.zeros((0, 0))))
     for i in range(mass.shape[1] if mass.ndim == 2 else 0):
         cols[f"payload_mass[{i}]"] = mass[:, i]
     return cols
 
 
-def write_csv(out_dir: Path, labels: list[str]) -> list[Path]:
+def write_csv(
+    out_dir: Path, labels: list[str], results: Mapping[str, np.ndarray] | None = None
+) -> list[Path]:
     """Write ``data/<run>.csv`` for every closed-loop run of ``out_dir/results.npz``.
+
+    One run at a time, `CSV_BLOCK` rows at a time: the memory it takes does not grow
+    with the length of the runs (beyond one run's arrays when read from the file).
 
     Args:
         out_dir: the run directory (holding results.npz).
         labels: the config's controller labels (for the ``controller`` comment).
+        results: the arrays of ``results.npz`` when the caller holds them (the runner):
+            read from memory instead of the file (no second copy).
 
     Returns:
         The files written (none when the experiment has no closed-loop run).
     """
-    runs = load_runs(out_dir)
+    if results is None:
+        with np.load(_results_file(out_dir), allow_pickle=False) as data:
+            return _write_runs(out_dir, labels, data)
+    return _write_runs(out_dir, labels, results)
+
+
+def _write_runs(out_dir: Path, labels: list[str], data: Mapping[str, Any]) -> list[Path]:
+    runs = [k[: -len(RUN_META)] for k in data if k.endswith(RUN_META) and k != "__meta__"]
     if not runs:
         return []
     folder = out_dir / "data"
     folder.mkdir(exist_ok=True)
     written = []
-    for run, res in runs.items():
-        cols = run_columns(res)
+    for run in runs:
+        meta = json.loads(str(data[f"{run}{RUN_META}"]))
+        keys = {name: f"{run}__{name}" for name in _CSV_FIELDS}
+        arrays = {name: data[key] for name, key in keys.items() if key in data}  # one run
+        cols = _columns(arrays, meta["joint_names"])
         header = [
             f"# run: {run}",
             f"# controller: {controller_of(run, labels)}",
-            f"# robot: {res.robot_name}",
-            f"# control_dt [s]: {res.control_dt!r}",
-            f"# status: {res.status}",
+            f"# robot: {meta['robot_name']}",
+            f"# control_dt [s]: {float(meta['control_dt'])!r}",
+            f"# status: {meta['status']}",
             ",".join(cols),
         ]
-        table = np.column_stack([np.asarray(c, dtype=np.float64) for c in cols.values()])
         path = folder / f"{run}.csv"
+        n = len(cols["t"])
         with path.open("w", encoding="utf-8") as f:
             f.write("\n".join(header) + "\n")
-            np.savetxt(f, table, delimiter=",", fmt="%.17g")  # round-trips float64
+            for start in range(0, n, CSV_BLOCK):
+                block = [
+                    np.asarray(c[start : start + CSV_BLOCK], np.float64) for c in cols.values()
+                ]
+                np.savetxt(f, np.column_stack(block), delimiter=",", fmt="%.17g")  # round-trips
         written.append(path)
     return written
 
@@ -173,11 +246,14 @@ def load_table(run_dir: str | Path) -> pandas.DataFrame:
 
 
 __all__ = [
+    "CSV_BLOCK",
+    "CSV_BYTES_PER_VALUE",
     "JOINT_COLUMNS",
     "TICK_COLUMNS",
     "controller_of",
     "load_runs",
     "load_table",
+    "log_size",
     "run_columns",
     "write_csv",
 ]

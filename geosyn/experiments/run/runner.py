@@ -195,7 +195,7 @@ def _write_results(
     for name, status in _run_statuses(results).items():
         log.write(f"closed-loop run {name}: {status}")
     if cfg.outputs.csv:
-        for path in write_csv(tmp, cfg.controller_labels()):
+        for path in write_csv(tmp, cfg.controller_labels(), arrays):
             log.write(f"wrote {path.relative_to(tmp)}")
     summary = clean_summary(proc.full_summary(cfg, params, results))
     if cfg.outputs.plots:
