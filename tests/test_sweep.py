@@ -228,7 +228,7 @@ def test_sweep_announces_its_size(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "running 2 of 2 run(s) (2 grid point(s) x 1 seed(s); 0 already complete)" in err
     monkeypatch.setattr(sweep_mod, "run_job", lambda job: None)
-    monkeypatch.setattr(sweep_mod, "load_config", lambda *a: (_Cfg(), tmp_path / "x.yaml"))
+    monkeypatch.setattr(sweep_mod, "load_config", lambda *a, **k: (_Cfg(), tmp_path / "x.yaml"))
     sweep(SRC, {"seed": [str(i) for i in range(60)]}, out=tmp_path / "b", progress=False)
     err = capsys.readouterr().err
     assert "60 run(s) (60 grid point(s) x 1 seed(s)); validating their configs" in err

@@ -86,6 +86,13 @@ def _experiment_arguments(p: argparse.ArgumentParser, out_help: str, set_help: s
         "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=set_help
     )
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
+    p.add_argument(
+        "--allow-unused",
+        dest="allow_unused",
+        action="store_true",
+        help="run even if the config sets sections its kind does not read (refused by"
+        " default: they would have no effect; the run log names them)",
+    )
 
 
 def _keywords(args: argparse.Namespace, fn: Callable[..., Any]) -> dict[str, Any]:
@@ -103,13 +110,6 @@ def _run_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--video", action="store_true", help="also render videos")
     p.add_argument("--force", action="store_true", help="replace an existing run directory")
-    p.add_argument(
-        "--allow-unused",
-        dest="allow_unused",
-        action="store_true",
-        help="run even if the config sets sections its kind does not read (refused by"
-        " default: they would have no effect; the run log names them)",
-    )
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = exit_codes.epilog()
 
@@ -153,10 +153,7 @@ def _keep_chatter(run_dir: Path, loading: chatter.Quiet, mujoco_texts: list[str]
         with (run_dir / "run.log").open("a", encoding="utf-8") as f:
             for line in lines:
                 f.write(f"{stamp} while loading the config: {' '.join(line.split())}\n")
-    texts = loading.mujoco + mujoco_texts
-    if texts:
-        with (run_dir / "MUJOCO_LOG.TXT").open("a", encoding="utf-8") as f:
-            f.writelines(f"WARNING: {text}\n" for text in texts)
+    chatter.append_mujoco_log(run_dir, loading.mujoco + mujoco_texts)
 
 
 def _sweep_arguments(p: argparse.ArgumentParser) -> None:
@@ -203,7 +200,11 @@ def cmd_sweep(args: argparse.Namespace) -> int:
 
     options = _keywords(args, sweep)
     grid = parse_grid(options.pop("grid"))
-    result = sweep(args.experiment, grid, **options)
+    # each run keeps its MuJoCo warnings in its own directory (`run_job`); the loading's
+    # go to the sweep directory
+    with chatter.mujoco_warnings() as texts:
+        result = sweep(args.experiment, grid, **options)
+    chatter.append_mujoco_log(result.path, texts)
     print(
         f"sweep directory: {result.path}  ({result.ran} run(s) done now,"
         f" {result.skipped} already complete)"
@@ -222,7 +223,9 @@ def _report_arguments(p: argparse.ArgumentParser) -> None:
 def cmd_report(args: argparse.Namespace) -> int:
     from geosyn.experiments.results.report import report
 
-    report(args.run_dir)
+    folder = Path(args.run_dir)  # MuJoCo's warnings to its MUJOCO_LOG.TXT, never the cwd's
+    with chatter.mujoco_log(folder) if folder.is_dir() else chatter.mujoco_warnings():
+        report(args.run_dir)
     print(f"report regenerated in {args.run_dir}")
     return 0
 

@@ -7,6 +7,7 @@ are imported only when a command runs.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from geosyn.experiments.cli.registry import Command
 
@@ -32,20 +33,26 @@ def _explore_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
+    from geosyn.experiments.config import chatter
     from geosyn.experiments.viewer import view_run
 
-    viewer = view_run(args.run_dir, port=args.port, fast=args.fast)
-    print(f"viewer: {viewer.url}  (Ctrl-C to stop)", flush=True)
-    viewer.serve_forever()
+    # MuJoCo's warnings go to the run directory's MUJOCO_LOG.TXT, never the current one
+    folder = Path(args.run_dir)
+    with chatter.mujoco_log(folder) if folder.is_dir() else chatter.mujoco_warnings():
+        viewer = view_run(args.run_dir, port=args.port, fast=args.fast)
+        print(f"viewer: {viewer.url}  (Ctrl-C to stop)", flush=True)
+        viewer.serve_forever()
     return 0
 
 
 def cmd_explore(args: argparse.Namespace) -> int:
+    from geosyn.experiments.config import chatter
     from geosyn.experiments.viewer import explore_robot
 
-    viewer = explore_robot(args.robot, k=args.k, port=args.port, fast=args.fast)
-    print(f"viewer: {viewer.url}  (Ctrl-C to stop)", flush=True)
-    viewer.serve_forever()
+    with chatter.mujoco_warnings():  # shown as warnings; no run directory to log them in
+        viewer = explore_robot(args.robot, k=args.k, port=args.port, fast=args.fast)
+        print(f"viewer: {viewer.url}  (Ctrl-C to stop)", flush=True)
+        viewer.serve_forever()
     return 0
 
 

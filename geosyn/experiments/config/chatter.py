@@ -5,7 +5,9 @@ would print and append to ``MUJOCO_LOG.TXT`` in the current directory).
 `captured_stderr` redirects file descriptor 2 (C++ and Python writers alike) into a
 temporary file for the duration of a block; `mujoco_warnings` routes MuJoCo's warnings
 into Python warnings (recorded in the run log by the runner) and a list that the CLI
-writes to the run directory's ``MUJOCO_LOG.TXT``; `own_warnings_shown` keeps other
+writes to the run directory's ``MUJOCO_LOG.TXT`` (`append_mujoco_log`; `mujoco_log` for
+commands that know their directory up front: sweep runs, report, view);
+`own_warnings_shown` keeps other
 libraries' warnings (recorded in the run log) off the terminal. Each restores what it
 replaced.
 """
@@ -18,7 +20,8 @@ import re
 import sys
 import tempfile
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 _SOURCE_LOCATION = re.compile(r"^at line \d+ in \S+$")
@@ -93,6 +96,29 @@ def mujoco_warnings() -> Iterator[list[str]]:
         mujoco.set_mju_user_warning(previous)
 
 
+#: MuJoCo's log file name, kept in the run (or sweep) directory instead of the current one.
+MUJOCO_LOG = "MUJOCO_LOG.TXT"
+
+
+def append_mujoco_log(folder: Path, texts: Sequence[str]) -> None:
+    """Append MuJoCo warning texts to ``folder/MUJOCO_LOG.TXT`` (nothing without texts)."""
+    if texts:
+        with (Path(folder) / MUJOCO_LOG).open("a", encoding="utf-8") as f:
+            f.writelines(f"WARNING: {text}\n" for text in texts)
+
+
+@contextlib.contextmanager
+def mujoco_log(folder: Path) -> Iterator[list[str]]:
+    """`mujoco_warnings`, each text also appended to ``folder/MUJOCO_LOG.TXT`` when the
+    block ends (even by an exception), never to the current directory."""
+    with mujoco_warnings() as texts:
+        try:
+            yield texts
+        finally:
+            with contextlib.suppress(OSError):  # an unwritable folder: the warnings were shown
+                append_mujoco_log(folder, texts)
+
+
 class Quiet:
     """What a `quiet` block left: third-party lines and MuJoCo warnings (for the run
     log and ``MUJOCO_LOG.TXT``), Python warnings (geosyn's are shown, others logged)."""
@@ -162,10 +188,13 @@ def quiet() -> Iterator[Quiet]:
 
 
 __all__ = [
+    "MUJOCO_LOG",
     "Captured",
     "MuJoCoWarning",
     "Quiet",
+    "append_mujoco_log",
     "captured_stderr",
+    "mujoco_log",
     "mujoco_warnings",
     "own_warnings_shown",
     "quiet",

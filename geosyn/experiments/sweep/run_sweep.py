@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 import yaml
 
 from geosyn.core.validation import check_int
+from geosyn.experiments.config import chatter
 from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import (
     ConfigError,
@@ -50,11 +51,13 @@ MAX_WORKERS = 256
 
 
 class SweepJob(NamedTuple):
-    """One run of a sweep: the config source, its overrides, its run directory."""
+    """One run of a sweep: the config source, its overrides, its run directory, and
+    whether sections its kind does not read are allowed (``--allow-unused``)."""
 
     source: str
     overrides: tuple[str, ...]
     out: str
+    allow_unused: bool = False
 
 
 class SweepResult(NamedTuple):
@@ -114,9 +117,12 @@ def parse_grid(items: Iterable[str]) -> dict[str, list[str]]:
 
 
 def run_job(job: SweepJob) -> tuple[str, dict[str, float]]:
-    """Run one sweep job (in this process); returns (run dir, summary)."""
-    cfg, _ = load_config(job.source, job.overrides)
-    outcome = run_experiment(cfg, job.out, progress=False, quiet=True)
+    """Run one sweep job (in this process); returns (run dir, summary). MuJoCo's warnings
+    go to the run directory's ``MUJOCO_LOG.TXT`` (never the worker's current directory)."""
+    with chatter.mujoco_warnings() as texts:
+        cfg, _ = load_config(job.source, job.overrides, allow_unused=job.allow_unused)
+        outcome = run_experiment(cfg, job.out, progress=False, quiet=True)
+    chatter.append_mujoco_log(outcome.path, texts)
     return str(outcome.path), outcome.summary
 
 
@@ -140,6 +146,7 @@ def sweep(
     overrides: Sequence[str] = (),
     progress: bool = True,
     max_runs: int = MAX_RUNS,
+    allow_unused: bool = False,
 ) -> SweepResult:
     """Run (or complete) a sweep; see the module doc.
 
@@ -154,6 +161,7 @@ def sweep(
         ray_address: run on Ray at this address (``"local"``: start one here).
         overrides: ``key=value`` overrides applied to every run before the grid values.
         progress: show a progress bar.
+        allow_unused: run even if the config sets sections its kind does not read.
         max_runs: refuse a sweep of more runs (grid points x seeds) than this, before
             anything runs; default `MAX_RUNS`.
 
@@ -178,7 +186,7 @@ def sweep(
     _check_size(grid, seeds, max_runs)
     if ray_address is not None:
         ray_address = check_ray_address(ray_address)
-    base_cfg, path = load_config(source, overrides)
+    base_cfg, path = load_config(source, overrides, allow_unused=allow_unused)
     path = path.resolve()  # workers (Ray) may run in another directory
     keys = list(grid)
     points = [dict(zip(keys, combo, strict=True)) for combo in itertools.product(*grid.values())]
@@ -186,8 +194,12 @@ def sweep(
         stamp = time.strftime("%Y%m%d-%H%M%S", time.gmtime())
         out = Path("runs") / f"sweep-{base_cfg.name}-{stamp}"
     out = Path(out).resolve()
-    jobs_all = _validated_jobs(path, base_cfg.name, base_cfg.seed, points, seeds, overrides, out)
+    jobs_all = _validated_jobs(
+        path, base_cfg.name, base_cfg.seed, points, seeds, overrides, out, allow_unused
+    )
     spec = {"source": str(path), "grid": grid, "seeds": seeds, "overrides": list(overrides)}
+    if allow_unused:  # (only when set: older sweep directories stay the same sweep)
+        spec["allow_unused"] = True
     created = not out.exists()
     try:
         with rundir.claim(out, force=True):  # one sweep at a time into ``out``
@@ -234,6 +246,7 @@ def _validated_jobs(
     seeds: int,
     overrides: Sequence[str],
     out: Path,
+    allow_unused: bool = False,
 ) -> list[SweepJob]:
     """One `SweepJob` per grid point and seed, each config validated before any runs.
 
@@ -253,12 +266,13 @@ def _validated_jobs(
         for s in range(seeds):
             ov = (*overrides, *(f"{k}={v}" for k, v in point.items()), f"seed={seed + s}")
             try:
-                load_config(path, ov)  # validate every run before running any
+                load_config(path, ov, allow_unused=allow_unused)  # validate all before any
             except ConfigError as err:
                 raise ConfigError(
                     err.file, err.field, f"{err.reason} (grid point {point_name(point)})"
                 ) from None
-            jobs.append(SweepJob(str(path), ov, str(out / point_name(point) / f"seed{s}")))
+            run_dir = str(out / point_name(point) / f"seed{s}")
+            jobs.append(SweepJob(str(path), ov, run_dir, allow_unused))
     return jobs
 
 
