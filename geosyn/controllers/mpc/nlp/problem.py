@@ -21,6 +21,7 @@ from typing import Any, NamedTuple, TypeVar
 import casadi as ca
 import numpy as np
 
+from geosyn.controllers.mpc.nlp.bounded import BoundedSolver
 from geosyn.controllers.mpc.ocp.dynamics import StageDynamics
 from geosyn.core.types import Vector
 
@@ -253,8 +254,8 @@ class ShootingNLP:
             or None (torque control: the controls are the torques).
     """
 
-    solver: ca.Function
-    solver_cold: ca.Function | None
+    solver: BoundedSolver
+    solver_cold: BoundedSolver | None
     N: int
     n: int
     lbx: np.ndarray
@@ -270,8 +271,8 @@ class ShootingNLP:
         cls,
         problem: ShootingProblem,
         graph: NLPGraph,
-        solver: ca.Function,
-        solver_cold: ca.Function | None,
+        solver: BoundedSolver,
+        solver_cold: BoundedSolver | None,
     ) -> ShootingNLP:
         """Bundle the solvers of ``graph`` with the bounds and indices of ``problem``."""
         lbx, ubx = problem.bounds()
@@ -290,7 +291,7 @@ class ShootingNLP:
             torque_rows=graph.torque_rows,
         )
 
-    def cold(self) -> ca.Function:
+    def cold(self) -> BoundedSolver:
         """The cold-start solver (the only solver when there is no separate one)."""
         return self.solver if self.solver_cold is None else self.solver_cold
 
@@ -377,7 +378,7 @@ class ShootingNLP:
 
     def run(
         self,
-        solver: ca.Function,
+        solver: BoundedSolver,
         p: np.ndarray,
         guess: dict[str, np.ndarray],
         bounds: dict[str, np.ndarray] | None = None,
