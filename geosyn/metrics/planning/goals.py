@@ -11,7 +11,9 @@ as the planner's end check decides, and of itself on the file's self-collision p
 plans to them in order of straight-line energy from the start and keeps the lowest-energy
 plan. Budget rule: IK takes at most `IK_SHARE` of the budget; each IK solution's plan gets
 half the time left (the last one all of it), and a further solution is tried only while
-the time left is at least the time the first plan took.
+the time left is at least the time the first plan took. The plans to IK solutions skip
+the planner's other-seed alternatives (``alternatives``): the IK solutions are the
+alternatives here.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ if TYPE_CHECKING:
 __all__ = [
     "DISTINCT",
     "IK_SHARE",
+    "TIGHTEN",
     "EndEffectorGoal",
     "IKSolution",
     "ik_solutions",
@@ -49,6 +52,10 @@ DISTINCT = 0.1
 
 IK_SHARE = 0.25
 """Largest share of a query's budget spent on inverse kinematics."""
+
+TIGHTEN = 0.01
+"""IK iterates until its errors are within this fraction of the goal's tolerances (a
+solution is accepted within the tolerances themselves)."""
 
 
 @dataclass(frozen=True)
@@ -148,7 +155,7 @@ class IKSolution(NamedTuple):
 def _solve(robot: Robot, goal: EndEffectorGoal, fid: int, q: np.ndarray,
            iterations: int, damping: float) -> tuple[np.ndarray, float, float]:  # fmt: skip
     """Damped least squares from ``q``, projected on the limits: (q, errors) at the first
-    iterate within the tolerances, else at the last one."""
+    iterate within `TIGHTEN` times the tolerances, else at the last one."""
     model, data = robot.model, robot.model.createData()
     lo, hi = robot.q_min, robot.q_max
     oMd = goal.target()
@@ -157,7 +164,7 @@ def _solve(robot: Robot, goal: EndEffectorGoal, fid: int, q: np.ndarray,
         pin.forwardKinematics(model, data, q)
         M = pin.updateFramePlacement(model, data, fid)
         ep, eo = _errors(goal, M)
-        if ep <= goal.position_tolerance and eo <= goal.orientation_tolerance:
+        if ep <= TIGHTEN * goal.position_tolerance and eo <= TIGHTEN * goal.orientation_tolerance:
             break
         if goal.rotation is None:
             e = M.translation - oMd.translation
@@ -280,7 +287,29 @@ def plan_to_goal(planner: Planner, q0: np.ndarray, goal: EndEffectorGoal,
     sols.sort(key=lambda s: _straight_energy(planner, q0, s.q))
     lines = [f"IK: {len(sols)} solution(s) for frame {frame!r} ({len(refused)} refused), "
              "planned in order of straight-line energy"]  # fmt: skip
-    plans: list[tuple[Plan, float, int]] = []  # (plan, its start from t0 [s], solution)
+    alternatives, planner.alternatives = planner.alternatives, 0
+    try:
+        plans = _plan_each(planner, q0, sols, obstacles, budget, seed, t0, lines)
+    finally:
+        planner.alternatives = alternatives
+    wall = time.perf_counter() - t0
+    if not plans:
+        raise NoPathFound(f"no collision-free path to any IK solution of the goal within the "
+                          f"{budget:g} s budget: " + "; ".join(lines), budget, wall,
+                          tuple(lines))  # fmt: skip
+    best, _, index = min(plans, key=lambda item: item[0].result.energy)
+    first = min(s + p.first_feasible_time for p, s, _ in plans)
+    lines.append(f"kept the lowest-energy plan: to IK solution {index}")
+    return best._replace(wall_time=wall, attempts=(*lines, *best.attempts),
+                         first_feasible_time=first)  # fmt: skip
+
+
+def _plan_each(planner: Planner, q0: np.ndarray, sols: list[IKSolution],
+               obstacles: Sequence[Shape], budget: float, seed: int, t0: float,
+               lines: list[str]) -> list[tuple[Plan, float, int]]:  # fmt: skip
+    """(plan, its start after ``t0`` [s], solution index) for each IK solution planned
+    to within the budget rule (see the module docstring); ``lines`` says how each went."""
+    plans: list[tuple[Plan, float, int]] = []
     first_took = math.nan
     for i, sol in enumerate(sols):
         left = budget - (time.perf_counter() - t0)
@@ -299,13 +328,4 @@ def plan_to_goal(planner: Planner, q0: np.ndarray, goal: EndEffectorGoal,
                      f", orientation error {sol.orientation_error:.1e} rad): plan of energy "
                      f"{plan.result.energy:.4f} ({plan.seed})")  # fmt: skip
         plans.append((plan, start, i))
-    wall = time.perf_counter() - t0
-    if not plans:
-        raise NoPathFound(f"no collision-free path to any IK solution of the goal within the "
-                          f"{budget:g} s budget: " + "; ".join(lines), budget, wall,
-                          tuple(lines))  # fmt: skip
-    best, _, index = min(plans, key=lambda item: item[0].result.energy)
-    first = min(s + p.first_feasible_time for p, s, _ in plans)
-    lines.append(f"kept the lowest-energy plan: to IK solution {index}")
-    return best._replace(wall_time=wall, attempts=(*lines, *best.attempts),
-                         first_feasible_time=first)  # fmt: skip
+    return plans
