@@ -32,6 +32,7 @@ from geosyn.robots.kinematics import frame_position
 from geosyn.sim.scene import build_scene
 from geosyn.synergies import orthonormal_synergies
 from geosyn.world import Sphere
+from geosyn.world.exact_clearance import ExactClearance
 
 FIXTURES = Path(__file__).parent / "fixtures" / "other_arms"
 ARMS = ("ur5", "xarm7")
@@ -136,10 +137,8 @@ def test_perception_reach_on_another_arm(arm, tmp_path):
     assert set(st) == {f"target_{i}" for i in range(n)}  # one run per target
     radius = 0.01  # the fixture's success radius (the default) [m]
     missed = results["target__final_error"] > radius
-    for i in range(n):
-        assert st[f"target_{i}"].startswith("missed the target") == bool(missed[i]) or (
-            st[f"target_{i}"] != "ok" and not missed[i]
-        )
+    for i in range(n):  # a miss beyond the radius is a failed run, named so
+        assert ("missed the target" in st[f"target_{i}"]) == bool(missed[i])
     assert summary["success_rate"] == pytest.approx(100.0 * np.mean(~missed))
     robot = load_robot(arm)
     assert_within_file_limits(robot, results["target_0__q"], "target_0 q")
@@ -208,3 +207,42 @@ def test_a_target_no_motion_inside_the_limits_reaches_is_named(ur5_setup):
     assert err.value.index == 1
     assert "segment 1 (far)" in str(err.value) and "misses it by" in err.value.reason
     np.testing.assert_array_equal(err.value.goal, targets[1])
+
+
+def test_a_geodesic_too_close_to_an_obstacle_is_replaced_by_a_planned_path(ur5_setup):
+    robot, metric, q0 = ur5_setup
+    q1 = q0 + np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.0])
+    free, _ = avoiding_sequence([metric], np.array([q0, q1]), [1.0], [], steps=60, budget=5.0)
+    geodesic = free.segments[0]
+    mid = frame_position(robot, geodesic.q[30], robot.frame_id("tool0"))
+    ball = Sphere(tuple(mid), 0.04)  # on the geodesic's hand path, the ends clear
+    exact = ExactClearance(robot)
+    exact.set_obstacles([ball])
+    assert exact.path_clearance(geodesic.q, 0.005).clearance < 0.0  # not vacuous
+    seq, how = avoiding_sequence(
+        [metric], np.array([q0, q1]), [1.0], [ball], steps=60, budget=10.0,
+        geodesics=[geodesic],
+    )  # fmt: skip
+    (path,) = how
+    assert path.planned and path.kind in ("constrained", "feasible", "geodesic")
+    q = seq.segments[0].q
+    np.testing.assert_allclose(q[0], q0, atol=1e-12)
+    np.testing.assert_allclose(q[-1], q1, atol=1e-9)
+    # coal's distances to the URDF's own meshes, finer than the procedure checks them
+    assert exact.path_clearance(q, 0.002).clearance > 0.0
+    lo, hi = file_limits(robot)
+    assert np.all(q >= lo) and np.all(q <= hi)
+
+
+def test_a_known_geodesic_clear_of_the_obstacles_is_kept(ur5_setup):
+    robot, metric, q0 = ur5_setup
+    q1 = q0 + np.array([0.3, 0.1, 0.0, 0.0, 0.0, 0.0])
+    free, _ = avoiding_sequence([metric], np.array([q0, q1]), [1.0], [], steps=40, budget=5.0)
+    far = Sphere((-1.0, -1.0, 0.2), 0.05)
+    seq, (path,) = avoiding_sequence(
+        [metric], np.array([q0, q1]), [2.0], [far], steps=40, budget=5.0,
+        geodesics=free.segments,
+    )  # fmt: skip
+    assert not path.planned and path.kind == "geodesic" and path.clearance > 0.01
+    np.testing.assert_array_equal(seq.segments[0].q, free.segments[0].q)
+    assert seq.segments[0].duration == 2.0

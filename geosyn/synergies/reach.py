@@ -39,6 +39,7 @@ class ReachOutsideLimits(SynergyError):
         limit: the limit it passes [rad or m].
         t: time along the motion [s].
         segment: index of the segment of a sequence (`reach_sequence`), or None.
+        q_start: (n,) that segment's start [rad], or None.
     """
 
     def __init__(
@@ -49,10 +50,12 @@ class ReachOutsideLimits(SynergyError):
         limit: float,
         t: float,
         segment: int | None = None,
+        q_start: Vector | None = None,
     ) -> None:
         super().__init__(message)
         self.joint, self.value, self.limit, self.t = joint, float(value), float(limit), float(t)
         self.segment = segment
+        self.q_start = None if q_start is None else np.array(q_start, dtype=np.float64)
 
 
 def _limits(robot: Robot, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -410,6 +410,7 @@ def reach_sequence(
                 err.limit,
                 err.t,
                 segment=i,
+                q_start=q,
             ) from err
         v0 = res.trajectory.v[0]
         seg = geodesic_segment(metric, q, v0, t, float(T[i]), steps, res.weights, res.error)

@@ -81,8 +81,9 @@ class SegmentPath(NamedTuple):
             result kind (``"geodesic"``, ``"constrained"``, ``"feasible"``: see
             `geosyn.metrics.geodesic.collocation.CollocationResult`) or ``"straight"``.
         planned: whether the planner made it.
-        clearance: smallest exact clearance of the path to the obstacles [m] (inf
-            without obstacles, NaN without the robot's file geometry).
+        clearance: smallest exact clearance of the path (and of a held ball) to the
+            obstacles [m]; at least `ExactClearance`'s ``near`` (0.05 m) is reported as
+            ``near``; inf without obstacles, NaN without the robot's file geometry.
         how: one line on what was done.
     """
 
@@ -117,8 +118,9 @@ def task_sequence(
         seq = reach_sequence(synergies, targets, frame, robot, durations, steps=steps)
     except ReachOutsideLimits as err:
         i = err.segment if err.segment is not None else 0
+        start = np.full(robot.nq, np.nan) if err.q_start is None else err.q_start
         raise SegmentFailed(
-            i, _name(names, i), np.full(robot.nq, np.nan), targets[i],
+            i, _name(names, i), start, targets[i],
             f"no synergy motion inside the joint limits reaches the target: {err}",
         ) from err  # fmt: skip
     for i, seg in enumerate(seq.segments):
