@@ -18,7 +18,8 @@ Python MPC it is compared with) exported with `export_controller`'s default flag
 and timed in the same run, rounds alternating, on
 ``benchmarks/mpc_vs_crocoddyl.py``'s problem (its 1 kHz Pinocchio plant and geodesic
 reference, scenario ``on_reference``, 1.5 s, a solve every 20 ms; the first, cold solve
-left out): the Python MPC, the C MPC through ctypes, and Crocoddyl's BoxFDDP (one
+left out): the Python MPC, the C MPC through ctypes (a lean caller: a few us per call), and
+Crocoddyl's BoxFDDP (one
 iteration per solve, its venv ``.venv-croc``; skipped when it is missing), N = 10 and 40.
 Then the shipped MuJoCo loop (``loop.c``, 1 kHz, a 60 N push) times the C MPC from C:
 solve ticks and the between-solve feedback ticks (``u + K dx``) apart.
@@ -153,17 +154,28 @@ def main() -> None:
 
 
 def c_policy(c: CController):
-    """The C MPC as a policy of mpc_plant.run_closed_loop: (torque, iterations)."""
+    """The C MPC as a policy of mpc_plant.run_closed_loop: (torque, iterations). A lean
+    ctypes caller: buffers and their pointers made once, one call into the library per
+    tick (and one for the iteration count)."""
     import ctypes
 
+    from geosyn.export.binding import pointer
+
     counts, values = np.zeros(5, dtype=np.intc), np.zeros(2)
+    q_buf, v_buf, tau = np.zeros(c.nq), np.zeros(c.nq), np.zeros(c.nq)
+    q_ptr, v_ptr, tau_ptr = pointer(q_buf), pointer(v_buf), pointer(tau)
     info = c.lib.geosyn_controller_mpc_info
     info.restype, info.argtypes = ctypes.c_int, [ctypes.c_void_p] * 3
+    compute, handle = c.lib.geosyn_controller_compute, c.handle
+    counts_ptr, values_ptr = counts.ctypes.data, values.ctypes.data
 
     def policy(k: int, t: float, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, int]:
-        tau = c.compute(t, q, v)
-        info(c.handle, counts.ctypes.data, values.ctypes.data)
-        return tau, int(counts[2])
+        q_buf[:] = q
+        v_buf[:] = v
+        if compute(handle, t, q_ptr, v_ptr, tau_ptr) != 0:
+            raise RuntimeError(f"geosyn_controller_compute failed at t={t}")
+        info(handle, counts_ptr, values_ptr)
+        return tau.copy(), int(counts[2])
 
     return policy
 

@@ -268,6 +268,34 @@ int main(void) {
 """
 
 
+def test_avx2_and_baseline_builds_give_the_same_torques(
+    export: ExportResult, python_loop: PythonLoop, tmp_path: Path
+) -> None:
+    """On an x86-64 compiler the solver code is built twice (baseline and -mavx2, chosen
+    at run time by the CPU): the same library rebuilt without the AVX2 build gives
+    bitwise the same torques along the closed loop's first 400 ticks (ISO C forbids
+    contracting into FMAs), and both depend only on libc and libm."""
+    config = (export.out_dir / "geosyn_controller_config.h").read_text()
+    if "#define GEOSYN_DDP_AVX2 1" not in config:
+        pytest.skip("the compiler does not target x86-64 with AVX2: one build only")
+    base = tmp_path / "baseline"
+    shutil.copytree(export.out_dir, base)
+    cfg = base / "geosyn_controller_config.h"
+    cfg.write_text(config.replace("#define GEOSYN_DDP_AVX2 1", "#define GEOSYN_DDP_AVX2 0"))
+    subprocess.run(["nice", "-n", "10", "make", "-s", "-B", "lib"], cwd=base, check=True)
+    libs = [CController(export.shared_library), CController(base / export.shared_library.name)]
+    for lib in libs:
+        lib.reset(Q0.copy(), np.zeros(7))
+    for t, q, v, _ in python_loop.calls[:400]:
+        fast, plain = (lib.compute(t, q, v) for lib in libs)
+        np.testing.assert_array_equal(fast, plain)
+    for so in (export.shared_library, base / export.shared_library.name):
+        ldd = subprocess.run(["ldd", str(so)], capture_output=True, text=True, check=True)
+        names = {line.split()[0] for line in ldd.stdout.splitlines() if line.strip()}
+        allowed = ("linux-vdso.so", "libc.so", "libm.so", "/lib64/ld-linux", "ld-linux")
+        assert all(name.startswith(allowed) for name in names), names
+
+
 def test_no_heap_allocation_after_create(export: ExportResult, tmp_path: Path) -> None:
     """The static library linked with -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc:
     cold solves, warm solves and the feedback allocate nothing."""

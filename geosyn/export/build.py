@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from geosyn.core.codegen import LARGE_SOURCE_CHARS, LARGE_SOURCE_FLAGS
@@ -30,6 +30,29 @@ def find_c_compiler(compiler: str | None = None) -> str:
             " compiler="
         )
     return found
+
+
+#: Flags of a second build of the MPC's solver code for CPUs with AVX2 (x86-64), chosen at
+#: run time by the driver (``c/geosyn_ddp_avx2.c``).
+AVX2_FLAGS = ("-mavx2",)
+
+
+def avx2_flags(compiler: str) -> tuple[str, ...]:
+    """`AVX2_FLAGS` when ``compiler`` targets x86-64 and accepts them, else ``()`` (no
+    second build: the library then runs the baseline build everywhere)."""
+    try:
+        machine = subprocess.run(
+            [compiler, "-dumpmachine"], capture_output=True, text=True, check=False
+        ).stdout
+        if not machine.startswith("x86_64"):
+            return ()
+        probe = subprocess.run(
+            [compiler, *AVX2_FLAGS, "-x", "c", "-c", "-", "-o", "/dev/null"],
+            input="int geosyn_probe;\n", capture_output=True, text=True, check=False,
+        )  # fmt: skip
+    except OSError:
+        return ()
+    return AVX2_FLAGS if probe.returncode == 0 else ()
 
 
 def run(command: Sequence[str], cwd: Path) -> None:
@@ -67,8 +90,10 @@ def compile_library(
     flags: Sequence[str],
     sources: Sequence[str] = OBJECT_SOURCES,
     large_flags: Sequence[str] = LARGE_SOURCE_FLAGS,
+    extra: Mapping[str, Sequence[str]] | None = None,
 ) -> tuple[Path, Path]:
-    """Compile ``sources`` in ``out_dir`` into ``lib{LIB_NAME}.so`` and ``.a``.
+    """Compile ``sources`` in ``out_dir`` into ``lib{LIB_NAME}.so`` and ``.a``
+    (``extra``: more flags of some sources, by name).
 
     Returns:
         (shared library, static library).
@@ -77,6 +102,7 @@ def compile_library(
     for source in sources:
         obj = Path(source).with_suffix(".o").name
         own = source_flags(out_dir / source, flags, large_flags)
+        own += tuple((extra or {}).get(source, ()))
         run([compiler, *own, *BASE_FLAGS, "-c", source, "-o", obj], out_dir)
         objects.append(obj)
     shared, static = out_dir / f"lib{LIB_NAME}.so", out_dir / f"lib{LIB_NAME}.a"
@@ -123,6 +149,7 @@ def makefile(
     sources: Sequence[str] = OBJECT_SOURCES,
     out_dir: Path | None = None,
     large_flags: Sequence[str] = LARGE_SOURCE_FLAGS,
+    extra: Mapping[str, Sequence[str]] | None = None,
 ) -> str:
     """Text of the export's ``Makefile``: ``make lib`` rebuilds the libraries, ``make
     loop`` the closed-loop program against MuJoCo (``MUJOCO_DIR`` holds ``include/`` and
@@ -136,6 +163,11 @@ def makefile(
         f"{' '.join([*source_flags(out_dir / s, flags, large_flags), *BASE_FLAGS])}\n"
         for s in sources
         if out_dir is not None and source_flags(out_dir / s, flags, large_flags) != tuple(flags)
+    )
+    large += "".join(
+        f"{Path(s).with_suffix('.o')}: CFLAGS += {' '.join(more)}\n"
+        for s, more in (extra or {}).items()
+        if more
     )
     return f"""\
 # Written by geosyn.export. make lib: the libraries; make loop: the MuJoCo closed loop.

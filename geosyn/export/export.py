@@ -4,6 +4,7 @@ config, a README with the numbers it was built with, and a MuJoCo closed-loop pr
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -17,7 +18,7 @@ from geosyn.core.validation import check_int
 from geosyn.export import build, sources
 from geosyn.export.errors import ExportError
 from geosyn.export.laws import control_law
-from geosyn.export.mpc_law import MPC_FUNCTIONS
+from geosyn.export.mpc_law import MPC_AVX2_SOURCE, MPC_FUNCTIONS
 from geosyn.export.readme import export_readme
 from geosyn.export.samples import ReferenceSamples, SamplingError, sample_reference, sampling_error
 from geosyn.robots import load_robot
@@ -211,15 +212,24 @@ def export_controller(
     sources.copy_templates(path, templates)
     sources.generate_law(law.function, path)
     objects = [*build.OBJECT_SOURCES, *(f for f in law.c_files if f.endswith(".c"))]
+    extra: dict[str, tuple[str, ...]] = {}
     if law.generated:
         sources.generate_law(law.generated, path, MPC_FUNCTIONS)
         objects.append(f"{MPC_FUNCTIONS}.c")
+        vector = build.avx2_flags(cc)  # a second build of the solver, picked at run time
+        if vector:
+            sources.copy_templates(path, [MPC_AVX2_SOURCE])
+            objects.append(MPC_AVX2_SOURCE)
+            extra[MPC_AVX2_SOURCE] = vector
+        law = dataclasses.replace(
+            law, scalars={**law.scalars, "GEOSYN_DDP_AVX2": int(bool(vector))}
+        )
     cfg = sources.config_header(law, rob.nv, samples, max_samples)
     (path / sources.CONFIG_HEADER).write_text(cfg)
     (path / "loop_config.h").write_text(_loop_config(rob, samples.q[0], push, model_xml.name))
     mj_dir = Path(mujoco.__file__).resolve().parent
-    (path / "Makefile").write_text(build.makefile(mj_dir, flags, objects, path, large))
-    shared, static = build.compile_library(path, cc, flags, objects, large)
+    (path / "Makefile").write_text(build.makefile(mj_dir, flags, objects, path, large, extra))
+    shared, static = build.compile_library(path, cc, flags, objects, large, extra)
     (path / "geosyn_controllerConfig.cmake").write_text(build.cmake_config())
     result = ExportResult(
         out_dir=path,

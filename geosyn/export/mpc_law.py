@@ -43,6 +43,9 @@ from geosyn.robots.symbolic import crba, rnea
 #: C files of the MPC driver (copied from ``c/``) and of its generated functions.
 MPC_TEMPLATES = ("geosyn_mpc.c", "geosyn_mpc.h", "geosyn_ddp.c", "geosyn_ddp.h")
 MPC_FUNCTIONS = "geosyn_mpc_fun"
+#: The solver code's second build for AVX2 CPUs (x86-64 compilers only; see
+#: `geosyn.export.build.avx2_flags`).
+MPC_AVX2_SOURCE = "geosyn_ddp_avx2.c"
 
 
 class MPCFunctions(NamedTuple):

@@ -79,28 +79,28 @@ static void cholesky_solve_rows(const double* restrict L, double* restrict Y, in
 
 /* ---- the RK4 step's Jacobians (rk4_linearisation) ---------------------------------- */
 
-/* out (NX x m) = A Y + (add_minv ? [0; Minv] : 0) with A = [[0, I], [S]] (the ODE's
- * Jacobian: d(q')/d(q, v) = [0, I], d(v')/d(q, v) = S); Y (NX x m). */
+#define ODE_W (NX + NQ) /* right-hand sides of the ODE's solve: -dR, then I */
+
+/* out (NX x m) = A Y + (add_minv ? [0; Minv] : 0), row-major like Y, with the ODE's
+ * Jacobian A = [[0, I], [S]] (d(q')/d(q, v) = [0, I], d(v')/d(q, v) = S); the rows of S
+ * and Minv are the rows of w->sol. */
 static void ode_times(const geosyn_ddp_work* restrict w, const double* restrict Y, int m,
                       int add_minv, double* restrict out) {
-    for (int c = 0; c < m; ++c) {
-        const double* y = Y + c * NX;
-        double* o = out + c * NX;
-        for (int r = 0; r < NQ; ++r) o[r] = y[NQ + r];
-        double* ob = o + NQ;
-        for (int r = 0; r < NQ; ++r) ob[r] = add_minv ? w->Minv[c * NQ + r] : 0.0;
+    memcpy(out, Y + NQ * m, sizeof(double) * (size_t)(NQ * m));
+    for (int i = 0; i < NQ; ++i) {
+        double* o = out + (NQ + i) * m;
+        const double* srow = w->sol + i * ODE_W;
+        for (int c = 0; c < m; ++c) o[c] = add_minv ? srow[NX + c] : 0.0;
         for (int j = 0; j < NX; ++j) {
-            const double yj = y[j];
-            const double* s = w->S + j * NQ;
-            for (int r = 0; r < NQ; ++r) ob[r] += s[r] * yj;
+            const double sj = srow[j];
+            const double* y = Y + j * m;
+            for (int c = 0; c < m; ++c) o[c] += sj * y[c];
         }
     }
 }
 
-#define ODE_W (NX + NQ) /* right-hand sides of the ODE's solve: -dR, then I */
-
-/* The ODE at (x, u): f = (v, a) with a = M^-1 r (the ABA's value), S = d a / d(q, v) =
- * -M^-1 dR at that a, Minv = d a / du. */
+/* The ODE at (x, u): f = (v, a) with a = M^-1 r (the ABA's value); the rows of w->sol:
+ * S = d a / d(q, v) = -M^-1 dR at that a, then Minv = d a / du. */
 static void ode(geosyn_ddp_work* w, const double* x, const double* u) {
     w->arg[0] = x; w->arg[1] = u;
     w->res[0] = w->M; w->res[1] = w->acc;
@@ -118,23 +118,19 @@ static void ode(geosyn_ddp_work* w, const double* x, const double* u) {
         for (int c = 0; c < NQ; ++c) row[NX + c] = i == c ? 1.0 : 0.0;
     }
     cholesky_solve_rows(w->LM, w->sol, ODE_W);
-    for (int i = 0; i < NQ; ++i) {
-        const double* row = w->sol + i * ODE_W;
-        for (int c = 0; c < NX; ++c) w->S[c * NQ + i] = row[c];
-        for (int c = 0; c < NQ; ++c) w->Minv[c * NQ + i] = row[NX + c];
-    }
 }
 
-/* A = dF/dx (NX x NX), B = dF/du (NX x NQ) of the RK4 step from x with u. */
+/* w->At = A = dF/dx (NX x NX), w->Bt = B = dF/du (NX x NQ) of the RK4 step from x with
+ * u, both row-major (so that, read column-major, they are A^T and B^T). */
 static void linearise(geosyn_ddp_work* w, const double* x, const double* u) {
     const double hs = GEOSYN_MPC_DT / GEOSYN_MPC_RK4_STEPS;
     const double cs[4] = {0.0, 0.5 * hs, 0.5 * hs, hs};
     const double ws[4] = {hs / 6.0, hs / 3.0, hs / 3.0, hs / 6.0};
-    double* Dx = w->A; /* accumulated in place: A, B are the results */
-    double* Du = w->B;
-    memset(Dx, 0, sizeof w->A);
+    double* Dx = w->At; /* accumulated in place */
+    double* Du = w->Bt;
+    memset(Dx, 0, sizeof w->At);
     for (int i = 0; i < NX; ++i) Dx[i * NX + i] = 1.0;
-    memset(Du, 0, sizeof w->B);
+    memset(Du, 0, sizeof w->Bt);
     memcpy(w->xk, x, sizeof w->xk);
     for (int step = 0; step < GEOSYN_MPC_RK4_STEPS; ++step) {
         memcpy(w->xn, w->xk, sizeof w->xn);
@@ -254,15 +250,14 @@ static void box_qp(geosyn_ddp_work* w, const double* H, const double* g, const d
 
 /* ---- one Riccati step (riccati_step) --------------------------------------------------- */
 
-/* out (rows x NX) = lin + T^T-products: out[:, c] = base[:, c] + sum_j Mt[:, j] V[j, c],
- * Mt (rows x NX) the transposed left factor, V (NX x cols). */
-static void add_product(const double* restrict Mt, int rows, const double* restrict V, int cols,
-                        double* restrict out) {
+/* out (rows x cols, column-major) += Mt V: Mt (rows x NX) column-major, V (NX x cols)
+ * with element (j, c) at V[j * sj + c * sc]. */
+static void add_product(const double* restrict Mt, int rows, const double* restrict V, int sj,
+                        int sc, int cols, double* restrict out) {
     for (int c = 0; c < cols; ++c) {
         double* o = out + c * rows;
-        const double* v = V + c * NX;
         for (int j = 0; j < NX; ++j) {
-            const double vj = v[j];
+            const double vj = V[j * sj + c * sc];
             const double* m = Mt + j * rows;
             for (int r = 0; r < rows; ++r) o[r] += m[r] * vj;
         }
@@ -275,26 +270,22 @@ static void riccati(geosyn_ddp_work* w, const double* x, const double* u, const 
     w->res[0] = w->lx; w->res[1] = w->lxx; w->res[2] = w->lu; w->res[3] = w->luu;
     w->res[4] = w->lux; w->res[5] = w->lo; w->res[6] = w->hi;
     geosyn_mpc_stage(w->arg, w->res, w->iw, w->w, 0);
-    const double *A = w->A, *B = w->B;
-    for (int c = 0; c < NX; ++c) /* At = A^T, Bt = B^T: their rows as columns */
-        for (int r = 0; r < NX; ++r) w->At[r * NX + c] = A[c * NX + r];
-    for (int c = 0; c < NQ; ++c)
-        for (int r = 0; r < NX; ++r) w->Bt[r * NQ + c] = B[c * NX + r];
+    /* w->At, w->Bt: A and B row-major, i.e. A^T and B^T column-major */
     memset(w->VA, 0, sizeof w->VA); /* VA = Vxx A, VB = Vxx B (Vxx symmetric: Vxx^T) */
-    add_product(w->Vxx, NX, A, NX, w->VA);
+    add_product(w->Vxx, NX, w->At, NX, 1, NX, w->VA);
     memset(w->VB, 0, sizeof w->VB);
-    add_product(w->Vxx, NX, B, NQ, w->VB);
+    add_product(w->Vxx, NX, w->Bt, NQ, 1, NQ, w->VB);
     memcpy(w->Qx, w->lx, sizeof w->Qx); /* Qx = lx + A^T Vx, Qu = lu + B^T Vx */
-    add_product(w->At, NX, w->Vx, 1, w->Qx);
+    add_product(w->At, NX, w->Vx, 1, 0, 1, w->Qx);
     memcpy(w->Qu, w->lu, sizeof w->Qu);
-    add_product(w->Bt, NQ, w->Vx, 1, w->Qu);
+    add_product(w->Bt, NQ, w->Vx, 1, 0, 1, w->Qu);
     memcpy(w->Qxx, w->lxx, sizeof w->Qxx); /* Qxx = lxx + A^T VA */
-    add_product(w->At, NX, w->VA, NX, w->Qxx);
+    add_product(w->At, NX, w->VA, 1, NX, NX, w->Qxx);
     memcpy(w->Qux, w->lux, sizeof w->Qux); /* Qux = lux + B^T VA */
-    add_product(w->Bt, NQ, w->VA, NX, w->Qux);
+    add_product(w->Bt, NQ, w->VA, 1, NX, NX, w->Qux);
     memcpy(w->H, w->luu, sizeof w->H); /* Quu = sym(luu + reg I + B^T VB) */
     for (int i = 0; i < NQ; ++i) w->H[i * NQ + i] += P[GEOSYN_MPC_REG_INDEX];
-    add_product(w->Bt, NQ, w->VB, NQ, w->H);
+    add_product(w->Bt, NQ, w->VB, 1, NX, NQ, w->H);
     for (int c = 0; c < NQ; ++c)
         for (int r = 0; r < NQ; ++r)
             w->Quu[c * NQ + r] = 0.5 * (w->H[c * NQ + r] + w->H[r * NQ + c]);
@@ -358,4 +349,16 @@ void geosyn_ddp_backward(geosyn_ddp_work* w, const double* X, const double* U,
         riccati(w, X + s * NX, U + s * NQ, XR + s * NX, TR + s * NQ, P, k + s * NQ,
                 K + (size_t)s * NQ * NX, dV);
     }
+}
+
+double geosyn_ddp_rollout(geosyn_ddp_work* w, const double* x0, const double* Xb,
+                          const double* Ub, const double* k, const double* K, double alpha,
+                          const double* XR, const double* TR, const double* P, double* X,
+                          double* U) {
+    double cost = NAN;
+    w->arg[0] = x0; w->arg[1] = Xb; w->arg[2] = Ub; w->arg[3] = k; w->arg[4] = K;
+    w->arg[5] = &alpha; w->arg[6] = XR; w->arg[7] = TR; w->arg[8] = P;
+    w->res[0] = X; w->res[1] = U; w->res[2] = &cost;
+    geosyn_mpc_rollout(w->arg, w->res, w->iw, w->w, 0);
+    return cost;
 }

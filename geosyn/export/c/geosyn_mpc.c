@@ -68,6 +68,8 @@ struct geosyn_mpc {
     casadi_int iw[GEOSYN_MPC_SZ_IW + 1];
     casadi_real w[GEOSYN_MPC_SZ_W];
     geosyn_ddp_work ddp;
+    geosyn_ddp_backward_fn backward; /* geosyn_ddp.c's, or its AVX2 build on such a CPU */
+    geosyn_ddp_rollout_fn rollout;
 };
 
 static int finite_all(const double* x, int n) {
@@ -78,7 +80,17 @@ static int finite_all(const double* x, int n) {
 
 geosyn_mpc* geosyn_mpc_create(void) {
     geosyn_mpc* mpc = (geosyn_mpc*)calloc(1, sizeof(geosyn_mpc));
-    if (mpc) geosyn_mpc_reset(mpc);
+    if (!mpc) return NULL;
+    mpc->backward = geosyn_ddp_backward;
+    mpc->rollout = geosyn_ddp_rollout;
+#if GEOSYN_DDP_AVX2
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx2")) {
+        mpc->backward = geosyn_ddp_backward_avx2;
+        mpc->rollout = geosyn_ddp_rollout_avx2;
+    }
+#endif
+    geosyn_mpc_reset(mpc);
     return mpc;
 }
 
@@ -102,17 +114,13 @@ void geosyn_mpc_info(const geosyn_mpc* mpc, int* counts, double* values) {
 
 /* ---- the generated functions ------------------------------------------------------ */
 static void backward(geosyn_mpc* m, const double* P) {
-    geosyn_ddp_backward(&m->ddp, m->Xb, m->Ub, m->XR, m->TR, P, m->k, m->Kw, m->dV);
+    m->backward(&m->ddp, m->Xb, m->Ub, m->XR, m->TR, P, m->k, m->Kw, m->dV);
 }
 
 static double rollout(geosyn_mpc* m, const double* k, const double* K, double alpha,
                       const double* P) {
-    double cost = NAN;
-    m->arg[0] = m->x0; m->arg[1] = m->Xb; m->arg[2] = m->Ub; m->arg[3] = k; m->arg[4] = K;
-    m->arg[5] = &alpha; m->arg[6] = m->XR; m->arg[7] = m->TR; m->arg[8] = P;
-    m->res[0] = m->Xn; m->res[1] = m->Un; m->res[2] = &cost;
-    geosyn_mpc_rollout(m->arg, m->res, m->iw, m->w, 0);
-    return cost;
+    return m->rollout(&m->ddp, m->x0, m->Xb, m->Ub, k, K, alpha, m->XR, m->TR, P, m->Xn,
+                      m->Un);
 }
 
 /* ---- the reference samples at t + k dt (ReferenceSampler) -------------------------- */
