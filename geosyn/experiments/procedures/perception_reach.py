@@ -190,6 +190,7 @@ class PerceptionReach(Procedure):
         "perception_error_max": "mm",
         "map_error_median": "mm",
         "map_error_max": "mm",
+        "final_error": "mm",
         "final_error_median": "mm",
         "final_error_max": "mm",
         "reach_error_median": "mm",
@@ -307,7 +308,21 @@ class PerceptionReach(Procedure):
             "map_time_median": float(np.median(results["map_time"])) * mm,
             "ok_runs": float(np.sum(results["target__ok"])),
             "reach_outside_limits": float(np.sum(np.isnan(results["reach_error"]))),
-        } | status_oks(results, {f"target_{i}": f"target_{i}" for i in range(1, len(fe))})
+        } | self.target_rows(results)
+
+    @staticmethod
+    def target_rows(results: dict[str, np.ndarray]) -> dict[str, float]:
+        """``target_<i>.ok`` (from the run's status, `outcomes`) and ``.final_error`` [mm]
+        of every target whose status is stored (runs stored before per-target statuses
+        have none)."""
+        fe = results["target__final_error"]
+        out: dict[str, float] = {}
+        for i in range(len(fe)):
+            run = f"target_{i}"
+            if f"{run}__status" in results:
+                out |= status_oks(results, {run: run})
+                out[f"{run}.final_error"] = float(fe[i]) * 1e3
+        return out
 
     def plot(
         self, cfg: ExperimentConfig, params: Any, results: dict[str, np.ndarray], out_dir: Path
