@@ -31,11 +31,16 @@ from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
 
-__all__ = ["REFINEMENTS", "Query", "metric_length"]
+__all__ = ["REFINEMENTS", "SAME", "Query", "metric_length"]
 
 REFINEMENTS = ((1, 3), (2, 1), (2, 3))
 """What a path that fails the fine check is solved again with, in turn, from the same
 seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
+
+
+SAME = 1e-6
+"""Relative difference of energy or length below which two plans count as the same path
+(seeds that converge to one minimum differ by the solver's tolerance)."""
 
 
 def metric_length(metric: Metric, path: np.ndarray) -> float:
@@ -173,14 +178,15 @@ class Query:
 
     def keep(self, line: Plan | None, others: list[Plan]) -> Plan:
         """The kept plan among ``line`` (the straight line's, if any) and ``others``:
-        the lowest-energy one not longer than ``line`` (energy ties to the earlier)."""
+        the lowest-energy one not longer than ``line`` (both within a relative `SAME`:
+        seeds that converge to the same path keep the earlier plan)."""
         candidates = ([line] if line is not None else []) + others
         plans = candidates
         if line is not None and others:
-            cap = metric_length(self.p.metric, line.q) * (1.0 + 1e-9)
+            cap = metric_length(self.p.metric, line.q) * (1.0 + SAME)
             plans = [line] + [o for o in others if metric_length(self.p.metric, o.q) <= cap]
         lowest = min(p.result.energy for p in plans)
-        best = next(p for p in plans if p.result.energy <= lowest + 1e-9 * abs(lowest))
+        best = next(p for p in plans if p.result.energy <= lowest + SAME * abs(lowest))
         if dropped := len(candidates) - len(plans):
             self.attempts.append(f"{dropped} plan(s) from other seeds longer than the "
                                  "straight line's: not kept")  # fmt: skip
