@@ -56,8 +56,14 @@ GREEN = (0.1, 0.85, 0.1, 1.0)
 
 
 class CameraParams(Strict):
-    """A fixed camera (`geosyn.sim.CameraView`): point looked at [m], distance [m],
-    azimuth and elevation [deg]."""
+    """A fixed camera (`geosyn.sim.CameraView`).
+
+    Attributes:
+        lookat: (3,) point the camera looks at [m].
+        distance: distance of the camera from that point [m].
+        azimuth: azimuth of the view [deg].
+        elevation: elevation of the view [deg] (negative: from above).
+    """
 
     lookat: Vec3 = [0.45, 0.0, 0.45]
     distance: PositiveFloat = 1.4
@@ -70,7 +76,27 @@ class CameraParams(Strict):
 
 
 class PerceptionReachParams(Strict):
-    """Parameters of `PerceptionReach` (lengths [m], times [s], rate [Hz])."""
+    """Parameters of `PerceptionReach`.
+
+    Attributes:
+        n_targets: seeded targets, each a run.
+        weight_scale: std of the synergy weights the map is fitted on [-].
+        target_scale: targets come from weights of std ``target_scale * weight_scale`` [-].
+        fit_samples: synergy combinations the map is fitted on.
+        degree: polynomial degree of the map.
+        steps: RK4 steps of each geodesic.
+        duration: time of the reaching motion [s].
+        settle: simulated time after the motion [s].
+        rate: images per second, all cameras together [Hz].
+        drift: distance the ball moves to its final position [m].
+        move_time: time the ball takes to get there [s].
+        radius: radius of the ball [m].
+        bound: the map's weights are refined when the hand would miss by more [m].
+        success_radius: a run whose hand ends farther from the target fails [m].
+        width: image width [px].
+        height: image height [px].
+        cameras: the fixed cameras, taking turns.
+    """
 
     n_targets: Annotated[int, Field(ge=1, le=1000)] = 50
     weight_scale: PositiveFloat = 0.5
@@ -179,6 +205,12 @@ class PerceptionReach(Procedure):
     """Camera-driven reaching with a fitted synergy map, the target moving."""
 
     kind = "perception_reach"
+    #: The scene is the ball and the cameras of ``params``: a ``scene`` section would have
+    #: no effect.
+    sections = (
+        "robot", "metric", "synergies", "controllers", "disturbances", "simulation", "outputs",
+        "params",
+    )  # fmt: skip
     description = "RGB-D camera -> ball position -> synergy weights -> geodesic, re-planned online"
     Params = PerceptionReachParams
     units = {
@@ -203,9 +235,6 @@ class PerceptionReach(Procedure):
         out = check_required(cfg, "synergies", "controllers")
         if cfg.controllers and cfg.controllers[0].type != "computed_torque":
             out.append(("controllers.0.type", "computed_torque"))
-        for section in ("obstacles", "payloads"):
-            if getattr(cfg.scene, section):
-                out.append((f"scene.{section}", "not simulated: the ball is the only body added"))
         return out
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:

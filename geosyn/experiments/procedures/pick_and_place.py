@@ -74,11 +74,20 @@ SEGMENTS = ("start -> pick", "pick -> via", "via -> place")
 
 
 class PickAndPlaceParams(Strict):
-    """Parameters of `PickAndPlace`: hand positions of the pick, via and place points [m],
-    the object's mass [kg], segment durations [s] (reach, carry to via, carry to place),
-    dwell at the grasp and release [s], geodesic steps, reference sample period [s], the
-    largest distance of the hand from a point it should stop at [m], the planner's time
-    budget per segment [s]."""
+    """Parameters of `PickAndPlace`.
+
+    Attributes:
+        pick: (3,) hand position of the grasp [m].
+        via: (3,) hand position the carry passes [m].
+        place: (3,) hand position of the release [m].
+        mass: mass of the object [kg].
+        durations: (3,) times of the reach, the carry to via and to place [s].
+        dwell: rest at the grasp and at the release [s].
+        steps: RK4 steps of each geodesic (path samples - 1).
+        sample_dt: sample period of the tracked reference [s].
+        reach_tol: largest distance of the hand from a point it stops at [m].
+        plan_budget: the planner's time budget per segment [s].
+    """
 
     pick: Vec3
     via: Vec3
@@ -169,6 +178,12 @@ class PickAndPlace(Procedure):
     """Reach on M(q), carry on the load metric around an obstacle; vs unloaded planning."""
 
     kind = "pick_and_place"
+    #: The metric is the robot's kinetic energy (and the object's, while carried): a
+    #: ``metric`` section would have no effect.
+    sections = (
+        "robot", "scene", "synergies", "controllers", "disturbances", "simulation", "outputs",
+        "params",
+    )  # fmt: skip
     description = (
         "pick-and-place: carry on the exact load metric vs the unloaded metric vs straight lines"
     )

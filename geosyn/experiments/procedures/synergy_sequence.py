@@ -49,10 +49,17 @@ PLANS = ("geodesic", "straight")
 
 
 class SynergySequenceParams(Strict):
-    """Parameters of `SynergySequenceProcedure`: Cartesian goals [m], a duration per
-    segment [s] (or one for all), geodesic steps, reference sample period [s], settling
-    time after the motion [s], the largest distance of the hand from a goal [m], the
-    planner's time budget per segment [s]."""
+    """Parameters of `SynergySequenceProcedure`.
+
+    Attributes:
+        targets: (K, 3) hand goals, reached in turn [m].
+        durations: time of each segment, or one for all [s].
+        steps: RK4 steps of each geodesic (path samples - 1).
+        sample_dt: sample period of the tracked reference [s].
+        settle: simulated time after the motion [s].
+        reach_tol: largest distance of the hand from a goal [m].
+        plan_budget: the planner's time budget per segment [s].
+    """
 
     targets: Annotated[list[Vec3], Field(min_length=1)]
     durations: PositiveFloat | Annotated[list[PositiveFloat], Field(min_length=1)] = 1.0
@@ -80,6 +87,10 @@ class SynergySequenceProcedure(Procedure):
     """Goals reached by a sequence of synergy geodesics vs straight lines, tracked."""
 
     kind = "synergy_sequence"
+    sections = (
+        "robot", "metric", "scene", "synergies", "controllers", "disturbances", "simulation",
+        "outputs", "params",
+    )  # fmt: skip
     description = "a task as a sequence of geodesic synergies (rest at the goals) vs straight lines"
     Params = SynergySequenceParams
     units = {
