@@ -35,19 +35,25 @@ def _subjects(seqs):
     return st.scaled_arms(seqs)
 
 
-def stage_ik(out: Path) -> None:
+def stage_ik(out: Path, marker_bound: float, root: ik.RootOffset | None) -> None:
     t0 = _clock()
     seqs, prov = climb_sequences()
     subjects = _subjects(seqs)
-    fits = st.fit_capture(seqs, subjects)
+    fits = st.fit_capture(seqs, subjects, marker_bound=marker_bound, root=root)
     report = {"provenance": prov._asdict(), "sequences": []}
     for i, (seq, fit) in enumerate(zip(seqs, fits, strict=True)):
         sub = st.subject_of(subjects, i)
         np.savez(out / f"{seq.name}.npz", t=fit.t, z=fit.z, z_raw=fit.z_raw,
-                 residual=fit.residual, residual_raw=fit.residual_raw)  # fmt: skip
+                 residual=fit.residual, residual_raw=fit.residual_raw,
+                 root_offset=fit.root_offset, markers=fit.markers)  # fmt: skip
+        offset = np.linalg.norm(fit.root_offset, axis=1)
         entry = {
             "name": seq.name, "frames": len(fit.t), "scale": sub.arm.scale,
             "subject": sub.members[0],
+            "marker_offsets_mm": dict(zip(ik.FITTED, np.round(1000 * np.linalg.norm(
+                fit.markers, axis=1), 1).tolist(), strict=True)),
+            "root_offset_median_m": float(np.median(offset)),
+            "root_offset_max_m": float(offset.max()),
             "median_m": float(np.median(fit.residual)), "worst_m": float(fit.residual.max()),
             "median_per_keypoint_m": dict(zip(ik.FITTED, np.median(fit.residual, 0).tolist(),
                                               strict=True)),
@@ -56,8 +62,14 @@ def stage_ik(out: Path) -> None:
         print(json.dumps(entry))
     res = np.concatenate([f.residual for f in fits])
     raw = np.concatenate([f.residual_raw for f in fits])
+    off = np.concatenate([np.linalg.norm(f.root_offset, axis=1) for f in fits])
     report["all"] = {
         "frames": int(len(res)),
+        "marker_bound_m": marker_bound,
+        "root_offset": root._asdict() if root is not None else None,
+        "root_offset_quartiles_m": np.percentile(off, [25, 50, 75]).tolist(),
+        "root_offset_max_m": float(off.max()),
+        "p75_m": float(np.percentile(res, 75)),
         "median_m": float(np.median(res)),
         "worst_m": float(res.max()),
         "p95_m": float(np.percentile(res, 95)),
@@ -78,9 +90,8 @@ def _fits(out: Path, seqs) -> list:
     for seq in seqs:
         d = np.load(out / f"{seq.name}.npz")
         empty = np.zeros((0,))
-        offset = d["root_offset"] if "root_offset" in d.files else np.zeros((len(d["t"]), 3))
         fits.append(ik.ArmFit(seq.name, d["t"], d["z"], d["z_raw"], empty, d["residual"],
-                              d["residual_raw"], empty, offset))  # fmt: skip
+                              d["residual_raw"], empty, d["root_offset"], d["markers"]))  # fmt: skip
     return fits
 
 
@@ -144,13 +155,15 @@ def _builtin(name):
 
 
 ROBOTS = {
-    # name: (loader, home posture [rad], shoulder frame, mirror: a left arm)
+    # name: (loader, home posture [rad], shoulder frame, mirror: a left arm, kp, kd)
     "panda": (_builtin("panda"), [0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785], "panda_joint2",
-              False),
+              False, 400.0, 40.0),
     "talos_arm": (_builtin("talos_arm"), [0.3, 0.4, 0.0, -1.2, 0.0, 0.0, 0.0], "arm_left_2_joint",
-                  True),
+                  True, 400.0, 40.0),
+    # the G1 arm's inertia is ~100 x smaller than the Panda's (M_77 2e-3 vs 0.11 kg m^2):
+    # the same kp would give it 100 x less joint stiffness against the push
     "g1_arm": (_g1_right_arm, [0.2, -0.3, 0.0, 0.5, 0.0, 0.0, 0.0], "right_shoulder_roll_joint",
-               False),
+               False, 40000.0, 400.0),
 }  # fmt: skip
 
 
@@ -161,8 +174,8 @@ def stage_transfer(
     push: float,
     margin: float | None,
     mirror: bool | None,
-    kp: float = 400.0,
-    kd: float = 40.0,
+    kp: float | None = None,
+    kd: float | None = None,
 ) -> None:
     import pinocchio as pin
 
@@ -176,8 +189,9 @@ def stage_transfer(
     seqs, _ = climb_sequences()
     sub = _subjects(seqs)[0]
     rows = [Segment(**r) for r in json.loads((out / "segments.json").read_text())["rows"]]
-    loader, home, shoulder, left = ROBOTS[robot_name]
+    loader, home, shoulder, left, kp_robot, kd_robot = ROBOTS[robot_name]
     left = left if mirror is None else mirror
+    kp, kd = kp or kp_robot, kd or kd_robot
     robot = loader()
     metric = KineticEnergyMetric(robot)
     hmap, sfit, moved = st.transfer_capture(robot, metric, np.array(home), shoulder, seqs, sub,
@@ -276,8 +290,21 @@ def main() -> None:
         default="auto",
         help="mirror the path (auto: for left arms)",
     )
-    p.add_argument("--kp", type=float, default=400.0, help="computed-torque gain [1/s^2]")
-    p.add_argument("--kd", type=float, default=40.0, help="computed-torque gain [1/s]")
+    p.add_argument(
+        "--marker-bound",
+        type=float,
+        default=ik.MARKER_BOUND,
+        help="largest keypoint marker offset [m] (0: body origins)",
+    )
+    p.add_argument(
+        "--root-bound",
+        type=float,
+        default=0.0,
+        help="free root offset bound per axis [m] (0: root fixed)",
+    )
+    p.add_argument("--root-weight", type=float, default=ik.RootOffset().weight)
+    p.add_argument("--kp", type=float, help="computed-torque gain [1/s^2] (default: per robot)")
+    p.add_argument("--kd", type=float, help="computed-torque gain [1/s] (default: per robot)")
     p.add_argument("--out", type=Path, default=Path("benchmarks/data/human_synergies"))
     p.add_argument("--configs", type=int, default=30)
     p.add_argument("--kmax", type=int, default=5)
@@ -286,7 +313,8 @@ def main() -> None:
     a = p.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
     if a.stage in ("ik", "all"):
-        stage_ik(a.out)
+        root = ik.RootOffset(a.root_bound, a.root_weight) if a.root_bound > 0 else None
+        stage_ik(a.out, a.marker_bound, root)
     if a.stage in ("segments", "all"):
         stage_segments(a.out)
     if a.stage in ("pga", "all"):

@@ -5,9 +5,12 @@ The climbing capture of ``holosoma-retargeting`` (fetched and cached, see
 `geosyn.synergies.human.data`) is fitted by the scaled MyoArm (per-frame IK in its coupled
 coordinates), cut into point-to-point segments that are compared with the arm metric's
 geodesics and with straight joint-space lines, analysed by exact PGA against PCA, and
-carried to the config's robot: hand paths mapped in task space, per-frame kinematic
-retargeting as the baseline, geodesics of the robot's own metric between its ends, the
-first ``track`` of them tracked by computed torque in MuJoCo under a push on the hand.
+carried to the config's robot: hand paths mapped in task space (scaled by the reach ratio,
+lowered by `geosyn.synergies.human.transfer.fit_scale` until the robot can reach the path
+and hold its postures against gravity within ``torque_margin`` of its torque limits;
+mirrored for a left arm), per-frame kinematic retargeting as the baseline, geodesics of
+the robot's own metric between its ends, the first ``track`` of them tracked by computed
+torque in MuJoCo under a push on the hand.
 """
 
 from __future__ import annotations

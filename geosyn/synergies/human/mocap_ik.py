@@ -62,6 +62,7 @@ class ArmFit(NamedTuple):
     residual_raw: np.ndarray  # (T, K) before smoothing [m]
     at_limit: np.ndarray  # (T,) frames with a coordinate on its bound
     root_offset: np.ndarray  # (T, 3) smoothed offset d of the arm's root [m] (zeros if fixed)
+    markers: np.ndarray  # (K, 3) keypoint offsets on their bodies used [m] (`Calibration`)
 
 
 class RootOffset(NamedTuple):
@@ -399,7 +400,10 @@ def fit_sequence(
     at_limit = np.any((z_raw <= solver.lo[:nz] + 1e-6) | (z_raw >= solver.hi[:nz] - 1e-6), axis=1)
     t = np.arange(len(x)) / seq.fps
     offset = x[:, nz:] if root is not None else np.zeros((len(x), 3))
-    return ArmFit(seq.name, t, x[:, :nz], z_raw, targets, dist(x), dist(x_raw), at_limit, offset)
+    return ArmFit(
+        seq.name, t, x[:, :nz], z_raw, targets, dist(x), dist(x_raw), at_limit, offset,
+        calib.markers.copy(),
+    )  # fmt: skip
 
 
 def scale_factors(sequences: Sequence[MocapSequence], robot: Robot) -> dict[str, float]:

@@ -71,14 +71,19 @@ def fit_capture(
     calib_frames: int = 120,
     rounds: int = 6,
     cutoff: float = 6.0,
+    marker_bound: float = ik.MARKER_BOUND,
+    root: ik.RootOffset | None = None,
 ) -> list[ik.ArmFit]:
-    """Calibration and IK of every sequence on its subject's arm."""
+    """Calibration (marker placement within ``marker_bound`` [m], the free root offset
+    ``root``) and IK of every sequence on its subject's arm (`mocap_ik`)."""
     fits = []
     for i, seq in enumerate(seqs):
         robot = subject_of(subjects, i).arm.robot
         local = ik.local_keypoints(seq.positions)
         frames = min(calib_frames, len(local))
-        calib = ik.calibrate(robot, local, frames=frames, rounds=rounds)
+        calib = ik.calibrate(
+            robot, local, frames=frames, rounds=rounds, root=root, marker_bound=marker_bound
+        )
         fits.append(ik.fit_sequence(robot, seq, calib, cutoff=cutoff))
     return fits
 
