@@ -79,7 +79,7 @@ class RootOffset(NamedTuple):
     """
 
     bound: float = 0.05  # [m] per axis
-    weight: float = 0.2  # [1] (residual metres per metre of offset)
+    weight: float = 0.5  # [1] (residual metres per metre of offset)
 
 
 class Calibration(NamedTuple):
