@@ -11,8 +11,9 @@ One query, within a stated time budget:
    straight line, keeping an inflated clearance ``margin + coarse_inflation`` (so that
    its widely spaced points do not straddle thin obstacles; lowered near start and goal
    to their own clearances), then the full collocation from its path, interpolated, with
-   a small initial barrier parameter (``seeded_mu_init``); if the coarse-to-fine plan
-   fails, the full collocation from the straight line itself;
+   a small initial barrier parameter (``seeded_mu_init``), within the first
+   `COARSE_TO_FINE` of the budget; if the coarse-to-fine plan fails (other than by
+   running out of that time), the full collocation from the straight line itself;
 3. if that fails, RRT-Connect (`geosyn.metrics.planning.rrt`) for a global seed around
    the obstacles, then collocation from it; after a constrained straight-line result,
    up to ``alternatives`` RRT-Connect seeds (other homotopy classes round the
@@ -53,7 +54,7 @@ from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.query import REFINEMENTS, Query
+from geosyn.metrics.planning.query import COARSE_TO_FINE, REFINEMENTS, Query
 from geosyn.metrics.planning.self_collision import SelfCollision
 from geosyn.metrics.planning.verify import (
     check_end,
@@ -65,7 +66,15 @@ from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world.shapes import Shape
 
-__all__ = ["ANYTIME_CHECKS", "ANYTIME_SLACK", "REFINEMENTS", "Plan", "Planner", "densify"]
+__all__ = [
+    "ANYTIME_CHECKS",
+    "ANYTIME_SLACK",
+    "COARSE_TO_FINE",
+    "REFINEMENTS",
+    "Plan",
+    "Planner",
+    "densify",
+]
 
 ANYTIME_CHECKS = 3
 """Most unfinished paths checked when a budget ends without a converged plan."""

@@ -31,12 +31,17 @@ from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
 
-__all__ = ["REFINEMENTS", "SAME", "Query", "metric_length"]
+__all__ = ["COARSE_TO_FINE", "REFINEMENTS", "SAME", "Query", "metric_length"]
 
 REFINEMENTS = ((1, 3), (2, 1), (2, 3))
 """What a path that fails the fine check is solved again with, in turn, from the same
 seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
 
+
+COARSE_TO_FINE = 0.8
+"""Share of the budget the coarse-to-fine collocation may take (the coarse solve half of
+it); when the clock stops it, the full collocation from the straight line (a colder
+start with less time) is skipped and the time left goes to RRT-Connect."""
 
 SAME = 1e-6
 """Relative difference of energy or length below which two plans count as the same path
@@ -145,13 +150,17 @@ class Query:
         obstacles, else directly), or None."""
         p, q0, q1 = self.p, self.q0, self.q1
         if p.coarse_nodes and p.term.obstacles:
-            res, init = p._coarse_to_fine(q0, q1, 0.4 * self.budget, self.attempts)
+            res, init = p._coarse_to_fine(q0, q1, COARSE_TO_FINE * self.budget, self.attempts)
             if not res.success:
                 self.unfinished += [
                     (res.nodes, "the interrupted collocation from the coarse path"),
                     (init, "the coarse collocation's path"),
                 ]
-            elif (plan := self.finish(res, init, "straight line", 0.6)) is not None:
+                if res.status == "User_Requested_Stop":  # the clock: a colder start
+                    self.attempts.append("collocation from the straight line skipped: the "
+                                         "one from the coarse path ran out of its time")  # fmt: skip
+                    return None
+            elif (plan := self.finish(res, init, "straight line", 0.9)) is not None:
                 return plan
         res = p.solve(p.collocation(p.nodes), q0, q1, budget=max(0.5 * self.left(), 1e-3))
         self.attempts.append(f"collocation from the straight line: {res.message}")
