@@ -161,8 +161,9 @@ ROBOTS = {
     "talos_arm": (_builtin("talos_arm"), [0.3, 0.4, 0.0, -1.2, 0.0, 0.0, 0.0], "arm_left_2_joint",
                   True, 400.0, 40.0),
     # the G1 arm's inertia is ~100 x smaller than the Panda's (M_77 2e-3 vs 0.11 kg m^2):
-    # the same kp would give it 100 x less joint stiffness against the push
-    "g1_arm": (_g1_right_arm, [0.2, -0.3, 0.0, 0.5, 0.0, 0.0, 0.0], "right_shoulder_roll_joint",
+    # the same kp would give it 100 x less joint stiffness against the push; its wrist
+    # pitched -0.5 rad at home keeps the push's moment on the 5 N m wrist pitch lower
+    "g1_arm": (_g1_right_arm, [0.2, -0.3, 0.0, 0.5, 0.0, -0.5, 0.0], "right_shoulder_roll_joint",
                False, 40000.0, 400.0),
 }  # fmt: skip
 
