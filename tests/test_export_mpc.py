@@ -154,13 +154,8 @@ def test_damped_rough_mpc_torques_equal_python_along_a_closed_loop(tmp_path: Pat
     """The fixture arm's viscous joint damping is in the MPC's dynamics (ABA on u - D v),
     its reference torques and its fallback (RNEA + D v); its dry friction is fed forward
     (f_c tanh(v_r / v_s), the controls net of it): the exported MPC gives the Python
-    MPC's torques to 1e-9 over a 2 s closed loop with a push (MuJoCo's plant with the
-    file's damping and friction), after the first (cold) solve's 20 ms. That cold solve,
-    from rest, is a discontinuous function of its data at the rounding level on this arm
-    (line-search and box-QP decisions on near-ties; without friction the Python MPC's own
-    torques move by 3.8e-9 of tau_max when q moves by 1e-13 rad), and the C backward
-    pass sums in another order: 1e-8 allowed there; the warm solves then agree to about
-    1e-12. (Without D v or f_c in the C torques they would differ by ~0.1 N m.)"""
+    MPC's torques to 1e-9 over a 2 s closed loop with a push (the plant with the file's
+    damping). (Without D v or f_c in the C torques they would differ by ~0.1 N m.)"""
     robot = fixture_arm()
     t = np.linspace(0.0, 1.0, 21)
     q0 = np.array([0.3, 0.2, -0.2, 0.05, 0.3])
@@ -178,13 +173,11 @@ def test_damped_rough_mpc_torques_equal_python_along_a_closed_loop(tmp_path: Pat
     c = CController(res.shared_library)
     c.reset(res.samples.q[0].copy(), np.zeros(res.nq))
     scale = np.asarray(robot.tau_max)
-    gaps = [float(np.max(np.abs(c.compute(t, q, v) - tau) / scale)) for t, q, v, tau in loop.calls]
-    first = [g for (t, *_), g in zip(loop.calls, gaps, strict=True) if t < 0.02 - 1e-9]
-    later = gaps[len(first) :]
-    print(f"fixture arm: largest difference {max(first):.3g} in the first solve's period,")
-    print(f"{max(later):.3g} after it (relative to tau_max)")
-    assert len(first) == 20 and max(first) <= 1e-8
-    assert max(later) <= RTOL
+    worst = max(
+        float(np.max(np.abs(c.compute(t, q, v) - tau) / scale)) for t, q, v, tau in loop.calls
+    )
+    print(f"fixture arm: largest difference {worst:.3g} (relative to tau_max)")
+    assert worst <= RTOL
     assert mpc_info(c)[0][0] == loop.solves
 
 
@@ -271,10 +264,11 @@ int main(void) {
 def test_avx2_and_baseline_builds_give_the_same_torques(
     export: ExportResult, python_loop: PythonLoop, tmp_path: Path
 ) -> None:
-    """On an x86-64 compiler the solver code is built twice (baseline and -mavx2, chosen
-    at run time by the CPU): the same library rebuilt without the AVX2 build gives
-    bitwise the same torques along the closed loop's first 400 ticks (ISO C forbids
-    contracting into FMAs), and both depend only on libc and libm."""
+    """On an x86-64 compiler the solver code is built twice (baseline, and AVX2 with
+    fused multiply-adds, chosen at run time by the CPU): the same library rebuilt without
+    the AVX2 build gives the same torques to 1e-12 of tau_max along the closed loop's
+    first 400 ticks (rounding only; measured 2e-14), and both depend only on libc and
+    libm."""
     config = (export.out_dir / "geosyn_controller_config.h").read_text()
     if "#define GEOSYN_DDP_AVX2 1" not in config:
         pytest.skip("the compiler does not target x86-64 with AVX2: one build only")
@@ -286,9 +280,13 @@ def test_avx2_and_baseline_builds_give_the_same_torques(
     libs = [CController(export.shared_library), CController(base / export.shared_library.name)]
     for lib in libs:
         lib.reset(Q0.copy(), np.zeros(7))
+    scale = np.asarray(load_robot("panda").tau_max)
+    worst = 0.0
     for t, q, v, _ in python_loop.calls[:400]:
         fast, plain = (lib.compute(t, q, v) for lib in libs)
-        np.testing.assert_array_equal(fast, plain)
+        worst = max(worst, float(np.max(np.abs(fast - plain) / scale)))
+    print(f"AVX2 and baseline builds: largest difference {worst:.3g} (relative to tau_max)")
+    assert worst <= 1e-12
     for so in (export.shared_library, base / export.shared_library.name):
         ldd = subprocess.run(["ldd", str(so)], capture_output=True, text=True, check=True)
         names = {line.split()[0] for line in ldd.stdout.splitlines() if line.strip()}

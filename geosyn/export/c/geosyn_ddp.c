@@ -214,7 +214,8 @@ static void masked_factor(geosyn_ddp_work* w, const double* H, int clamped) {
 
 /* k <- argmin 0.5 k^T H k + g^T k on lo <= k <= hi; w->free, w->L: its free set and the
  * factor of its masked Hessian. An iteration that keeps k is a fixed point (the next
- * ones would repeat it exactly), so the loop stops there. */
+ * ones would repeat it exactly), so the loop stops there; an unconstrained minimiser
+ * inside the box is returned as it is. */
 static void box_qp(geosyn_ddp_work* w, const double* H, const double* g, const double* lo,
                    const double* hi, double* k) {
     static const double steps[4] = {1.0, 0.5, 0.25, 0.1};
@@ -223,8 +224,18 @@ static void box_qp(geosyn_ddp_work* w, const double* H, const double* g, const d
     cholesky(H, w->L0);
     for (int i = 0; i < NQ; ++i) w->tmp[i] = g[i];
     cholesky_solve(w->L0, w->tmp);
-    for (int i = 0; i < NQ; ++i) w->tmp[i] = -w->tmp[i];
-    clip(w->tmp, lo, hi, k);
+    int inside = 1;
+    for (int i = 0; i < NQ; ++i) {
+        k[i] = -w->tmp[i];
+        inside = inside && lo[i] < k[i] && k[i] < hi[i];
+    }
+    if (inside) { /* the unconstrained minimiser: every control free (the projected
+                     Newton steps would only move it by rounding) */
+        for (int i = 0; i < NQ; ++i) w->free[i] = 1.0;
+        memcpy(w->L, w->L0, sizeof w->L);
+        return;
+    }
+    clip(k, lo, hi, k);
     for (int it = 0; it < GEOSYN_MPC_BOX_ITERATIONS; ++it) {
         masked_factor(w, H, free_mask(w, H, g, k, lo, hi));
         for (int i = 0; i < NQ; ++i) w->d[i] = w->free[i] * w->grad[i];
@@ -279,8 +290,17 @@ static void riccati(geosyn_ddp_work* w, const double* x, const double* u, const 
     add_product(w->At, NX, w->Vx, 1, 0, 1, w->Qx);
     memcpy(w->Qu, w->lu, sizeof w->Qu);
     add_product(w->Bt, NQ, w->Vx, 1, 0, 1, w->Qu);
-    memcpy(w->Qxx, w->lxx, sizeof w->Qxx); /* Qxx = lxx + A^T VA */
-    add_product(w->At, NX, w->VA, 1, NX, NX, w->Qxx);
+    /* Qxx = lxx + A^T Vxx A: symmetric, its upper half (and the diagonal) only */
+    for (int c = 0; c < NX; ++c) {
+        double* o = w->Qxx + c * NX;
+        const double* va = w->VA + c * NX;
+        for (int r = 0; r <= c; ++r) o[r] = w->lxx[c * NX + r];
+        for (int j = 0; j < NX; ++j) {
+            const double vj = va[j];
+            const double* m = w->At + j * NX;
+            for (int r = 0; r <= c; ++r) o[r] += m[r] * vj;
+        }
+    }
     memcpy(w->Qux, w->lux, sizeof w->Qux); /* Qux = lux + B^T VA */
     add_product(w->Bt, NQ, w->VA, 1, NX, NX, w->Qux);
     memcpy(w->H, w->luu, sizeof w->H); /* Quu = sym(luu + reg I + B^T VB) */
@@ -322,18 +342,18 @@ static void riccati(geosyn_ddp_work* w, const double* x, const double* u, const 
     }
     for (int c = 0; c < NX; ++c) /* QuxT: the rows of Qux as columns */
         for (int i = 0; i < NQ; ++i) w->QuxT[i * NX + c] = w->Qux[c * NQ + i];
-    memcpy(w->Y, w->Qxx, sizeof w->Qxx);
+    /* Qux^T K = -Qux_f^T H_f^-1 Qux_f is symmetric too: upper halves, mirrored */
     for (int c = 0; c < NX; ++c) {
-        double* o = w->Y + c * NX;
+        double* o = w->Vxx + c * NX;
+        for (int r = 0; r <= c; ++r) o[r] = w->Qxx[c * NX + r];
         for (int i = 0; i < NQ; ++i) {
             const double kc = K[c * NQ + i];
             const double* q = w->QuxT + i * NX;
-            for (int r = 0; r < NX; ++r) o[r] += q[r] * kc;
+            for (int r = 0; r <= c; ++r) o[r] += q[r] * kc;
         }
     }
     for (int c = 0; c < NX; ++c)
-        for (int r = 0; r < NX; ++r)
-            w->Vxx[c * NX + r] = 0.5 * (w->Y[c * NX + r] + w->Y[r * NX + c]);
+        for (int r = c + 1; r < NX; ++r) w->Vxx[c * NX + r] = w->Vxx[r * NX + c];
 }
 
 void geosyn_ddp_backward(geosyn_ddp_work* w, const double* X, const double* U,

@@ -60,8 +60,8 @@ double geosyn_ddp_rollout(geosyn_ddp_work* w, const double* x0, const double* Xb
                           const double* XR, const double* TR, const double* P, double* X,
                           double* U);
 #if GEOSYN_DDP_AVX2
-/* The same two compiled for AVX2 (geosyn_ddp_avx2.c; bitwise the same results: no
- * floating-point contraction in ISO C), called on CPUs that have it. */
+/* The same two compiled for AVX2 and FMA (geosyn_ddp_avx2.c; the same results up to
+ * rounding), called on CPUs that have them. */
 void geosyn_ddp_backward_avx2(geosyn_ddp_work* w, const double* X, const double* U,
                               const double* XR, const double* TR, const double* P, double* k,
                               double* K, double* dV);

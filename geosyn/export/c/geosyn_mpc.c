@@ -85,7 +85,7 @@ geosyn_mpc* geosyn_mpc_create(void) {
     mpc->rollout = geosyn_ddp_rollout;
 #if GEOSYN_DDP_AVX2
     __builtin_cpu_init();
-    if (__builtin_cpu_supports("avx2")) {
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
         mpc->backward = geosyn_ddp_backward_avx2;
         mpc->rollout = geosyn_ddp_rollout_avx2;
     }
