@@ -389,13 +389,13 @@ class Planner:
         t0 = time.perf_counter()
         n = self.metric.n
         q0 = check_vector(q0, n, "q0")
+        obstacles = tuple(obstacles)
         if isinstance(q1, EndEffectorGoal):
             budget, seed = check_positive(budget, "budget", "s"), check_int(seed, "seed")
             return plan_to_goal(self, q0, q1, obstacles, budget=budget, seed=seed)
         q1 = check_vector(q1, n, "q1")
         budget = check_positive(budget, "budget", "s")
         seed = check_int(seed, "seed")
-        obstacles = tuple(obstacles)
         built = self._use_slots(len(obstacles))  # the budget's clock starts after it
         try:
             self.term.set_obstacles(obstacles)
