@@ -107,6 +107,8 @@ def test_calibration_places_known_markers(data) -> None:
     assert longer.rms < placed.rms
     with pytest.raises(InvalidSynergyInput, match="marker_bound"):
         ik.calibrate(robot, local, frames=5, rounds=1, marker_bound=-0.01)
+    with pytest.raises(InvalidSynergyInput, match="bound > 0"):
+        ik.calibrate(robot, local, frames=5, rounds=1, root=ik.RootOffset(bound=0.0))
 
 
 def test_limits_are_kept_for_unreachable_targets(data) -> None:
@@ -133,5 +135,15 @@ def test_real_excerpt_fits_within_a_centimetre(data) -> None:
     assert np.median(fit.residual_raw) <= 0.01
     # smoothing removes frame-to-frame jitter: the second difference of z shrinks
     assert np.abs(np.diff(fit.z, 2, axis=0)).mean() < np.abs(np.diff(fit.z_raw, 2, axis=0)).mean()
+    assert np.all(fit.root_offset == 0.0)
+    # a free root offset (girdle motion MyoArm lacks) lowers the residual further, inside
+    # its bound
+    root = ik.RootOffset()
+    calib_r = ik.calibrate(
+        arm.robot, ik.local_keypoints(seq.positions), frames=30, rounds=4, root=root
+    )
+    fit_r = ik.fit_sequence(arm.robot, seq, calib_r)
+    assert np.median(fit_r.residual) < np.median(fit.residual)
+    assert 0.0 < np.abs(fit_r.root_offset).max() <= root.bound + 1e-12
     with pytest.raises(InvalidSynergyInput, match="cutoff"):
         ik.fit_sequence(arm.robot, seq, calib, cutoff=20.0)

@@ -311,11 +311,16 @@ def calibrate(
         marker_bound: largest marker offset [m] (0: keypoints at the body origins).
 
     Raises:
-        InvalidSynergyInput: ``marker_bound`` negative.
+        InvalidSynergyInput: ``marker_bound`` negative, or ``root`` with a bound <= 0 or
+            a negative weight.
     """
     if not marker_bound >= 0.0:
         raise InvalidSynergyInput(
             f"marker_bound must be >= 0 m, got {marker_bound!r}", "marker_bound"
+        )
+    if root is not None and not (root.bound > 0.0 and root.weight >= 0.0):
+        raise InvalidSynergyInput(
+            f"root must have bound > 0 m and weight >= 0, got {root!r}", "root"
         )
     markers = np.zeros((len(FITTED), 3))
     solver = _Solver(robot, root, markers)
