@@ -1,5 +1,6 @@
 /* geosyn_ddp.h: the backward pass of the exported box-DDP MPC (internal; not the stable
- * C API). geosyn_mpc.c owns one geosyn_ddp_work and calls geosyn_ddp_backward. */
+ * C API). geosyn_mpc.c owns one geosyn_ddp_work and calls geosyn_ddp_backward and
+ * geosyn_ddp_rollout (or their AVX2 builds). */
 #ifndef GEOSYN_DDP_H
 #define GEOSYN_DDP_H
 #include "geosyn_controller_config.h"
@@ -29,7 +30,7 @@ typedef struct {
     double Qux[GEOSYN_DDP_NQ * GEOSYN_DDP_NX], Quu[GEOSYN_DDP_NQ * GEOSYN_DDP_NQ];
     double H[GEOSYN_DDP_NQ * GEOSYN_DDP_NQ], L[GEOSYN_DDP_NQ * GEOSYN_DDP_NQ];
     double free[GEOSYN_DDP_NQ], grad[GEOSYN_DDP_NQ], d[GEOSYN_DDP_NQ];
-    double kq[GEOSYN_DDP_NQ], best[GEOSYN_DDP_NQ], cand[GEOSYN_DDP_NQ], tmp[GEOSYN_DDP_NQ];
+    double best[GEOSYN_DDP_NQ], cand[GEOSYN_DDP_NQ], tmp[GEOSYN_DDP_NQ];
     double rhs[GEOSYN_DDP_NQ * GEOSYN_DDP_NX]; /* row-major: (NQ, NX) */
     double At[GEOSYN_DDP_NX * GEOSYN_DDP_NX], Bt[GEOSYN_DDP_NQ * GEOSYN_DDP_NX]; /* A, B */
     double QuxT[GEOSYN_DDP_NX * GEOSYN_DDP_NQ], hz[GEOSYN_DDP_NQ];
