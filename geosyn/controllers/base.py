@@ -26,6 +26,12 @@ from geosyn.core.validation import check_float, check_scalar_or_vector, check_ve
 from geosyn.metrics.base import Metric
 from geosyn.robots.robot import Robot
 
+FRICTION_VELOCITY = 0.01
+"""Reference velocity [rad/s or m/s] over which every controller's dry-friction
+feed-forward goes smoothly from 0 to the file's ``frictionloss`` ``f_c``
+(``f_c tanh(v_r / FRICTION_VELOCITY)``): the default of each controller's
+``friction_velocity`` and the MPC's stage friction."""
+
 
 @dataclass
 class ControllerDiagnostics:

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from geosyn.controllers.base import Controller, check_gain
+from geosyn.controllers.base import FRICTION_VELOCITY, Controller, check_gain
 from geosyn.controllers.reference import Reference
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
@@ -63,7 +63,7 @@ class ComputedTorque(Controller):
         reference: Reference | None = None,
         *,
         compensate_friction: bool | None = None,
-        friction_velocity: float = 0.01,
+        friction_velocity: float = FRICTION_VELOCITY,
     ) -> None:
         super().__init__(robot, reference, metric)
         self.kp = check_gain(kp, self.nv, "kp")

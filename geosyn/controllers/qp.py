@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
+from geosyn.controllers.base import FRICTION_VELOCITY
 from geosyn.controllers.computed_torque import ComputedTorque
 from geosyn.controllers.limit_bounds import AccelerationBounds, check_braking_acceleration
 from geosyn.controllers.reference import Reference
@@ -131,7 +132,7 @@ class QPController(ComputedTorque):
         metric: Metric | None = None,
         reference: Reference | None = None,
         compensate_friction: bool | None = None,
-        friction_velocity: float = 0.01,
+        friction_velocity: float = FRICTION_VELOCITY,
     ) -> None:
         super().__init__(
             robot,

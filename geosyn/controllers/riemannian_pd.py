@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from geosyn.controllers.base import Controller, check_gain
+from geosyn.controllers.base import FRICTION_VELOCITY, Controller, check_gain
 from geosyn.controllers.reference import Reference
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_positive
@@ -83,7 +83,7 @@ class RiemannianPD(Controller):
         metric: Metric | None = None,
         reference: Reference | None = None,
         *,
-        friction_velocity: float = 0.01,
+        friction_velocity: float = FRICTION_VELOCITY,
     ) -> None:
         super().__init__(robot, reference, metric)
         self.lam = check_gain(lam, self.nv, "lam")

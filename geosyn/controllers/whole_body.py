@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 import proxsuite
 
-from geosyn.controllers.base import Controller, check_gain
+from geosyn.controllers.base import FRICTION_VELOCITY, Controller, check_gain
 from geosyn.controllers.errors import ControllerError
 from geosyn.controllers.reference import Reference
 from geosyn.core.types import Matrix, Vector
@@ -100,7 +100,7 @@ class WholeBodyController(Controller):
         contact_gain: float = 10.0,
         force_regularisation: float = 1e-6,
         compensate_friction: bool = True,
-        friction_velocity: float = 0.01,
+        friction_velocity: float = FRICTION_VELOCITY,
     ) -> None:
         if not isinstance(robot, Robot) or not robot.floating:
             what = robot.name if isinstance(robot, Robot) else type(robot).__name__

@@ -49,12 +49,14 @@ class ComputedTorqueConfig(_ControllerBase):
 
 
 class RiemannianPDConfig(_ControllerBase):
-    """`RiemannianPD`: gains ``lam`` [1/s] and ``k`` [N m s/rad]."""
+    """`RiemannianPD`: gains ``lam`` [1/s] and ``k`` [N m s/rad]; the dry-friction
+    feed-forward's smoothing velocity ``friction_velocity`` [rad/s]."""
 
     builds = (RiemannianPD,)
     type: Literal["riemannian_pd"]
     lam: Gain = _RIEMANNIAN_PD["lam"]
     k: Gain = _RIEMANNIAN_PD["k"]
+    friction_velocity: PositiveFloat = _RIEMANNIAN_PD["friction_velocity"]
 
 
 class QPConfig(_ControllerBase):

@@ -23,6 +23,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from geosyn.controllers.base import FRICTION_VELOCITY
 from geosyn.core.errors import InvalidArgument
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
@@ -38,10 +39,6 @@ __all__ = [
     "stage_step",
     "stage_torque",
 ]
-
-FRICTION_VELOCITY = 0.01
-"""Reference velocity [rad/s or m/s] over which the dry-friction feed-forward goes
-smoothly from 0 to ``f_c`` (``tanh(v_r / FRICTION_VELOCITY)``; `ComputedTorque`'s default)."""
 
 
 def joint_damping(robot: Robot) -> np.ndarray | None:
