@@ -3,9 +3,13 @@
 The link pairs are the file's self-collision pairs (`geosyn.robots.collision_spheres`:
 links on joints that are neither the same nor parent and child, minus those whose hulls
 already overlap at the neutral configuration); each collision object of the file
-(`geosyn.robots.collision_geometry`) becomes a coal shape (`geosyn.world.exact_clearance.
-coal_shape`: a mesh its convex hull), and `clearance` returns the smallest coal distance
-over the pairs. The planner checks IK goals with it (`geosyn.metrics.planning.goals`).
+(`geosyn.robots.collision_geometry`) becomes a coal shape: a URDF mesh its own triangles
+(a BVH: two links' convex hulls may overlap where the meshes are centimetres apart, e.g.
+the UR5's forearm and wrist 3), an MJCF mesh its convex hull (what MuJoCo collides), a
+primitive itself (`geosyn.world.exact_clearance.coal_shape`); `clearance` returns the
+smallest coal distance over the pairs. Triangle meshes that intersect have no
+penetration depth in coal: such a pair counts as `INTERSECTING`. The planner checks IK
+goals with it (`geosyn.metrics.planning.goals`).
 """
 
 from __future__ import annotations
@@ -16,12 +20,31 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from geosyn.robots.collision_geometry import collision_objects
+from geosyn.robots.collision_geometry import CollisionObject, collision_objects
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import Robot
 from geosyn.world.exact_clearance import coal_shape
 
-__all__ = ["SelfCollision"]
+__all__ = ["INTERSECTING", "SelfCollision"]
+
+INTERSECTING = -1e-6
+"""Clearance [m] reported for two intersecting triangle meshes (coal gives no depth)."""
+
+
+def _mesh_bvh(obj: CollisionObject) -> Any:
+    """coal BVH of a mesh object's own triangles (in the object's frame)."""
+    import coal
+
+    vertices, triangles = coal.StdVec_Vec3s(), coal.StdVec_Triangle()
+    for v in np.asarray(obj.vertices, dtype=np.float64):
+        vertices.append(v)
+    for a, b, c in np.asarray(obj.faces, dtype=int):
+        triangles.append(coal.Triangle(int(a), int(b), int(c)))
+    bvh = coal.BVHModelOBBRSS()
+    bvh.beginModel(len(triangles), len(vertices))
+    bvh.addSubModel(vertices, triangles)
+    bvh.endModel()
+    return bvh
 
 
 class SelfCollision:
@@ -43,7 +66,10 @@ class SelfCollision:
         self.robot = robot
         self.pairs = tuple(pairs)
         self.objects = collision_objects(robot)
-        self._geoms = [coal_shape(o) for o in self.objects]
+        urdf = str(getattr(robot, "source_file", "") or "").lower().endswith(".urdf")
+        self._bvh = [urdf and o.kind == "mesh" for o in self.objects]
+        self._geoms = [_mesh_bvh(o) if b else coal_shape(o)
+                       for o, b in zip(self.objects, self._bvh, strict=True)]  # fmt: skip
         self._joint = [robot.joint_id(o.joint) if o.joint != "universe" else 0
                        for o in self.objects]  # fmt: skip
         self._place = [pin.SE3(o.placement) for o in self.objects]
@@ -68,7 +94,8 @@ class SelfCollision:
 
     def clearance(self, q: np.ndarray) -> tuple[float, str, str]:
         """(smallest signed distance [m], link a, link b) over the pairs at ``q`` (n,)
-        [rad]; ``(inf, "", "")`` without pairs."""
+        [rad] (`INTERSECTING` for intersecting triangle meshes); ``(inf, "", "")``
+        without pairs."""
         import coal
 
         model, data = self.robot.model, self._data
@@ -86,7 +113,12 @@ class SelfCollision:
 
         best: tuple[float, str, str] = (math.inf, "", "")
         for a, b, i, j in self._checks:
-            d = float(coal.distance(placed(i), placed(j), self._request, coal.DistanceResult()))
+            if (self._bvh[i] or self._bvh[j]) and coal.collide(
+                placed(i), placed(j), coal.CollisionRequest(), coal.CollisionResult()
+            ):
+                d = INTERSECTING
+            else:
+                d = float(coal.distance(placed(i), placed(j), self._request, coal.DistanceResult()))
             if d < best[0]:
                 best = (d, a, b)
         return best
