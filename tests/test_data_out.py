@@ -165,3 +165,38 @@ def test_a_missing_video_package_keeps_the_finished_run(tmp_path, monkeypatch):
     meta = json.loads((out / "run.json").read_text())
     assert "imageio" in meta["video"]["error"]  # said why, not silently skipped
     assert "imageio" in (out / "run.log").read_text()
+
+
+def test_outputs_parquet_writes_each_run_as_the_csv_reads(tmp_path):
+    """``outputs.parquet: true``: data/<run>.parquet beside the CSV, the same columns and
+    values (referees: pandas' CSV reader and pyarrow's Parquet reader)."""
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    out = run_experiment(_config(parquet=True), tmp_path / "run", progress=False, quiet=True).path
+    csvs = sorted((out / "data").glob("*.csv"))
+    assert len(csvs) == 2
+    for csv in csvs:
+        table = pq.read_table(csv.with_suffix(".parquet")).to_pandas()
+        frame = pd.read_csv(csv, comment="#")
+        assert list(table.columns) == list(frame.columns)
+        np.testing.assert_allclose(table.to_numpy(), frame.to_numpy(), rtol=1e-12, atol=0)
+    assert (
+        "wrote data/" in (out / "run.log").read_text()
+        and ".parquet" in (out / "run.log").read_text()
+    )
+
+
+def test_outputs_parquet_without_pyarrow_is_refused_naming_the_extra(monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util,
+        "find_spec",
+        lambda name, *a, **k: None if name == "pyarrow" else real(name, *a, **k),
+    )
+    with pytest.raises(
+        geosyn.core.errors.GeosynError, match=r"outputs\.parquet.*geosyn\[parquet\]"
+    ):
+        _config(parquet=True)

@@ -36,6 +36,7 @@ from geosyn.experiments.errors import OutputNotWritable, RunDirectoryExists
 from geosyn.experiments.procedures import PROCEDURES
 from geosyn.experiments.procedures.base import Procedure, RunContext, ignored_sections
 from geosyn.experiments.results.data import write_csv
+from geosyn.experiments.results.parquet import write_parquet
 from geosyn.experiments.results.run_video import write_videos
 from geosyn.experiments.results.summary import clean_summary, print_summary, write_summary
 from geosyn.experiments.run import rundir, termination
@@ -196,6 +197,9 @@ def _write_results(
         log.write(f"closed-loop run {name}: {status}")
     if cfg.outputs.csv:
         for path in write_csv(tmp, cfg.controller_labels(), arrays):
+            log.write(f"wrote {path.relative_to(tmp)}")
+    if cfg.outputs.parquet:
+        for path in write_parquet(tmp, cfg.controller_labels()):
             log.write(f"wrote {path.relative_to(tmp)}")
     summary = clean_summary(proc.full_summary(cfg, params, results))
     if cfg.outputs.plots:

@@ -153,6 +153,7 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
     "OutputsConfig": {
         "plots": ("", "write PNG plots"),
         "csv": ("", "write data/<run>.csv per closed-loop run (named columns)"),
+        "parquet": ("", "also write data/<run>.parquet (the CSV's columns; the parquet extra)"),
         "video": ("", "render a video of every motion (also: --video)"),
         "video_format": ("", "video file format"),
     },

@@ -3,10 +3,11 @@
 
 from __future__ import annotations
 
+import importlib.util
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from geosyn.experiments.schema.controllers import ControllerConfig
 from geosyn.experiments.schema.disturbances import DisturbanceConfig
@@ -57,17 +58,29 @@ class SimulationConfig(Section):
 
 class OutputsConfig(Section):
     """What a run writes: plots, per-run CSV tables (``data/<run>.csv``,
-    `geosyn.experiments.results.data`), and videos (`geosyn.sim.render_video` settings)."""
+    `geosyn.experiments.results.data`), the same tables as Parquet (``data/<run>.parquet``,
+    needs the ``parquet`` extra), and videos (`geosyn.sim.render_video` settings)."""
 
     builds = (render_video,)
     plots: bool = True
     csv: bool = True
+    parquet: bool = False
     video: bool = False
     video_format: Literal["gif", "mp4"] = "gif"
     fps: Annotated[float, Field(gt=0.0, le=120.0)] = _VIDEO["fps"]
     width: Annotated[int, Field(ge=16, le=4096)] = _VIDEO["width"]
     height: Annotated[int, Field(ge=16, le=4096)] = _VIDEO["height"]
     trail: bool = _VIDEO["trail"]
+
+    @field_validator("parquet")
+    @classmethod
+    def _pyarrow_installed(cls, value: bool) -> bool:
+        if value and importlib.util.find_spec("pyarrow") is None:
+            raise ValueError(
+                "needs pyarrow, which is not installed: pip install 'geosyn[parquet]'"
+                " (or set outputs.parquet: false)"
+            )
+        return value
 
 
 _NAME = re.compile(r"^[A-Za-z0-9_\-.]+$")

@@ -62,7 +62,7 @@ class PGASynergies(Strict):
     q0: JointVector | None = None
     demonstrations: str | None = Field(
         None,
-        description="NPZ or CSV file of recorded trajectories (relative to the working"
+        description="NPZ, CSV or Parquet file of recorded trajectories (relative to the working"
         " directory); CSV columns q[<joint>] or <joint>, an optional trajectory column",
     )
     key: str | None = Field(None, description="the NPZ array to read (default: every 2-D one)")
