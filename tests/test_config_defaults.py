@@ -46,6 +46,7 @@ NOT_PARAMETERS = {
     ("OutputsConfig", "video"),
     ("OutputsConfig", "video_format"),
     ("OutputsConfig", "csv"),  # per-run CSV tables (geosyn.experiments.results.data)
+    ("OutputsConfig", "parquet"),  # per-run Parquet tables (geosyn.experiments.results.parquet)
 }
 
 #: Parameters of a section's first target that the config does not expose, and why.
