@@ -26,11 +26,11 @@ from geosyn.controllers.reference import GeodesicReference
 from geosyn.synergies.synergy import GeodesicSynergy
 
 Q0 = np.array([0.3, -0.4])
-#: fatrop never converges to tol 1e-300 and never stops at an "acceptable" point: left
+#: fatrop never converges to tol 1e-300 (a plugin option: ``NLPOptions.tol`` is >= 1e-14) and never stops at an "acceptable" point: left
 #: alone it runs to max_iter (~0.2 ms per iteration here: 10^6 iterations ~ 200 s).
-ENDLESS_FATROP = {"acceptable_iter": 10**9}
+ENDLESS_FATROP = {"tol": 1e-300, "acceptable_iter": 10**9}
 #: IPOPT likewise (no acceptable stop, no tiny-step stop): one native call to max_iter.
-ENDLESS_IPOPT = {"acceptable_iter": 0, "tiny_step_tol": 0.0, "tiny_step_y_tol": 0.0}
+ENDLESS_IPOPT = {"tol": 1e-300, "acceptable_iter": 0, "tiny_step_tol": 0.0, "tiny_step_y_tol": 0.0}
 
 
 def _mpc(options: NLPOptions, budget: float) -> GeodesicMPC:
@@ -55,7 +55,7 @@ def _mpc(options: NLPOptions, budget: float) -> GeodesicMPC:
 def test_fatrop_with_a_million_iterations_stops_at_its_budget() -> None:
     """max_iter 10^6, budget 50 ms: each tick stops at the budget after a few chunks,
     reports why, and falls back; measured 54-58 ms per tick under load (2 cores)."""
-    options = NLPOptions("fatrop", max_iter=10**6, tol=1e-300, plugin_options=ENDLESS_FATROP)
+    options = NLPOptions("fatrop", max_iter=10**6, plugin_options=ENDLESS_FATROP)
     mpc = _mpc(options, budget=0.05)
     for k in range(3):
         start = time.perf_counter()
@@ -85,7 +85,7 @@ class _Alarm(BaseException):
 def test_signal_handler_runs_during_one_long_native_solve() -> None:
     """IPOPT in one native call of up to 3 s (its own max_wall_time): a signal 0.3 s in
     raises from the handler while that call still runs (it was not waited for)."""
-    options = NLPOptions("ipopt", max_iter=10**6, tol=1e-300, plugin_options=ENDLESS_IPOPT)
+    options = NLPOptions("ipopt", max_iter=10**6, plugin_options=ENDLESS_IPOPT)
     mpc = _mpc(options, budget=3.0)
 
     def handler(signum: int, frame: object) -> None:
@@ -126,9 +126,8 @@ controllers:
     max_solve_time: 100000.0
     solver:
       type: fatrop
-      max_iter: 1000000000
-      tol: 1.0e-300
-      plugin_options: {acceptable_iter: 1000000000}
+      max_iter: 1000000
+      plugin_options: {tol: 1.0e-300, max_iter: 1000000000, acceptable_iter: 1000000000}
 disturbances:
   - type: push
     body: link2
@@ -169,7 +168,7 @@ def _wait_inside_solve(proc: subprocess.Popen[str], limit: float = 120.0) -> Non
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_geosyn_run_stops_on_sigterm_inside_a_solve(tmp_path: Path) -> None:
-    """SIGTERM while the MPC's first solve (endless: max_iter 10^9, budget 10^5 s) runs:
+    """SIGTERM while the MPC's first solve (endless: fatrop's max_iter 10^9, budget 10^5 s):
     exit 143 at once, one line at most on stderr, no run directory, partial or lock left.
     Measured: ~1 s from the signal to the exit, most of it the interpreter's teardown."""
     config = tmp_path / "long_solve.yaml"

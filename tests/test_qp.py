@@ -192,13 +192,13 @@ def test_solver_failure_triggers_fallback():
     [
         ({"kp": np.ones(5)}, r"kp must be a scalar or an array of shape \(7,\)"),
         ({"kd": -1.0}, "kd must be finite and >= 0"),
-        ({"dt": 0.0}, r"dt must be a finite number in \(0, 1\] \[s\], got 0.0"),
+        ({"dt": 0.0}, r"dt must be a finite number in \[1e-06, 1\] \[s\], got 0.0"),
         ({"eps": -1e-3}, "eps"),
         ({"position_horizon": 1e-4}, "position_horizon must be >= dt"),
         ({"braking_acceleration": 0.0}, "braking_acceleration must be > 0"),
         ({"max_iter": 0}, "max_iter"),
         # issue 23: nothing accepted that means nothing
-        ({"dt": 1e300}, r"dt must be a finite number in \(0, 1\] \[s\], got 1e\+300"),
+        ({"dt": 1e300}, r"dt must be a finite number in \[1e-06, 1\] \[s\], got 1e\+300"),
         ({"dt": True}, "dt must be a finite number"),
         ({"kp": 900.0 + 1j}, "kp must be a real"),
         ({"kp": np.full(7, 900.0 + 0j)}, "kp must be a real"),

@@ -29,6 +29,8 @@ _STATUS = {
     "PROXQP_NOT_RUN": "failed",
 }
 
+MIN_DT = 1e-6
+"""Shortest control period [s] (a 1 MHz loop; the constraints divide by ``dt**2``)."""
 MAX_DT = 1.0
 """Longest control period [s] the QP accepts (its constraints look one period ahead)."""
 MAX_HORIZON = 10.0
@@ -89,7 +91,7 @@ class QPController(ComputedTorque):
         robot: the robot (dynamics, limits ``q_min, q_max, v_max, tau_max``).
         kp: position gain, scalar or (nv,) [1/s^2], >= 0.
         kd: velocity gain, scalar or (nv,) [1/s], >= 0.
-        dt: control period [s], in (0, `MAX_DT`].
+        dt: control period [s], in [`MIN_DT`, `MAX_DT`].
         eps: torque regularisation weight [(rad/s^2)^2 / (N m)^2], in (0, `MAX_EPS`].
         position_horizon: look-ahead of the position constraint [s], in [dt,
             `MAX_HORIZON`]; None for dt.
@@ -144,7 +146,7 @@ class QPController(ComputedTorque):
             friction_velocity=friction_velocity,
         )
         n = self.nv
-        self.dt = check_float(dt, "dt", low=0.0, high=MAX_DT, low_open=True, unit="s")
+        self.dt = check_float(dt, "dt", low=MIN_DT, high=MAX_DT, unit="s")
         self.eps = check_float(eps, "eps", low=0.0, high=MAX_EPS, low_open=True)
         horizon = (
             self.dt

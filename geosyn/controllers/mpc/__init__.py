@@ -24,6 +24,7 @@ module                          holds
 `.nlp.options`                  `NLPOptions` (fatrop, IPOPT)
 `.nlp.problem`                  shooting problem -> NLP graph -> indexed NLP, one solve
 `.nlp.solvers`                  fatrop and IPOPT option builders, warm and cold solvers
+`.nlp.bounded`                  `BoundedSolver`: a solve within its time budget, signals heard
 `.nlp.builder`                  `OCPBuilder`: the tracking and open-loop NLPs from parts
 `.nlp.tracking`                 the fatrop/IPOPT backend (`NLPTracking`)
 `.nlp.open_loop`                the minimum-effort Riemannian OCP, `OpenLoopSolution`

@@ -6,12 +6,16 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from geosyn.core.errors import InvalidArgument
-from geosyn.core.validation import check_choice, check_int, check_positive
+from geosyn.core.validation import check_choice, check_float, check_int, check_positive
 
-__all__ = ["NLP_SOLVERS", "NLPOptions"]
+__all__ = ["MAX_ITER", "MIN_TOL", "NLP_SOLVERS", "NLPOptions"]
 
 NLP_SOLVERS = ("fatrop", "ipopt")
 """Interior-point plugins of ``casadi.nlpsol`` the family uses."""
+MIN_TOL = 1e-14
+"""Smallest ``tol`` (float64 resolution of O(1) residuals; below it a solve never converges)."""
+MAX_ITER = 1_000_000
+"""Largest ``max_iter`` (the wall-time budget bounds a solve anyway: `bounded`)."""
 
 
 @dataclass(frozen=True)
@@ -23,13 +27,13 @@ class NLPOptions:
     Attributes:
         solver: ``"fatrop"`` (interior point on the stage structure, Riccati) or
             ``"ipopt"`` (general sparse interior point).
-        tol: solver tolerance.
-        max_iter: iteration limit per solve.
+        tol: solver tolerance, in [`MIN_TOL`, 1].
+        max_iter: iteration limit per solve, in [1, `MAX_ITER`].
         mu_init: initial barrier parameter of cold solves.
         mu_warm: initial barrier parameter of warm-started solves.
         plugin_options: extra options of the plugin (fatrop or ipopt options, e.g.
-            ``{"max_iter": 1}``), applied last (they win); unknown keys are rejected by
-            the plugin at build time.
+            ``{"max_iter": 1}``), applied last (they win, unchecked by geosyn); unknown
+            keys are rejected by the plugin at build time.
 
     Raises:
         InvalidArgument: a value out of range (named).
@@ -49,8 +53,8 @@ class NLPOptions:
             )
         checked = {
             "solver": check_choice(self.solver, NLP_SOLVERS, "solver"),
-            "tol": check_positive(self.tol, "tol"),
-            "max_iter": check_int(self.max_iter, "max_iter", low=1),
+            "tol": check_float(self.tol, "tol", low=MIN_TOL, high=1.0),
+            "max_iter": check_int(self.max_iter, "max_iter", low=1, high=MAX_ITER),
             "mu_init": check_positive(self.mu_init, "mu_init"),
             "mu_warm": check_positive(self.mu_warm, "mu_warm"),
             "plugin_options": dict(self.plugin_options or {}),

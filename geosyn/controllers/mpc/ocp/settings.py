@@ -16,13 +16,16 @@ import numpy as np
 from geosyn.controllers.base import check_gain
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
-from geosyn.core.validation import check_choice, check_int, check_positive
+from geosyn.core.validation import check_choice, check_float, check_int, check_positive
 
 __all__ = [
     "CONTROLS",
     "DEFAULT_EFFORT_WEIGHT",
     "EFFORTS",
     "HESSIANS",
+    "MAX_HORIZON",
+    "MAX_STAGE_DT",
+    "MIN_STAGE_DT",
     "STATE_MARGIN",
     "TRACKINGS",
     "OCPSettings",
@@ -38,6 +41,13 @@ HESSIANS = ("gauss-newton", "exact")
 """Names accepted by ``GeodesicMPC(hessian=...)``."""
 TRACKINGS = ("euclidean", "metric")
 """Names accepted by ``GeodesicMPC(tracking=...)``."""
+MAX_HORIZON = 1000
+"""Most stages of the OCP (the NLP and its solver grow with the horizon: a graph of
+10^6 stages would take hours and gigabytes to build)."""
+MIN_STAGE_DT = 1e-6
+"""Shortest stage length [s]."""
+MAX_STAGE_DT = 1.0
+"""Longest stage length [s] (one RK4 step per stage: longer steps mean nothing)."""
 
 STATE_MARGIN = (0.1, 1.0)
 """How far a measured state may lie outside the OCP's state bounds and still be solved:
@@ -100,8 +110,8 @@ def ocp_settings(
 
     Args:
         nv: number of joints.
-        horizon: number of stages (integer >= 1).
-        dt: stage length [s] (> 0).
+        horizon: number of stages, in [1, `MAX_HORIZON`].
+        dt: stage length [s], in [`MIN_STAGE_DT`, `MAX_STAGE_DT`].
         control: one of `CONTROLS`.
         effort: one of `EFFORTS`, or None for the cheapest one the control allows.
         rk4_steps: 1 or 2.
@@ -115,8 +125,8 @@ def ocp_settings(
     Raises:
         InvalidArgument: a bad argument (named in the message, with what is allowed).
     """
-    N = check_int(horizon, "horizon", low=1)
-    dt_s = check_positive(dt, "dt", "s")
+    N = check_int(horizon, "horizon", low=1, high=MAX_HORIZON)
+    dt_s = check_float(dt, "dt", low=MIN_STAGE_DT, high=MAX_STAGE_DT, unit="s")
     control_ = check_choice(control, CONTROLS, "control")
     if effort is None:  # the cheapest effort each control mode allows
         effort = "acceleration" if control_ == "acceleration" else "torque"
