@@ -13,7 +13,12 @@ import pytest
 from conftest import get_metric, get_robot
 from geosyn.controllers.mpc import GeodesicMPC, NLPOptions
 from geosyn.controllers.mpc.nlp.options import MAX_ITER, MIN_TOL
-from geosyn.controllers.mpc.ocp.settings import MAX_HORIZON, MAX_STAGE_DT, MIN_STAGE_DT
+from geosyn.controllers.mpc.ocp.settings import (
+    MAX_HORIZON,
+    MAX_STAGE_DT,
+    MIN_STAGE_DT,
+    ocp_settings,
+)
 from geosyn.controllers.qp import MIN_DT, QPController
 from geosyn.core import InvalidArgument
 
@@ -71,3 +76,60 @@ def test_the_edges_are_accepted() -> None:
         get_robot("planar2"), get_metric("planar2"), horizon=3, dt=MAX_STAGE_DT, hessian="exact"
     )  # fmt: skip  (no compiled code: quick in a cold cache)
     assert mpc.dt == MAX_STAGE_DT and np.isfinite(mpc.dt)
+
+
+def _garbage(rng: np.random.Generator) -> object:
+    """One seeded draw of a numeric input, sensible or not."""
+    kind = int(rng.integers(9))
+    magnitude = 10.0 ** rng.uniform(-320, 308)
+    return [
+        magnitude,
+        -magnitude,
+        int(rng.integers(-(2**62), 2**62)),
+        10 ** int(rng.integers(0, 30)),
+        [math.nan, math.inf, -math.inf, 0.0, -0.0][int(rng.integers(5))],
+        bool(rng.integers(2)),
+        complex(magnitude, 1.0),
+        np.float32(rng.uniform(0, 2)),
+        str(rng.uniform(0, 1)),
+    ][kind]
+
+
+def _inside(x: object, low: float, high: float, integer: bool) -> bool:
+    if isinstance(x, bool | complex | str):
+        return False
+    if integer and not isinstance(x, int):
+        return False
+    return isinstance(x, int | float | np.floating) and low <= float(x) <= high
+
+
+def test_fuzz_bounds_one_error_type() -> None:
+    """600 seeded draws per argument: accepted exactly inside the stated range, else
+    InvalidArgument naming the argument; no other exception, no hang (nothing is built)."""
+    rng = np.random.default_rng(23)
+    checks = {
+        "horizon": (1, MAX_HORIZON, True),
+        "dt": (MIN_STAGE_DT, MAX_STAGE_DT, False),
+        "tol": (MIN_TOL, 1.0, False),
+        "max_iter": (1, MAX_ITER, True),
+    }
+    base = {"horizon": 10, "dt": 0.02}
+    for name, (low, high, integer) in checks.items():
+        accepted = refused = 0
+        for _ in range(600):
+            x = _garbage(rng)
+            try:
+                if name in base:
+                    args = {**base, name: x}
+                    ocp_settings(2, args["horizon"], args["dt"], "torque", None, 1,
+                                 1.0, 1.0, None, 1.0)  # fmt: skip
+                else:
+                    NLPOptions("ipopt", **{name: x})
+            except InvalidArgument as err:
+                assert str(err).startswith(f"{name} must be"), err
+                assert not _inside(x, low, high, integer), (name, x, err)
+                refused += 1
+            else:
+                assert _inside(x, low, high, integer), (name, x)
+                accepted += 1
+        assert accepted >= 3 and refused >= 300, (name, accepted, refused)  # both sides drawn
