@@ -185,3 +185,30 @@ def test_goal_validation_and_the_yaml_goal() -> None:
     with pytest.raises(ValueError, match="tolerance"):
         PlannedReference.model_validate({"type": "planned", "q_start": [0.0], "goal": {
             "position": [1.0, 0.0, 0.0], "tolerance": 0.1}})  # fmt: skip
+
+
+def test_a_redundant_arm_s_solution_is_nearest_the_start_in_the_metric() -> None:
+    """Panda position goal (4-D null space) near the start: the start-seeded solution is
+    a stationary point of ``(q - q0)^T M(q0) (q - q0)`` on the solution set (its
+    gradient has no component in the task's null space, projector from Pinocchio's
+    Jacobian and ``crba`` in the test) and no farther than the configuration the goal
+    came from."""
+    robot = load_robot("panda")
+    q0 = np.array([0.2, -0.5, 0.1, -2.0, 0.1, 1.8, 0.6])
+    q_goal = q0 + np.array([0.3, 0.2, -0.2, 0.3, 0.2, -0.2, 0.1])
+    target = fk(robot, q_goal, robot.ee_frame).translation
+    data = robot.model.createData()
+    W = pin.crba(robot.model, data, q0)
+    W = np.triu(W) + np.triu(W, 1).T
+    goal = EndEffectorGoal(tuple(target), position_tolerance=1e-5, solutions=1)
+    (sol,), _ = ik_solutions(robot, goal, q0, weight=W)
+    assert sol.start == "start"
+    q = sol.q
+    assert np.linalg.norm(fk(robot, q, robot.ee_frame).translation - target) <= 1e-5
+    J = pin.computeFrameJacobian(robot.model, data, q, robot.frame_id(robot.ee_frame),
+                                 pin.LOCAL_WORLD_ALIGNED)[:3]  # fmt: skip
+    W_inv = np.linalg.inv(W)
+    P = np.eye(7) - W_inv @ J.T @ np.linalg.solve(J @ W_inv @ J.T, J)
+    assert np.abs(P @ (q - q0)).max() <= 1e-3 * np.abs(q - q0).max()
+    energy = float((q - q0) @ W @ (q - q0))
+    assert energy <= float((q_goal - q0) @ W @ (q_goal - q0))

@@ -2,8 +2,10 @@
 
 `EndEffectorGoal` says where a frame of the robot should be; `ik_solutions` finds joint
 configurations that put it there: damped least squares on Pinocchio's frame Jacobian
-(position error, or the SE(3) log error with its Jacobian ``Jlog6``), each step projected
-on the joint limits, started from the query's start and then from seeded random
+(position error, or the SE(3) log error with its Jacobian ``Jlog6``) in the planner's
+metric at the start, each step projected on the joint limits, started from the query's
+start (then drawn towards it in the task's null space: a redundant arm's solution lies
+near the least straight-line energy on its branch) and then from seeded random
 configurations inside the limits; it keeps distinct solutions (>= `DISTINCT` rad apart,
 max-norm) that a caller's check accepts. `plan_to_goal` asks the planner for them (its
 check: within the joint limits, clear of the scene on the robot's own collision geometry
@@ -40,6 +42,8 @@ if TYPE_CHECKING:
 __all__ = [
     "DISTINCT",
     "IK_SHARE",
+    "NULL_GAIN",
+    "NULL_STEP",
     "TIGHTEN",
     "EndEffectorGoal",
     "IKSolution",
@@ -56,6 +60,13 @@ IK_SHARE = 0.25
 TIGHTEN = 0.01
 """IK iterates until its errors are within this fraction of the goal's tolerances (a
 solution is accepted within the tolerances themselves)."""
+
+NULL_GAIN = 0.5
+"""Fraction of the way to the reference configuration taken per IK step, in the task's
+null space."""
+
+NULL_STEP = 1e-4
+"""IK stops once its null-space step is below this (max-norm) [rad]."""
 
 
 @dataclass(frozen=True)
@@ -152,33 +163,65 @@ class IKSolution(NamedTuple):
     start: str
 
 
-def _solve(robot: Robot, goal: EndEffectorGoal, fid: int, q: np.ndarray,
-           iterations: int, damping: float) -> tuple[np.ndarray, float, float]:  # fmt: skip
-    """Damped least squares from ``q``, projected on the limits: (q, errors) at the first
-    iterate within `TIGHTEN` times the tolerances, else at the last one."""
-    model, data = robot.model, robot.model.createData()
-    lo, hi = robot.q_min, robot.q_max
-    oMd = goal.target()
+def _step(robot: Robot, goal: EndEffectorGoal, fid: int, data: pin.Data, q: np.ndarray,
+          damping: float, W_inv: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:  # fmt: skip
+    """At ``q``: (position error [m], orientation error [rad], the damped least-squares
+    step (n,) in the metric ``W_inv^-1``, the projector (n, n) on the task's null space)."""
+    model = robot.model
+    pin.forwardKinematics(model, data, q)
+    M = pin.updateFramePlacement(model, data, fid)
+    ep, eo = _errors(goal, M)
+    if goal.rotation is None:
+        e = M.translation - np.asarray(goal.position)
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
+    else:
+        dM = goal.target().actInv(M)
+        e = pin.log6(dM).vector
+        J = pin.Jlog6(dM) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
+    JWJ = J @ W_inv @ J.T
+    step = -W_inv @ J.T @ np.linalg.solve(JWJ + damping**2 * np.eye(len(e)), e)
+    # the projector from the undamped pseudo-inverse: a damped one would leak the
+    # null-space step into the task (a steady error of order damping^2)
+    projector = np.eye(len(q)) - W_inv @ J.T @ np.linalg.pinv(JWJ, rcond=1e-10) @ J
+    return ep, eo, step, projector
+
+
+def _solve(robot: Robot, goal: EndEffectorGoal, fid: int, q: np.ndarray, iterations: int,
+           damping: float, q_ref: np.ndarray | None, W: np.ndarray) -> tuple[np.ndarray, float, float]:  # fmt: skip
+    """Damped least squares from ``q`` in the metric ``W`` (n, n), each step projected on
+    the limits, to within `TIGHTEN` times the tolerances; then, from a solution within
+    them, unless ``q_ref`` is None, steps towards ``q_ref`` (n,) [rad] in the task's
+    null space (`NULL_GAIN`),
+    keeping the iterate within the tolerances nearest ``q_ref`` in ``W``, until the
+    null-space step is below `NULL_STEP`. Returns (q, errors): that iterate, or the
+    last one when none is within the tolerances."""
+    data, lo, hi = robot.model.createData(), robot.q_min, robot.q_max
+    W_inv = np.linalg.inv(W)
+
+    def limited(dq: np.ndarray) -> np.ndarray:
+        size = float(np.linalg.norm(dq))  # keep steps inside the linearisation's reach
+        return dq * (0.5 / size) if size > 0.5 else dq
+
     ep = eo = math.inf
     for _ in range(iterations):
-        pin.forwardKinematics(model, data, q)
-        M = pin.updateFramePlacement(model, data, fid)
-        ep, eo = _errors(goal, M)
+        ep, eo, step, _ = _step(robot, goal, fid, data, q, damping, W_inv)
         if ep <= TIGHTEN * goal.position_tolerance and eo <= TIGHTEN * goal.orientation_tolerance:
             break
-        if goal.rotation is None:
-            e = M.translation - oMd.translation
-            J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
-        else:
-            dM = oMd.actInv(M)
-            e = pin.log6(dM).vector
-            J = pin.Jlog6(dM) @ pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL)
-        dq = -J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(len(e)), e)
-        step = float(np.linalg.norm(dq))
-        if step > 0.5:  # keep steps inside the linearisation's reach
-            dq *= 0.5 / step
-        q = np.clip(q + dq, lo, hi)
-    return q, ep, eo
+        q = np.clip(q + limited(step), lo, hi)
+    if q_ref is None or ep > goal.position_tolerance or eo > goal.orientation_tolerance:
+        return q, ep, eo
+    best, best_cost = (q, ep, eo), float((q - q_ref) @ W @ (q - q_ref))
+    for _ in range(iterations):
+        null = NULL_GAIN * (q_ref - q)
+        ep, eo, step, projector = _step(robot, goal, fid, data, q, damping, W_inv)
+        null = projector @ null
+        cost = float((q - q_ref) @ W @ (q - q_ref))
+        if ep <= goal.position_tolerance and eo <= goal.orientation_tolerance and cost < best_cost:
+            best, best_cost = (q, ep, eo), cost
+        if float(np.abs(null).max()) <= NULL_STEP:
+            break
+        q = np.clip(q + limited(step + null), lo, hi)
+    return best
 
 
 def ik_solutions(
@@ -192,6 +235,7 @@ def ik_solutions(
     damping: float = 1e-2,
     seed: int = 0,
     deadline: float = math.inf,
+    weight: np.ndarray | None = None,
 ) -> tuple[list[IKSolution], list[str]]:
     """Up to ``goal.solutions`` distinct configurations reaching ``goal``.
 
@@ -207,6 +251,12 @@ def ik_solutions(
         damping: damping of the least-squares step (Levenberg-Marquardt), > 0.
         seed: seed of the random initial configurations.
         deadline: ``time.perf_counter()`` [s] after which no new start is tried.
+        weight: (n, n) symmetric positive-definite metric of the joint steps (e.g. the
+            planner's metric at ``q_start``) from ``q_start``; None: the identity (the
+            random starts always use it). Within the task's null space the solution
+            from ``q_start`` is drawn towards it in this metric, to near a local minimum of ``(q - q_start)^T weight (q - q_start)``
+            on its branch of solutions (the straight-line energy from the start, for
+            the kinetic-energy metric).
 
     Returns:
         (the solutions in the order found, one line per distinct refused solution
@@ -216,6 +266,10 @@ def ik_solutions(
         raise InvalidArgument(f"robot: IK goals need a fixed-base robot with nq = nv, "
                               f"got {robot.name!r} (nq {robot.nq}, nv {robot.nv})")  # fmt: skip
     fid = goal.frame_id(robot)
+    q_ref = np.clip(np.asarray(q_start, dtype=float), robot.q_min, robot.q_max)
+    W = np.eye(robot.nv) if weight is None else np.asarray(weight, dtype=float)
+    if W.shape != (robot.nv, robot.nv) or not np.all(np.isfinite(W)):
+        raise InvalidArgument(f"weight: a finite ({robot.nv}, {robot.nv}) matrix, got {W.shape}")
     rng = np.random.default_rng(seed)
     found: list[IKSolution] = []
     refused: list[str] = []
@@ -223,9 +277,12 @@ def ik_solutions(
     for k in range(check_int(restarts, "restarts", low=1)):
         if len(found) >= goal.solutions or (k and time.perf_counter() > deadline):
             break
-        init = np.clip(np.asarray(q_start, dtype=float), robot.q_min, robot.q_max)
-        init = init if k == 0 else robot.random_q(rng)
-        q, ep, eo = _solve(robot, goal, fid, init, iterations, damping)
+        init = q_ref if k == 0 else robot.random_q(rng)
+        # only the start's solution is drawn towards the start, in the metric: drawn
+        # too, the random starts' solutions gathered on fewer branches (measured)
+        start = k == 0  # the random starts step in joint space (identity metric)
+        q, ep, eo = _solve(robot, goal, fid, init, iterations, damping,
+                           q_ref if start else None, W if start else np.eye(robot.nv))  # fmt: skip
         if ep > goal.position_tolerance or eo > goal.orientation_tolerance:
             continue
         if any(np.abs(q - other).max() < DISTINCT for other in seen):
@@ -274,7 +331,8 @@ def plan_to_goal(planner: Planner, q0: np.ndarray, goal: EndEffectorGoal,
     planner.term.set_obstacles(obstacles)
     planner._check_end(q0, "start")
     sols, refused = ik_solutions(planner.robot, goal, q0, accept=_acceptor(planner),
-                                 seed=seed, deadline=t0 + IK_SHARE * budget)  # fmt: skip
+                                 seed=seed, deadline=t0 + IK_SHARE * budget,
+                                 weight=planner.metric.G(q0))  # fmt: skip
     frame = goal.frame if goal.frame is not None else planner.robot.ee_frame
     if not sols:
         raise GoalUnreachable(
