@@ -216,6 +216,47 @@ def test_planned_reference_goes_around_the_box_the_geodesic_goes_through(tmp_pat
     np.testing.assert_allclose(q_ref[-1], data["reference"]["goal"], atol=1e-6)
 
 
+def test_planned_reference_to_an_end_effector_position_in_yaml(tmp_path):
+    """``goal: {position: ...}``: the run's reference ends where Pinocchio's forward
+    kinematics puts the end effector within the goal's tolerance, clear of the box."""
+    import pinocchio as pin
+
+    from geosyn.robots import load_robot
+
+    robot = load_robot("ur5")
+    q_goal = np.array([1.2, -1.0, 1.3, -1.9, -1.57, 0.0])
+    data_pin = robot.model.createData()
+    frame = robot.model.getFrameId(robot.ee_frame)
+    pin.framesForwardKinematics(robot.model, data_pin, q_goal)
+    target = data_pin.oMf[frame].translation.copy()
+    data = {
+        "name": "planned_ee",
+        "kind": "tracking",
+        "robot": {"name": "ur5"},
+        "scene": {
+            "obstacles": [
+                {"type": "box", "center": [0.45, 0.45, 0.2], "half_extents": [0.08, 0.08, 0.08]}
+            ]
+        },
+        "reference": {
+            "type": "planned",
+            "q_start": [0.0, -1.2, 1.6, -1.9, -1.57, 0.0],
+            "goal": {"position": target.tolist(), "position_tolerance": 0.002},
+            "duration": 2.0,
+            "rest_to_rest": True,
+        },
+        "controllers": [{"type": "qp", "kp": 900.0, "kd": 60.0}],
+        "simulation": {"duration": 2.1, "control_dt": 0.002},
+        "outputs": {"plots": False, "csv": False},
+    }
+    run = run_experiment(validate_config(data), tmp_path / "p", progress=False, quiet=True)
+    with np.load(run.path / "results.npz") as d:
+        q_end = d["qp__q_ref"][-1]
+    pin.framesForwardKinematics(robot.model, data_pin, q_end)
+    assert np.linalg.norm(data_pin.oMf[frame].translation - target) <= 0.002 + 1e-9
+    assert run.summary["planned_clearance"] >= 0.005  # half the planner's 1 cm margin
+
+
 def test_sections_a_kind_does_not_read_are_named():
     from geosyn.experiments.procedures import PROCEDURES
     from geosyn.experiments.procedures.base import ignored_sections

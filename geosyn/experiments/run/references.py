@@ -286,7 +286,7 @@ def planned_reference(
         )
     planner = Planner(metric, capacity=max(1, len(obstacles)), margin=ref.margin, nodes=ref.nodes)
     plan = planner.plan(
-        np.array(ref.q_start), np.array(ref.goal), obstacles, budget=ref.budget, seed=seed
+        np.array(ref.q_start), ref.planner_goal(), obstacles, budget=ref.budget, seed=seed
     )
     t = np.asarray(plan.result.t, dtype=np.float64)
     t = (t - t[0]) * (ref.duration / (t[-1] - t[0]))
