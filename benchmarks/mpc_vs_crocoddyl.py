@@ -35,8 +35,10 @@ What is compared, on the same problem and the same plant:
   (``--croc-threads``; see ``croc_runner.THREADS`` for why); see its docstring.
 - geosyn (`run_geosyn`): ``GeodesicMPC(control="torque")`` with its defaults (since
   issue 21 the default torque-level solver is box-DDP, ``solver=None``, and the
-  joint-limit guard is on): box-DDP with compiled RK4-on-ABA Jacobians and Riccati
-  steps, one warm-started iteration per solve, its Riccati feedback saturated at the
+  joint-limit guard is on): box-DDP whose backward pass (RK4-on-ABA Jacobians, Riccati
+  recursion, box QP) is the hand-written C of `geosyn.controllers.mpc.ddp.native`
+  (``DDPOptions(backward="native")``, the default; the summary's ``solver`` says which
+  backward pass ran), one warm-started iteration per solve, its Riccati feedback saturated at the
   torque limits between solves (``effort="torque"``), every torque through the
   joint-limit guard (`geosyn.controllers.limit_guard`; its cost is in the timed call).
   ``--geosyn-option solver=fatrop`` times the interior-point solver instead
@@ -261,7 +263,9 @@ def run_geosyn(side: GeosynSide, ref: ReferenceSamples, scenario: str, horizon: 
         roll, model
     )
     summary["guard_ticks"] = int(mpc.command.count)
-    summary["solver"] = mpc.solver_options.name
+    options = mpc.solver_options
+    backward = getattr(options, "backward", None)  # DDPOptions: "native" or "casadi"
+    summary["solver"] = options.name + (f" ({backward} backward)" if backward else "")
     return summary
 
 

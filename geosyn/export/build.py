@@ -33,7 +33,8 @@ def find_c_compiler(compiler: str | None = None) -> str:
 
 
 #: Flags of a second build of the MPC's solver code for CPUs with AVX2 and FMA (x86-64),
-#: chosen at run time by the driver (``c/geosyn_ddp_avx2.c``; its fused multiply-adds
+#: chosen at run time by the driver (``geosyn_ddp_avx2.c`` of
+#: `geosyn.controllers.mpc.ddp.native`; its fused multiply-adds
 #: round differently: torques within ~1e-13 of the baseline build's).
 AVX2_FLAGS = ("-mavx2", "-mfma", "-ffp-contract=fast")
 

@@ -6,7 +6,8 @@ solver's own closed-loop rollout and rollout step (the shifted tail of a warm st
 mass matrix (the gains of a cold solve's first rollout), RNEA plus the file's viscous
 joint damping ``D v`` (the reference torques and the computed-torque fallback, as the
 Python MPC adds it; the file's dry friction is fed forward as there), and the per-stage functions of the backward pass
-(`geosyn.export.ddp_functions`), which the hand-written ``c/geosyn_ddp.c`` chains into
+(`geosyn.controllers.mpc.ddp.native.functions`), which the hand-written ``geosyn_ddp.c``
+(`geosyn.controllers.mpc.ddp.native`, the same file the Python solver runs) chains into
 the RK4 Jacobians and the Riccati recursion with the box QP (loops over small dense
 matrices: several times less code, and faster, than CasADi's unrolled form of the whole
 pass). The driver (``c/geosyn_mpc.c``) does what `GeodesicMPC` does around them, with the
@@ -24,23 +25,24 @@ import numpy as np
 from geosyn.controllers import GeodesicMPC
 from geosyn.controllers.mpc.ddp import riccati
 from geosyn.controllers.mpc.ddp.box_qp import BOX_ITERATIONS
+from geosyn.controllers.mpc.ddp.native.functions import (
+    dynamics_function,
+    inverse_jacobian_function,
+    stage_box_function,
+    terminal_function,
+)
 from geosyn.controllers.mpc.ddp.options import DDPOptions
 from geosyn.controllers.mpc.ddp.parameters import DDPCosts, split_parameters
 from geosyn.controllers.mpc.ddp.tracking import DDPTracking
 from geosyn.controllers.mpc.ocp.dynamics import FRICTION_VELOCITY, joint_friction
 from geosyn.controllers.mpc.ocp.plan import EPS_T
 from geosyn.controllers.mpc.ocp.settings import STATE_MARGIN
-from geosyn.export.ddp_functions import (
-    dynamics_function,
-    inverse_jacobian_function,
-    stage_box_function,
-    terminal_function,
-)
 from geosyn.export.errors import ExportError
 from geosyn.export.law import LAW_FUNCTION, ControlLaw
 from geosyn.robots.symbolic import crba, rnea
 
-#: C files of the MPC driver (copied from ``c/``) and of its generated functions.
+#: C files of the MPC driver (copied from ``c/`` and, the solver's,
+#: `geosyn.controllers.mpc.ddp.native.C_DIR`) and of its generated functions.
 MPC_TEMPLATES = ("geosyn_mpc.c", "geosyn_mpc.h", "geosyn_ddp.c", "geosyn_ddp.h")
 MPC_FUNCTIONS = "geosyn_mpc_fun"
 #: The solver code's second build for AVX2 CPUs (x86-64 compilers only; see
@@ -56,7 +58,7 @@ class MPCFunctions(NamedTuple):
         step: ``(x, xb, ub, k, K, alpha, xr, tr, P) -> (u, xn, cost)``, one stage.
         crba: ``q -> M (n, n)``.
         dyn, drnea, stage, terminal: the backward pass's functions
-            (`geosyn.export.ddp_functions`).
+            (`geosyn.controllers.mpc.ddp.native.functions`).
         P: the parameter vector the Python solver uses.
     """
 
@@ -128,7 +130,7 @@ def mpc_functions(ctl: GeodesicMPC) -> MPCFunctions:
         dynamics_function(ctl.robot),
         inverse_jacobian_function(ctl.robot),
         stage_box_function(n, costs, P.size),
-        terminal_function(solver.parts),
+        terminal_function(n, costs),
         P,
     )
 

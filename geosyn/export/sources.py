@@ -11,12 +11,15 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from geosyn.controllers.mpc.ddp.native import C_DIR
 from geosyn.export.errors import ExportError
 from geosyn.export.law import LAW_FUNCTION, ControlLaw
 from geosyn.export.samples import ReferenceSamples
 
-#: The hand-written C files shipped with the package and copied into every export.
+#: The hand-written C files shipped with the package and copied into every export: the
+#: driver's, and the DDP solver's own (one copy, used by geosyn's Python solver too).
 TEMPLATE_DIR = Path(__file__).resolve().parent / "c"
+TEMPLATE_DIRS = (TEMPLATE_DIR, C_DIR)
 DRIVER_FILES = ("geosyn_controller.h", "geosyn_controller.c")
 CONFIG_HEADER = "geosyn_controller_config.h"
 _LAW_IDS = {"computed_torque": 1, "riemannian_pd": 2, "ddp_mpc": 3}
@@ -98,9 +101,15 @@ def generate_law(
 
 
 def copy_templates(out_dir: Path, names: Iterable[str]) -> list[Path]:
-    """Copy the hand-written C files ``names`` from `TEMPLATE_DIR` into ``out_dir``."""
+    """Copy the hand-written C files ``names`` from `TEMPLATE_DIRS` (the first that
+    holds each) into ``out_dir``."""
     out = []
     for name in names:
-        shutil.copyfile(TEMPLATE_DIR / name, out_dir / name)
+        source = next((d / name for d in TEMPLATE_DIRS if (d / name).is_file()), None)
+        if source is None:
+            raise ExportError(
+                f"the C file {name!r} is in none of {[str(d) for d in TEMPLATE_DIRS]}"
+            )
+        shutil.copyfile(source, out_dir / name)
         out.append(out_dir / name)
     return out

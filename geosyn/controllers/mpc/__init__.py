@@ -34,6 +34,8 @@ module                          holds
 `.ddp.parts`                    compiled stage functions: linearisation, Riccati step, ...
 `.ddp.riccati`                  `RiccatiSolver`: backward and forward passes, line search
 `.ddp.tracking`                 the box-DDP backend (`DDPTracking`)
+`.ddp.native.functions`         the small generated functions of the native backward pass
+`.ddp.native.library`           the hand-written C backward pass (default), compiled, cached
 `.families`                     ``solver=`` names and the backend builder of each options class
 `.follow`                       `PlanFollower`: a plan between solves, the fallback torque
 `.controller`                   `GeodesicMPC`: re-solves, warm starts, fallbacks

@@ -14,6 +14,9 @@ from pydantic import Field
 
 from geosyn.controllers import ComputedTorque, GeodesicMPC, QPController, RiemannianPD
 from geosyn.controllers.mpc import DDPOptions, NLPOptions
+from geosyn.controllers.mpc.nlp.options import MAX_ITER as NLP_MAX_ITER
+from geosyn.controllers.mpc.nlp.options import MIN_TOL as NLP_MIN_TOL
+from geosyn.controllers.mpc.ocp.settings import MAX_HORIZON, MAX_STAGE_DT, MIN_STAGE_DT
 from geosyn.controllers.whole_body import WholeBodyController
 from geosyn.experiments.schema.section import Section, python_defaults
 from geosyn.experiments.schema.values import Gain, NonNegFloat, PositiveFloat
@@ -84,8 +87,8 @@ class NLPSolverConfig(Section):
     builds = (NLPOptions,)
     parameter_names = {"type": "solver"}
     type: Literal["fatrop", "ipopt"]
-    tol: PositiveFloat = _NLP["tol"]
-    max_iter: Iterations = _NLP["max_iter"]
+    tol: Annotated[float, Field(ge=NLP_MIN_TOL, le=1.0)] = _NLP["tol"]
+    max_iter: Annotated[int, Field(ge=1, le=NLP_MAX_ITER)] = _NLP["max_iter"]
     mu_init: PositiveFloat = _NLP["mu_init"]
     mu_warm: PositiveFloat = _NLP["mu_warm"]
     plugin_options: dict[str, bool | int | float | str] | None = _NLP["plugin_options"]
@@ -98,7 +101,7 @@ class NLPSolverConfig(Section):
 class DDPSolverConfig(Section):
     """`DDPOptions` of the MPC's ``solver`` (``type: ddp``; torque control and effort):
     cold-solve tolerance and iterations, warm iterations, soft-limit and clearance
-    weights, control regularisation."""
+    weights, control regularisation, backward pass (native C or CasADi's graph)."""
 
     builds = (DDPOptions,)
     type: Literal["ddp"]
@@ -108,6 +111,7 @@ class DDPSolverConfig(Section):
     limit_weight: PositiveFloat = _DDP["limit_weight"]
     regularisation: PositiveFloat = _DDP["regularisation"]
     clearance_weight: PositiveFloat = _DDP["clearance_weight"]
+    backward: Literal["native", "casadi"] = _DDP["backward"]
 
     def build(self) -> DDPOptions:
         """The options object."""
@@ -138,8 +142,8 @@ class MPCConfig(_ControllerBase):
     builds = (GeodesicMPC,)
     to_python = {"solver": _solver_options}
     type: Literal["mpc"]
-    horizon: Annotated[int, Field(ge=1, le=1000)] = _MPC["horizon"]
-    dt: PositiveFloat = _MPC["dt"]
+    horizon: Annotated[int, Field(ge=1, le=MAX_HORIZON)] = _MPC["horizon"]
+    dt: Annotated[float, Field(ge=MIN_STAGE_DT, le=MAX_STAGE_DT)] = _MPC["dt"]
     solver: Literal["fatrop", "ipopt", "ddp"] | SolverConfig | None = _MPC["solver"]
     q_weight: NonNegFloat = _MPC["q_weight"]
     v_weight: NonNegFloat = _MPC["v_weight"]

@@ -4,9 +4,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_int, check_positive
 
-__all__ = ["DDPOptions"]
+__all__ = ["BACKWARDS", "DDPOptions"]
+
+BACKWARDS = ("native", "casadi")
+"""The backward passes of `DDPOptions.backward`."""
 
 
 @dataclass(frozen=True)
@@ -27,6 +31,12 @@ class DDPOptions:
         clearance_weight: weight of the clearance penalty [1/m^2] (``clearance_margin``;
             1e6 keeps a 3 cm margin to within 2 mm on the panda test scene, 1e8 made
             that closed loop unstable).
+        backward: how the backward pass runs: ``"native"`` (default), the hand-written C
+            loops over small dense blocks (``native/geosyn_ddp.c``, the code the C export
+            runs; several times faster for 7 joints, and a far shorter first compile), or
+            ``"casadi"``, CasADi's unrolled graph of the same mathematics
+            (`geosyn.controllers.mpc.ddp.riccati.backward_graph`: the reference the native
+            pass is tested against). Both agree up to rounding.
 
     Raises:
         InvalidArgument: a value out of range (named).
@@ -38,6 +48,7 @@ class DDPOptions:
     limit_weight: float = 1e6
     regularisation: float = 1e-9
     clearance_weight: float = 1e6
+    backward: str = "native"
 
     def __post_init__(self) -> None:
         checked = {
@@ -48,6 +59,11 @@ class DDPOptions:
             "regularisation": check_positive(self.regularisation, "regularisation"),
             "clearance_weight": check_positive(self.clearance_weight, "clearance_weight"),
         }
+        if self.backward not in BACKWARDS:
+            raise InvalidArgument(
+                f"backward: {self.backward!r} is not a DDP backward pass; allowed: "
+                + ", ".join(repr(b) for b in BACKWARDS)
+            )
         for name, value in checked.items():
             object.__setattr__(self, name, value)
 

@@ -65,6 +65,7 @@ __all__ = [
     "make_functions",
     "riccati_step",
     "stage_function",
+    "terminal_cost",
 ]
 
 SX_RICCATI_MAX_JOINTS = 12
@@ -76,15 +77,16 @@ class DDPParts(NamedTuple):
     inputs and outputs.
 
     Attributes:
-        lin: ``ddp_lin: (x (2n,), u (n,)) -> (A (2n, 2n), B (2n, n))``.
+        lin: ``ddp_lin: (x (2n,), u (n,)) -> (A (2n, 2n), B (2n, n))`` (None: built
+            without the backward pass's functions, ``ddp_parts(with_backward=False)``).
         riccati: ``ddp_riccati: (Vx, Vxx, A, B, x, u, xr, tr, P) -> (Vx_prev, Vxx_prev,
-            k, K, dV (2,))``.
+            k, K, dV (2,))`` (None as ``lin``).
         forward: ``ddp_forward: (x, xb, ub, k, K, alpha, xr, tr, P) -> (u, xn, cost)``.
         terminal: ``ddp_terminal: (x, xr, P) -> (cost, Vx, Vxx)``.
     """
 
-    lin: ca.Function
-    riccati: ca.Function
+    lin: ca.Function | None
+    riccati: ca.Function | None
     forward: ca.Function
     terminal: ca.Function
 
@@ -171,7 +173,9 @@ def riccati_step(n: int, sym: Any = None, costs: DDPCosts | None = None) -> ca.F
     )
 
 
-def _terminal(n: int, costs: DDPCosts) -> ca.Function:
+def terminal_cost(n: int, costs: DDPCosts) -> ca.Function:
+    """``ddp_terminal: (x, xr, P) -> (cost, Vx, Vxx)``, the terminal cost and its
+    Gauss-Newton derivatives (SX)."""
     nx = 2 * n
     x, xr = ca.SX.sym("x", nx), ca.SX.sym("xr", nx)
     P = ca.SX.sym("P", n_parameters(n, costs.clearance))
@@ -208,16 +212,15 @@ def _forward(n: int, F: ca.Function, costs: DDPCosts) -> ca.Function:
     )  # fmt: skip
 
 
-def make_functions(robot: Robot, dt: float, rk4_steps: int, costs: DDPCosts) -> list[ca.Function]:
-    """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation)."""
+def make_functions(
+    robot: Robot, dt: float, rk4_steps: int, costs: DDPCosts, with_backward: bool = True
+) -> list[ca.Function]:
+    """The four stage functions of `DDPParts` (builds CasADi graphs; no compilation);
+    ``with_backward`` False: only ``ddp_forward`` and ``ddp_terminal``."""
     F = rk4_step(robot, dt, rk4_steps, gravity=True).F
     n = robot.nv
-    return [
-        rk4_linearisation(robot, dt, rk4_steps),
-        riccati_step(n, costs=costs),
-        _forward(n, F, costs),
-        _terminal(n, costs),
-    ]
+    backward = [rk4_linearisation(robot, dt, rk4_steps), riccati_step(n, costs=costs)]
+    return [*(backward if with_backward else []), _forward(n, F, costs), terminal_cost(n, costs)]
 
 
 _NAMES = ("ddp_lin", "ddp_riccati", "ddp_forward", "ddp_terminal")
@@ -243,6 +246,7 @@ def ddp_parts(
     *,
     compiled: bool = True,
     progress: Callable[[str], None] | None = None,
+    with_backward: bool = True,
 ) -> DDPParts:
     """The stage functions of the DDP solver, compiled through the recipe cache.
 
@@ -257,21 +261,29 @@ def ddp_parts(
         costs: the effort, tracking and clearance (`DDPCosts`, its ``robot`` this one).
         compiled: False: the same functions on CasADi's virtual machine (no compiler).
         progress: receives progress lines of a first build.
+        with_backward: False: without ``ddp_lin`` and ``ddp_riccati`` (None in the
+            result), for a solver that runs the native backward pass
+            (`geosyn.controllers.mpc.ddp.native`): a far shorter first build.
 
     Raises:
         CodegenError: no compiler, or compiling/loading failed (only when ``compiled``).
     """
     if not compiled:
         return DDPParts(*make_functions(robot, dt, rk4_steps, costs))
+    names = _NAMES if with_backward else _NAMES[2:]
     tags = [costs.effort] + (["metric_tracking"] if costs.tracking == "metric" else [])
     tags += [] if costs.clearance is None else ["clearance"]
     name = re.sub(r"\W", "_", "_".join(["geosyn_ddp", robot.name, *tags]))
+    name += "" if with_backward else "_rollout"
     digest = "" if costs.clearance is None else clearance_digest(costs.clearance)
+    part = () if with_backward else ("rollout",)
     lib = compile_recipe(
         name,
-        _recipe(robot, dt, rk4_steps, costs.effort, costs.tracking, digest),
-        lambda: make_functions(robot, dt, rk4_steps, costs),
-        load=list(_NAMES),
+        _recipe(robot, dt, rk4_steps, costs.effort, costs.tracking, digest, *part),
+        lambda: make_functions(robot, dt, rk4_steps, costs, with_backward),
+        load=list(names),
         progress=progress,
     )
-    return DDPParts(*(lib[k] for k in _NAMES))
+    return DDPParts(
+        lib.get("ddp_lin"), lib.get("ddp_riccati"), lib["ddp_forward"], lib["ddp_terminal"]
+    )

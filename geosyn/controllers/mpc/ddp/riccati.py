@@ -31,6 +31,7 @@ import numpy as np
 
 from geosyn.controllers.mpc.ddp.parts import DDPParts
 from geosyn.core.calls import numpy_function
+from geosyn.core.errors import InvalidArgument
 
 __all__ = [
     "LINE_SEARCH_STEPS",
@@ -85,6 +86,10 @@ class RiccatiSolver:
             by ``1 + max |u|`` [-].
         max_iter: iteration limit of cold solves.
         warm_iterations: iterations of a warm solve (full steps, no line search).
+        backward: the backward pass (attribute ``backward``), a function with the inputs and outputs of
+            `backward_graph` (e.g. the native C pass,
+            `geosyn.controllers.mpc.ddp.native.native_backward`); None: `backward_graph`
+            on ``parts``.
     """
 
     def __init__(
@@ -97,10 +102,12 @@ class RiccatiSolver:
         tol: float,
         max_iter: int,
         warm_iterations: int,
+        backward: ca.Function | None = None,
     ) -> None:
         self.N, self.n, self.P = N, n, np.asarray(P, dtype=np.float64)
         self.tol, self.max_iter, self.warm_iterations = tol, max_iter, warm_iterations
-        self._backward = _matrix_function(backward_graph(parts, N, n), N, (0,))
+        self.backward = backward_graph(parts, N, n) if backward is None else backward
+        self._backward = _matrix_function(self.backward, N, (0,))
         self._forward = _matrix_function(forward_graph(parts, N, n), N, (1,))
         self._zero_k = np.zeros((n, N))
         self._zero_K = np.zeros((n, 2 * n * N))
@@ -255,6 +262,11 @@ def _inputs(N: int, n: int, n_p: int) -> _Inputs:
 def backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     """``(X, U, XR, TR, P) -> (k (n, N), K (n, 2n N), dV (2,))`` (MX, N calls per piece)."""
     nx = 2 * n
+    if parts.lin is None or parts.riccati is None:
+        raise InvalidArgument(
+            "parts: built without the backward pass's stage functions (ddp_parts("
+            "with_backward=False)); build them with with_backward=True"
+        )
     s = _inputs(N, n, parts.riccati.size1_in("P"))
     A_all, B_all = parts.lin.map(N)(s.X[:, :N], s.U)
     end = parts.terminal(x=s.X[:, N], xr=s.XR[:, N], P=s.P)
@@ -281,7 +293,7 @@ def backward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
 def forward_graph(parts: DDPParts, N: int, n: int) -> ca.Function:
     """``(x0, X, U, k, K, alpha, XR, TR, P) -> (X', U', cost)`` (MX, N forward steps)."""
     nx = 2 * n
-    s = _inputs(N, n, parts.riccati.size1_in("P"))
+    s = _inputs(N, n, parts.forward.size1_in("P"))
     x0, k_all, K_all = ca.MX.sym("x0", nx), ca.MX.sym("k", n, N), ca.MX.sym("K", n, nx * N)
     alpha = ca.MX.sym("alpha")
     x, xs, us, cost = x0, [x0], [], ca.MX(0)

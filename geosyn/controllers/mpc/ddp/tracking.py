@@ -14,6 +14,7 @@ clearance penalty (`geosyn.controllers.mpc.ocp.penalties.ClearancePenalty`).
 from __future__ import annotations
 
 import math
+import re
 from typing import NamedTuple
 
 import casadi as ca
@@ -21,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from geosyn.controllers.mpc.backend import TrackingProblem
+from geosyn.controllers.mpc.ddp.native import native_backward
 from geosyn.controllers.mpc.ddp.options import DDPOptions
 from geosyn.controllers.mpc.ddp.parameters import DDPCosts, parameter_vector
 from geosyn.controllers.mpc.ddp.parts import DDPParts, ForwardInputs, ddp_parts
@@ -151,18 +153,38 @@ class DDPTracking:
         n_obstacle = 0 if self._slots is None else self._slots.values().size
         self._obstacles = slice(P.size - n_obstacle, P.size)
         costs = DDPCosts(robot, problem.metric, s.effort, s.tracking, clearance)
+        native = compiled and options.backward == "native"
         parts = ddp_parts(
-            robot, s.dt, s.rk4_steps, costs, compiled=compiled, progress=problem.progress
-        )
+            robot, s.dt, s.rk4_steps, costs, compiled=compiled, progress=problem.progress,
+            with_backward=not native,
+        )  # fmt: skip
         self._costs, self._rk4_steps, self._robot = costs, s.rk4_steps, robot
+        backward = None
+        if options.backward == "native":
+            backward = self._native(problem, compiled, P.size)
         self.solver = RiccatiSolver(
             parts, s.N, n, P, tol=options.tol, max_iter=options.max_iter,
-            warm_iterations=options.warm_iterations,
+            warm_iterations=options.warm_iterations, backward=backward,
         )  # fmt: skip
         self._model, self._data = robot.model, robot.model.createData()
         self._pd = np.hstack([np.diag(problem.kp), np.diag(problem.kd)])  # (n, 2n)
         self._step = numpy_function(parts.forward)
         self._zero_K = np.zeros((n, 2 * n))
+
+    def _native(self, problem: TrackingProblem, compiled: bool, n_p: int) -> ca.Function | None:
+        """The native backward pass (`geosyn.controllers.mpc.ddp.native`), or None (the
+        CasADi graph's) when the stage functions are not compiled, recorded in
+        ``notes``."""
+        if not compiled:
+            self.notes["backward"] = (
+                "DDP backward pass: CasADi's graph on its VM (the native C pass needs a C compiler)"
+            )
+            return None
+        s, robot = problem.settings, problem.robot
+        name = re.sub(r"\W", "_", f"geosyn_ddp_native_{robot.name}_{s.effort}_{s.tracking}")
+        return native_backward(
+            robot, s.dt, s.rk4_steps, s.N, self._costs, n_p, name=name, progress=problem.progress
+        )
 
     @property
     def parameters(self) -> np.ndarray:

@@ -1,4 +1,6 @@
-/* geosyn_ddp.c: the backward pass of the exported box-DDP MPC (hand-written).
+/* geosyn_ddp.c: the backward pass of the box-DDP MPC (hand-written), used by geosyn's
+ * Python solver (geosyn_ddp_casadi.c, geosyn.controllers.mpc.ddp.native) and by the
+ * exported C MPC (geosyn.export copies this file).
  *
  * The same mathematics as geosyn's Python solver (geosyn.controllers.mpc.ddp: riccati.py
  * backward_graph, parts.py riccati_step, box_qp.py; geosyn.controllers.mpc.ocp.rk4
@@ -371,6 +373,7 @@ void geosyn_ddp_backward(geosyn_ddp_work* w, const double* X, const double* U,
     }
 }
 
+#ifndef GEOSYN_DDP_BACKWARD_ONLY /* geosyn's Python solver rolls out in its own code */
 double geosyn_ddp_rollout(geosyn_ddp_work* w, const double* x0, const double* Xb,
                           const double* Ub, const double* k, const double* K, double alpha,
                           const double* XR, const double* TR, const double* P, double* X,
@@ -382,3 +385,4 @@ double geosyn_ddp_rollout(geosyn_ddp_work* w, const double* x0, const double* Xb
     geosyn_mpc_rollout(w->arg, w->res, w->iw, w->w, 0);
     return cost;
 }
+#endif

@@ -1,6 +1,7 @@
-/* geosyn_ddp.h: the backward pass of the exported box-DDP MPC (internal; not the stable
- * C API). geosyn_mpc.c owns one geosyn_ddp_work and calls geosyn_ddp_backward and
- * geosyn_ddp_rollout (or their AVX2 builds). */
+/* geosyn_ddp.h: the backward pass of the box-DDP MPC (internal; not the stable C API).
+ * The exported driver (geosyn.export's geosyn_mpc.c) owns one geosyn_ddp_work and calls
+ * geosyn_ddp_backward and geosyn_ddp_rollout (or their AVX2 builds); geosyn's Python
+ * solver calls geosyn_ddp_backward through geosyn_ddp_casadi.c. */
 #ifndef GEOSYN_DDP_H
 #define GEOSYN_DDP_H
 #include "geosyn_controller_config.h"

@@ -1,6 +1,7 @@
-"""The generated per-stage functions of the exported DDP backward pass.
+"""The generated per-stage functions of the hand-written DDP backward pass.
 
-The C backward pass (``c/geosyn_ddp.c``) runs the Python solver's backward pass
+The C backward pass (``geosyn_ddp.c`` beside this file; geosyn's Python solver and the C
+export both use it) runs the Python solver's backward pass
 (`geosyn.controllers.mpc.ddp.riccati.backward_graph`: the RK4 step's Jacobians, then the
 Riccati recursion with the box QP) as loops over small dense matrices; CasADi generates
 only what is specific to the robot and the costs:
@@ -26,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from geosyn.controllers.mpc.ddp.parameters import DDPCosts, torque_box
-from geosyn.controllers.mpc.ddp.parts import DDPParts, stage_function
+from geosyn.controllers.mpc.ddp.parts import stage_function, terminal_cost
 from geosyn.controllers.mpc.ocp.dynamics import joint_damping
 from geosyn.robots import symbolic
 from geosyn.robots.robot import Robot
@@ -92,10 +93,12 @@ def stage_box_function(n: int, costs: DDPCosts, n_p: int) -> ca.Function:
     )
 
 
-def terminal_function(parts: DDPParts) -> ca.Function:
-    """``geosyn_mpc_terminal``: the solver's own ``ddp_terminal`` without its cost."""
-    ins = parts.terminal.sx_in()
-    out = parts.terminal.call(ins)
+def terminal_function(n: int, costs: DDPCosts) -> ca.Function:
+    """``geosyn_mpc_terminal: (x, xr, P) -> (Vx, Vxx)``: the solver's own terminal cost's
+    derivatives (`geosyn.controllers.mpc.ddp.parts.terminal_cost`) without its value."""
+    terminal = terminal_cost(n, costs)
+    ins = terminal.sx_in()
+    out = terminal.call(ins)
     return ca.Function(
         "geosyn_mpc_terminal", ins, [ca.densify(out[1]), ca.densify(out[2])], ["x", "xr", "P"],
         ["Vx", "Vxx"], {"cse": True},
