@@ -119,3 +119,21 @@ def test_native_ddp_converges_to_ipopts_solution() -> None:
 def test_unknown_backward_is_refused() -> None:
     with pytest.raises(InvalidArgument, match="backward"):
         DDPOptions(backward="fast")
+
+
+def test_cold_solves_regularise_the_regularisation_also_with_obstacles() -> None:
+    """With obstacles the clearance's parameters follow the regularisation in ``P``: the
+    index the cold solve's Levenberg-Marquardt steps raise holds
+    ``DDPOptions.regularisation`` (the obstacle slots' values come after it)."""
+    from geosyn.world import Sphere
+
+    robot, metric, ref = _arm()
+    ball = Sphere((2.0, 0.0, 0.5), 0.05)
+    mpc = GeodesicMPC(
+        robot, metric, horizon=3, dt=0.02, control="torque", reference=ref,
+        solver=DDPOptions(regularisation=3e-9), obstacles=[ball], clearance_margin=0.03,
+        joint_limit_guard=False,
+    )  # fmt: skip
+    solver = _ddp(mpc).solver
+    assert solver.P[solver.reg_index] == 3e-9
+    assert solver.reg_index < solver.P.size - 1 and solver.P[-1] != 3e-9

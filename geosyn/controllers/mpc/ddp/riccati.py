@@ -29,6 +29,7 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 
+from geosyn.controllers.mpc.ddp.parameters import split_parameters
 from geosyn.controllers.mpc.ddp.parts import DDPParts
 from geosyn.core.calls import numpy_function
 from geosyn.core.errors import InvalidArgument
@@ -106,6 +107,8 @@ class RiccatiSolver:
     ) -> None:
         self.N, self.n, self.P = N, n, np.asarray(P, dtype=np.float64)
         self.tol, self.max_iter, self.warm_iterations = tol, max_iter, warm_iterations
+        # the regularisation's place in P (not the last entry with obstacles)
+        self.reg_index = int(split_parameters(np.arange(self.P.size), n).reg[0])
         self.backward = backward_graph(parts, N, n) if backward is None else backward
         self._backward = _matrix_function(self.backward, N, (0,))
         self._forward = _matrix_function(forward_graph(parts, N, n), N, (1,))
@@ -168,7 +171,8 @@ class RiccatiSolver:
         """Roll the guess out (with ``K_guess``), then iterate with a line search and
         Levenberg-Marquardt regularisation until converged (see `solve`)."""
         P = self.P.copy()
-        base_reg = float(P[-1])
+        reg = self.reg_index
+        base_reg = float(P[reg])
         scale = 1.0 + float(np.max(np.abs(Ub))) if Ub.size else 1.0
         K0 = self._zero_K if K_guess is None else _stack_gains(K_guess)
         X, U, c = self._forward(x0, Xb, Ub, self._zero_k, K0, 0.0, XR, TR, P)
@@ -191,11 +195,11 @@ class RiccatiSolver:
                 if -float(dV[0]) <= ROUNDING * max(cost, 1.0):
                     status = "converged (no decrease left above rounding)"
                     return self._result(Xb, Ub, K, cost, it + 1, status, True)
-                if P[-1] >= MAX_REGULARISATION:
+                if P[reg] >= MAX_REGULARISATION:
                     return self._failed(Xb, Ub, it + 1, "line search failed")
-                P[-1] = max(100.0 * P[-1], 1e-6)  # Levenberg-Marquardt: shorter steps
+                P[reg] = max(100.0 * P[reg], 1e-6)  # Levenberg-Marquardt: shorter steps
                 continue
-            P[-1] = max(0.1 * P[-1], base_reg)
+            P[reg] = max(0.1 * P[reg], base_reg)
             step = float(np.max(np.abs(alpha * k))) if k.size else 0.0
             Xb, Ub, cost = X.copy(), U.copy(), c_new
             if step <= self.tol * scale:
