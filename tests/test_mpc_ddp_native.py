@@ -6,16 +6,19 @@ both, the DDP's converged solve on the native path equals IPOPT's solve of the s
 
 from __future__ import annotations
 
+import fnmatch
 import functools
 import itertools
 from pathlib import Path
 
 import numpy as np
 import pytest
+import tomllib
 
 from geosyn.controllers import GeodesicMPC, GeodesicReference
 from geosyn.controllers.mpc import DDPOptions, NLPOptions
 from geosyn.controllers.mpc.ddp import DDPTracking
+from geosyn.controllers.mpc.ddp.native import C_DIR
 from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.robots import Robot, load_robot
@@ -137,3 +140,15 @@ def test_cold_solves_regularise_the_regularisation_also_with_obstacles() -> None
     solver = _ddp(mpc).solver
     assert solver.P[solver.reg_index] == 3e-9
     assert solver.reg_index < solver.P.size - 1 and solver.P[-1] != 3e-9
+
+
+def test_the_c_files_ship_as_package_data() -> None:
+    """Every C file of the native backward pass (which the Python solver compiles and
+    the export copies) is matched by pyproject's package-data of its package."""
+    root = Path(__file__).resolve().parents[1]
+    config = tomllib.loads((root / "pyproject.toml").read_text())
+    patterns = config["tool"]["setuptools"]["package-data"]["geosyn.controllers.mpc.ddp.native"]
+    files = sorted(p.name for p in C_DIR.iterdir() if p.suffix in (".c", ".h"))
+    assert {"geosyn_ddp.c", "geosyn_ddp.h", "geosyn_ddp_casadi.c"} <= set(files)
+    missing = [f for f in files if not any(fnmatch.fnmatch(f, p) for p in patterns)]
+    assert not missing, missing
