@@ -45,7 +45,9 @@ class DDPGraphs(NamedTuple):
         parts: the stage functions (`DDPParts`: ``lin``, ``riccati``, ``forward``,
             ``terminal``) on CasADi's virtual machine.
         backward: ``(X (2n, N+1), U (n, N), XR (2n, N+1), TR (n, N), P) -> (k (n, N),
-            K (n, 2n N), dV (2,))``, one backward pass over the horizon.
+            K (n, 2n N), dV (2,))``, one backward pass over the horizon (CasADi's graph;
+            with ``DDPOptions(backward="native")`` the solver runs the hand-written C of
+            `geosyn.controllers.mpc.ddp.native` instead, equal up to rounding).
         rollout: ``(x0, X_bar, U_bar, k, K, alpha, XR, TR, P) -> (X, U, cost)``, one
             closed-loop rollout.
         P: (n_p,) a copy of the parameter vector the solver uses
