@@ -47,8 +47,10 @@ __all__ = [
     "compile_function",
     "compile_library",
     "compile_recipe",
+    "compile_source",
     "default_cache_dir",
     "find_compiler",
+    "generate_source",
 ]
 
 DEFAULT_FLAGS: tuple[str, ...] = ("-O2",)
@@ -104,8 +106,12 @@ def _require_compiler(compiler: str | None) -> str:
     return cc
 
 
-def _generate_source(name: str, functions: Sequence[ca.Function]) -> str:
-    """C source of ``functions`` in one file named after ``name``."""
+def generate_source(name: str, functions: Sequence[ca.Function]) -> str:
+    """C source of the CasADi ``functions`` in one file named after ``name`` (no header).
+
+    Raises:
+        CodegenError: CasADi could not generate C for one of them.
+    """
     try:
         gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
         for fun in functions:
@@ -198,7 +204,7 @@ def _compile_cached(
     fun: ca.Function, cache_dir: Path, flags: tuple[str, ...], compiler: str | None
 ) -> ca.Function:
     name = fun.name()
-    source = _generate_source(name, [fun])
+    source = generate_source(name, [fun])
     return _build_cached(name, source, [name], cache_dir, flags, compiler)[name]
 
 
@@ -267,6 +273,41 @@ def _build_cached(
     return {n: _load(n, library) for n in load}
 
 
+def compile_source(
+    name: str,
+    source: str,
+    load: Sequence[str],
+    *,
+    flags: Sequence[str],
+    cache_dir: str | os.PathLike[str] | None = None,
+    compiler: str | None = None,
+) -> dict[str, ca.Function]:
+    """Compile a C ``source`` written for CasADi's external-function interface (e.g.
+    `generate_source` output plus hand-written C) through the disk cache, and load the
+    functions ``load`` back (as :func:`compile_library` does for CasADi functions).
+
+    Args:
+        name: library name, a C identifier (the cache file starts with it).
+        source: the whole C file.
+        load: names of the functions to load back.
+        flags: compiler flags besides ``-shared -fPIC`` (part of the cache key).
+        cache_dir: folder of the compiled libraries; default :func:`default_cache_dir`.
+        compiler: C compiler executable; default :func:`find_compiler`.
+
+    Returns:
+        ``{function name: casadi.Function}`` for the names in ``load``.
+
+    Raises:
+        InvalidArgument: ``name`` is not a C identifier.
+        CodegenError: no compiler, compilation or loading failed.
+    """
+    if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
+        raise InvalidArgument(f"name: {name!r} is not a C identifier")
+    return _build_cached(
+        name, source, list(load), _resolve_cache_dir(cache_dir), tuple(flags), compiler
+    )
+
+
 def compile_library(
     name: str,
     functions: Sequence[ca.Function],
@@ -323,7 +364,7 @@ def compile_library(
     unknown = sorted(set(wanted) - set(names))
     if unknown:
         raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
-    source = _generate_source(name, funs)
+    source = generate_source(name, funs)
     if flags is None:
         flags = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
     return _build_cached(
@@ -387,7 +428,7 @@ def compile_recipe(
     start = time.perf_counter()
     report(f"{name}: building the symbolic functions (first use; cached afterwards)")
     funs = list(make_functions())
-    source = _generate_source(name, funs)
+    source = generate_source(name, funs)
     used = tuple(flags) if flags is not None else None
     if used is None:
         used = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS

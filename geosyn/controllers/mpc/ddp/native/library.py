@@ -32,9 +32,7 @@ from geosyn.controllers.mpc.ddp.native.functions import (
     terminal_function,
 )
 from geosyn.controllers.mpc.ddp.parameters import DDPCosts, split_parameters
-from geosyn.core.cache_folder import resolve_cache_dir
-from geosyn.core.codegen import CodegenError, _build_cached
-from geosyn.core.codegen import _generate_source as generate_source
+from geosyn.core.codegen import CodegenError, compile_source, generate_source
 from geosyn.robots.robot import Robot
 
 __all__ = [
@@ -160,9 +158,7 @@ def native_backward(
     start = time.perf_counter()
     source = native_source(robot, dt, rk4_steps, N, costs, n_p)
     try:
-        lib = _build_cached(
-            name, source, [NATIVE_FUNCTION], resolve_cache_dir(None), compile_flags(), None
-        )
+        lib = compile_source(name, source, [NATIVE_FUNCTION], flags=compile_flags())
     except OSError as err:
         raise CodegenError(f"could not build the native DDP backward pass {name}: {err}") from err
     elapsed = time.perf_counter() - start
