@@ -20,7 +20,10 @@ from geosyn.controllers.mpc.ocp.settings import (
     ocp_settings,
 )
 from geosyn.controllers.qp import MIN_DT, QPController
-from geosyn.core import InvalidArgument
+from geosyn.core import GeosynError, InvalidArgument
+from geosyn.experiments import load_config
+from geosyn.experiments.cli import main
+from geosyn.experiments.errors import ConfigError
 
 BAD_MPC = [
     {"horizon": 10**12},  # was std::bad_alloc after minutes of graph building
@@ -133,3 +136,31 @@ def test_fuzz_bounds_one_error_type() -> None:
                 assert _inside(x, low, high, integer), (name, x)
                 accepted += 1
         assert accepted >= 3 and refused >= 300, (name, accepted, refused)  # both sides drawn
+
+
+MPC_SET = "controllers=[{type: mpc, %s}]"
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("horizon", "1000000000000"),
+        ("dt", "1.0e+300"),
+        ("dt", "1.0e-300"),
+        ("solver", "{type: fatrop, tol: 1.0e-300}"),
+        ("solver", "{type: ipopt, max_iter: 1000000000}"),
+    ],
+)
+def test_schema_refuses_them_naming_the_field(field: str, value: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        load_config("ur5_tracking", [MPC_SET % f"{field}: {value}"])
+    assert isinstance(err.value, GeosynError) and f"controllers.0.{field}" in str(err.value)
+
+
+def test_geosyn_schema_states_the_bounds(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["schema", "mpc"]) == 0
+    out = capsys.readouterr().out
+    assert f"horizon: int >= 1, <= {MAX_HORIZON}" in out
+    assert f"dt: float >= {MIN_STAGE_DT:g}, <= {MAX_STAGE_DT:g}" in out
+    assert f"tol: float >= {MIN_TOL:g}, <= 1.0" in out
+    assert f"max_iter: int >= 1, <= {MAX_ITER}" in out
