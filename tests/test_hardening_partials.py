@@ -76,6 +76,7 @@ def test_a_later_run_removes_a_killed_runs_partial(tmp_path: Path) -> None:
     assert _hidden(tmp_path) == []  # its lock file too (taken and released)
 
 
+@pytest.mark.slow  # ~5-9 s: two runs in subprocesses
 def test_geosyn_clean_keeps_a_live_writer(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

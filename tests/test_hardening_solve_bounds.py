@@ -160,6 +160,7 @@ def _wait_inside_solve(proc: subprocess.Popen[str], folder: Path, limit: float =
         time.sleep(0.05)
 
 
+@pytest.mark.slow  # ~8 s: a subprocess imports geosyn and builds the NLP
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_geosyn_run_stops_on_sigterm_inside_a_solve(tmp_path: Path) -> None:
     """SIGTERM while the MPC's first solve (endless: fatrop's max_iter 10^9, budget 10^5 s):
