@@ -122,7 +122,8 @@ def test_alternative_seeds_find_both_sides_and_keep_the_lowest_energy() -> None:
     assert single.seed == "straight line" and single.result.kind == "constrained"
     planner = Planner(metric, capacity=2, nodes=24, margin=0.01, alternatives=2)
     plan = planner.plan(q0, q1, obstacles, budget=20.0, seed=2)
-    assert plan.attempts[-1].startswith("kept the lowest-energy of 3 plans")
+    # the sampled first plan, the straight line's and two alternatives
+    assert plan.attempts[-1].startswith("kept the lowest-energy of 4 plans")
     energies = [float(e) for e in plan.attempts[-1].split("energies ")[1].rstrip(")").split(", ")]
     assert max(energies) > 1.1 * min(energies)  # another homotopy class was found
     assert plan.result.energy <= single.result.energy * (1 + 1e-9)
@@ -141,16 +142,20 @@ def test_coarse_to_fine_plan_equals_the_direct_one(planner: Planner) -> None:
     tip = (np.cos(mid[0]) + np.cos(mid.sum()), np.sin(mid[0]) + np.sin(mid.sum()), 0.0)
     obstacles = [Sphere(tip, 0.15)]
     plan = planner.plan(q0, q1, obstacles, budget=20.0)
-    assert plan.attempts[0].startswith("coarse collocation (4 segments, 3 constrained")
-    assert plan.attempts[1].startswith("collocation from the coarse path: minimum-energy")
+    assert plan.attempts[0].startswith("sampled plan: ")  # the anytime first plan
+    assert plan.attempts[1].startswith("coarse collocation (4 segments, 3 constrained")
+    assert plan.attempts[2].startswith("collocation from the coarse path: minimum-energy")
     # then only the alternative seeds of the homotopy rule (alternatives=2 by default)
     assert all(("RRT-Connect" in a) or a.startswith(("kept", "alternative seeds"))
                or "from other seeds" in a
-               for a in plan.attempts[2:]), plan.attempts  # fmt: skip
+               for a in plan.attempts[3:]), plan.attempts  # fmt: skip
     assert plan.seed == "straight line" and plan.result.kind == "constrained"
     direct = Planner(KineticEnergyMetric(ROBOT), capacity=2, nodes=24, margin=0.01,
                      coarse_nodes=0, alternatives=0).plan(q0, q1, obstacles, budget=20.0)  # fmt: skip
-    assert direct.attempts == ("collocation from the straight line: " + direct.result.message,)
+    assert direct.attempts[0].startswith("sampled plan: ")
+    assert direct.attempts[1] == "collocation from the straight line: " + direct.result.message
+    assert all(a.startswith("kept") or "from other seeds" in a
+               for a in direct.attempts[2:]), direct.attempts  # fmt: skip
     np.testing.assert_allclose(plan.result.nodes, direct.result.nodes, atol=1e-5)
     assert plan.result.iterations < direct.result.iterations
     exact = [planner.term.min_clearance(q) for q in densify(plan.q, 64)]

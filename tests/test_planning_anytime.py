@@ -1,21 +1,36 @@
 """Anytime plans (issue 22): when a budget ends before any solve converges, the planner
-returns the lowest-energy unfinished path that passes its checks, as kind "feasible".
+returns the lowest-energy unfinished path that passes its checks, as kind "feasible";
+at small budgets a sampled plan (RRT-Connect on the spheres, shortened in the metric,
+verified exactly) comes first.
 
-Reference: the exact sphere-obstacle clearances of `ObstacleTerm.clearances` on the
-returned path checked 16x finer, and the midpoint-rule energy summed in the test.
+References: the exact sphere-obstacle clearances of `ObstacleTerm.clearances` on the
+returned path checked 16x finer, and the midpoint-rule energy summed in the test;
+Pinocchio's own URDF collision model with coal distances (the small-budget plan); coal's
+distance at every configuration by brute force (the batched exact check); Pinocchio's
+joint placements and closed-form distances (`SphereCheck`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Callable
+from pathlib import Path
 
+import coal
 import numpy as np
+import pinocchio as pin
+import pytest
 
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
-from geosyn.metrics.planning.planner import densify
-from geosyn.robots import load_robot
-from geosyn.world import Box
+from geosyn.metrics.planning.exact_path import checked_configurations, path_clearance
+from geosyn.metrics.planning.planner import ANYTIME_SLACK, densify
+from geosyn.metrics.planning.smoothing import metric_shortcut, segment_lengths
+from geosyn.metrics.planning.sphere_check import SphereCheck
+from geosyn.robots import Robot, load_robot
+from geosyn.world import Box, HalfSpace, Sphere
+from geosyn.world.exact_clearance import coal_shape
 
 ROBOT = dataclasses.replace(
     load_robot("planar2"), q_min=np.full(2, -np.pi), q_max=np.full(2, np.pi)
@@ -43,3 +58,146 @@ def test_anytime_keeps_the_lowest_energy_path_that_passes_the_checks() -> None:
     energy = (len(detour) - 1) * sum(d @ metric.G(m) @ d for d, m in zip(dq, mid, strict=True))
     assert abs(plan.result.energy - energy) < 1e-12 * energy
     assert planner._anytime([(line, "line")], 0.0, []) is None  # nothing passes: none
+
+
+# --- anytime at small budgets: a sampled, verified first plan (issue 22) ---------------
+
+HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+BLOCK = Box((0.36, 0.0, 0.52), (0.05, 0.05, 0.05))  # where the hand passes at joint 1 = 0
+
+
+@pytest.fixture(scope="module")
+def panda() -> tuple[Robot, Planner, np.ndarray, np.ndarray]:
+    robot = load_robot("panda")
+    planner = Planner(KineticEnergyMetric(robot), capacity=1)
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.9, 0.9  # the straight line swings the hand through the block
+    return robot, planner, q0, q1
+
+
+def _mesh_referee(robot: Robot, obstacle: Box) -> Callable[[np.ndarray], float]:
+    """Smallest coal distance [m] at ``q`` between Pinocchio's own collision model of the
+    Panda's URDF (its meshes as coal BVHs) and ``obstacle`` (a coal box); -1 when they
+    intersect."""
+    urdf = Path(str(robot.source_file))
+    model = pin.buildModelFromUrdf(str(urdf))
+    share = [str(p) for p in urdf.parents if p.name == "share"]
+    gm = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=share)
+    data, gd = model.createData(), gm.createData()
+    box = coal.CollisionObject(
+        coal.Box(*(2.0 * np.asarray(obstacle.half_extents))),
+        coal.Transform3s(np.eye(3), np.asarray(obstacle.center, dtype=float)),
+    )
+
+    assert list(model.names[8:]) == ["panda_finger_joint1", "panda_finger_joint2"]
+
+    def distance(q: np.ndarray) -> float:  # the fingers closed (0 m), as the robot's
+        pin.updateGeometryPlacements(model, data, gm, gd, np.concatenate([q, np.zeros(2)]))
+        out = math.inf
+        for g, M in zip(gm.geometryObjects, gd.oMg, strict=True):
+            obj = coal.CollisionObject(g.geometry, coal.Transform3s(M.rotation, M.translation))
+            req, res = coal.CollisionRequest(), coal.CollisionResult()
+            if coal.collide(obj, box, req, res):
+                return -1.0
+            out = min(out, coal.distance(obj, box, coal.DistanceRequest(), coal.DistanceResult()))
+        return out
+
+    return distance
+
+
+def _metric_length(metric: KineticEnergyMetric, path: np.ndarray) -> float:
+    dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
+    return float(sum(math.sqrt(d @ metric.G(m) @ d) for d, m in zip(dq, mid, strict=True)))
+
+
+def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda) -> None:  # type: ignore[no-untyped-def]
+    """At a 0.1 s budget the plan is the best verified path found by then: clear of the
+    URDF's meshes by Pinocchio's own geometry model and coal (checked every 0.005 rad,
+    independent of the planner's checker), its reported first feasible time within the
+    budget's 10 %, and no shorter in the metric than the collocation of a long budget
+    (a local minimum of the energy near the same path: tolerance 1 %)."""
+    robot, planner, q0, q1 = panda
+    referee = _mesh_referee(robot, BLOCK)
+    assert referee(0.5 * (q0 + q1)) < 0.0  # the straight line collides
+    plan = planner.plan(q0, q1, [BLOCK], budget=0.1)
+    assert plan.first_feasible_time <= ANYTIME_SLACK * 0.1  # as the plan reports it
+    assert plan.exact_clearance >= 0.0
+    dense = checked_configurations(plan.q, 0.005)
+    assert min(referee(q) for q in dense) > 0.0
+    long = planner.plan(q0, q1, [BLOCK], budget=20.0)
+    assert long.result.kind == "constrained" and long.seed != "sampled"
+    metric = planner.metric
+    assert _metric_length(metric, plan.q) >= 0.99 * _metric_length(metric, long.q)  # type: ignore[arg-type]
+
+
+def test_batched_exact_check_equals_coal_at_every_configuration(panda) -> None:  # type: ignore[no-untyped-def]
+    """The batched, best-first exact path check returns coal's smallest distance over
+    every (configuration, collision object, obstacle) of the path at its resolution,
+    computed here by brute force (no bounding balls), on seeded random paths."""
+    robot, planner, q0, q1 = panda
+    exact = planner.exact
+    obstacles = [BLOCK, Sphere((0.3, 0.3, 0.4), 0.08)]
+    exact.set_obstacles(obstacles)
+    world = [coal.CollisionObject(*_coal_obstacle(ob)) for ob in obstacles]
+    hulls = [coal_shape(o) for o in exact.objects]
+    data = robot.model.createData()
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        path = np.array([q0, 0.5 * (q0 + q1) + rng.normal(0.0, 0.3, 7), q1])
+        got = path_clearance(exact, path, 0.03)
+        brute = math.inf
+        for q in checked_configurations(path, 0.03):
+            pin.forwardKinematics(robot.model, data, q)
+            for o, h in zip(exact.objects, hulls, strict=True):
+                j = robot.joint_id(o.joint) if o.joint != "universe" else 0
+                M = data.oMi[j] * pin.SE3(o.placement)
+                obj = coal.CollisionObject(h, coal.Transform3s(M.rotation, M.translation))
+                for w in world:
+                    d = coal.distance(obj, w, coal.DistanceRequest(), coal.DistanceResult())
+                    brute = min(brute, d)
+        assert brute < exact.near
+        assert abs(got.clearance - brute) < 1e-9
+
+
+def _coal_obstacle(ob: Box | Sphere) -> tuple[object, object]:
+    if isinstance(ob, Sphere):
+        return coal.Sphere(ob.radius), coal.Transform3s(np.eye(3), np.asarray(ob.center))
+    return coal.Box(*(2.0 * np.asarray(ob.half_extents))), coal.Transform3s(
+        np.asarray(ob.rotation), np.asarray(ob.center)
+    )
+
+
+def test_sphere_check_is_the_sphere_distances() -> None:
+    """`SphereCheck` (batched) vs each sphere placed by Pinocchio and its closed-form
+    distance to a ball and a floor, at seeded configurations."""
+    robot = load_robot("panda")
+    spheres = robot.collision_spheres()
+    check = SphereCheck(robot, spheres)
+    ball, floor = Sphere((0.4, 0.1, 0.3), 0.1), HalfSpace((0.0, 0.0, 1.0), 0.05)
+    check.set_obstacles([ball, floor])
+    Q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (20, 7))
+    data = robot.model.createData()
+    for q, got in zip(Q, check.clearances(Q), strict=True):
+        pin.forwardKinematics(robot.model, data, q)
+        want = math.inf
+        for s in spheres:
+            c = data.oMi[robot.joint_id(s.joint)].act(np.asarray(s.center))
+            to_ball = float(np.linalg.norm(c - np.asarray(ball.center))) - ball.radius
+            want = min(want, to_ball - s.radius, c[2] - 0.05 - s.radius)
+        assert abs(got - want) < 1e-12
+
+
+def test_metric_shortcut_keeps_ends_validity_and_never_lengthens() -> None:
+    """On planar2 round a post: the shortened path has the same ends, stays valid on a
+    16x finer check and is no longer in the metric (midpoint rule, 64 pieces a segment)."""
+    metric = KineticEnergyMetric(ROBOT)
+    planner = Planner(metric, capacity=1, nodes=12, coarse_nodes=0)
+    planner.term.set_obstacles([POST])
+    q0, q1 = np.array([-0.8, 0.3]), np.array([0.8, -0.3])
+    path = densify(np.array([q0, [0.0, 2.6], q1]), 6)  # free, far round the post
+    assert np.all(planner.valid(densify(path, 16)))
+    short = metric_shortcut(planner.valid, metric, path, budget=5.0, seed=1)
+    np.testing.assert_array_equal(short[[0, -1]], path[[0, -1]])
+    assert np.all(planner.valid(densify(short, 16)))
+    fine = segment_lengths(metric, path, 64).sum()
+    assert segment_lengths(metric, short, 64).sum() < 0.95 * fine

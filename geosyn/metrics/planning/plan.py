@@ -19,16 +19,22 @@ class Plan(NamedTuple):
         result: the collocation result (path, kind, energy, clearance, ...).
         seed: the global seed of the final collocation: ``"straight line"`` (directly,
             or through a coarse collocation: ``attempts`` says which) or
-            ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed), or
+            ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed),
+            ``"sampled"``: RRT-Connect's path on the spheres (or the straight line when
+            free on them) shortened in the metric, no NLP (``result`` of kind
+            ``"feasible"``; `geosyn.metrics.planning.query`), or
             ``"anytime"``: the budget ended before any solve converged, and this is the
             lowest-energy interrupted iterate or seed that passed every check (``result``
             of kind ``"feasible"``).
         check_clearance: smallest clearance [m] on the path checked ``check_factor``
             times finer than its samples (linear in between), by the constraints' smooth
-            minimum (at most ``log(n_spheres) / softmin`` below the exact one).
+            minimum (at most ``log(n_spheres) / softmin`` below the exact one; for a
+            ``"sampled"`` plan the exact sphere distances).
         wall_time: wall-clock time of the query [s].
         attempts: one line per method tried.
-        fine_clearance: the same, checked at most ``check_step`` apart in joint space.
+        fine_clearance: the same, checked at most ``check_step`` apart in joint space
+            (NaN for a ``"sampled"`` plan of a robot with file geometry: the exact
+            check decides).
         exact_clearance: smallest signed distance [m] between the robot's own collision
             geometry (its file's meshes and primitives, `geosyn.world.exact_clearance`)
             and the obstacles along the path, linear between samples, checked at most

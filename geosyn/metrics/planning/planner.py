@@ -42,7 +42,7 @@ import functools
 import math
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -56,6 +56,7 @@ from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import COARSE_TO_FINE, REFINEMENTS, Query
 from geosyn.metrics.planning.self_collision import SelfCollision
+from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.metrics.planning.verify import (
     check_end,
     exact_check,
@@ -165,6 +166,7 @@ class Planner:
             warnings.warn(f"Planner: {self.geometry_note}", UserWarning, stacklevel=2)
         self.term = ObstacleTerm((), capacity=capacity, spheres=spheres, distance=distance)
         self.term.bind(robot)
+        self.sphere_check = SphereCheck(robot, spheres)
         self.margin = check_float(margin, "margin", low=0.0)
         self.nodes = check_int(nodes, "nodes", low=2)
         self.check_factor = check_int(check_factor, "check_factor", low=1)
@@ -189,11 +191,20 @@ class Planner:
         self.build_time = time.perf_counter() - t0
 
     def _build_nlps(self) -> None:
-        """Build the NLPs every query of the current slot count uses."""
+        """Build the NLPs every query of the current slot count uses (and the clearance
+        function of its `bounds`)."""
+        if self.term.capacity not in self._collocations_built():
+            self.term.clearances(
+                np.clip(np.zeros(self.metric.n), self.robot.q_min, self.robot.q_max)
+            )
         self.collocation(self.nodes)
         if self.coarse_nodes:
             self.collocation(self.coarse_nodes, self.coarse_subdivisions)
             self.collocation(self.nodes).solver(self.seeded_mu_init)
+
+    def _collocations_built(self) -> set[int]:
+        """Slot counts with a collocation built."""
+        return {key[0] for key in self._collocations}
 
     def slots(self, count: int) -> int:
         """Obstacle slots of the NLPs a query with ``count`` obstacles solves: the
@@ -249,19 +260,34 @@ class Planner:
             )  # fmt: skip
         return self._collocations[key]
 
-    def check(self, path: np.ndarray) -> tuple[float, float]:
+    def check(
+        self, path: np.ndarray, smooth: bool = True, fine: bool = True
+    ) -> tuple[float, float]:
         """Smallest clearances [m] of ``path`` (T, n), linear between its samples, checked
-        ``check_factor`` times finer, and at most ``check_step`` apart (2-norm)."""
+        ``check_factor`` times finer, and at most ``check_step`` apart (2-norm; NaN when
+        not ``fine``: a sampled plan that the exact check decides): by the constraints'
+        smooth minimum, or (``smooth`` False, for sampled plans, a few times cheaper) the
+        exact sphere distances (`SphereCheck`)."""
         path = np.asarray(path, dtype=float)
         step = float(np.linalg.norm(np.diff(path, axis=0), axis=1).max(initial=0.0))
         factor = max(self.check_factor, math.ceil(step / self.check_step))
-        clearances = self.collocation(self.nodes).node_clearances
+        clearances: Callable[[np.ndarray], np.ndarray] = self.collocation(
+            self.nodes
+        ).node_clearances
+        if not smooth:
+            self.sphere_check.set_obstacles(self.term.obstacles)
+            clearances = self.sphere_check.clearances
         coarse = float(clearances(densify(path, self.check_factor)).min())
+        if not fine:
+            return coarse, math.nan
         return coarse, float(clearances(densify(path, factor)).min())
 
     def valid(self, Q: np.ndarray) -> np.ndarray:
-        """(K,) True where the configurations ``Q`` (K, n) keep clearance >= margin / 2."""
-        return self.collocation(self.nodes).node_clearances(Q) >= 0.5 * self.margin
+        """(K,) True where the configurations ``Q`` (K, n) keep clearance >= margin / 2
+        (exact sphere distances to the query's obstacles, `SphereCheck`: a few times
+        cheaper than the collocation's clearance function, for sampling)."""
+        self.sphere_check.set_obstacles(self.term.obstacles)
+        return self.sphere_check.clearances(Q) >= 0.5 * self.margin
 
     COARSE_RAMP = 0.25
     """Fraction of the path over which the coarse clearance bound rises from the start's

@@ -1,5 +1,16 @@
 """`Query`: one planning query of a `Planner`, from a checked start and goal to a `Plan`.
 
+Anytime: a query first makes a plan without an NLP (`Query.sampled`): RRT-Connect on
+the planner's spheres (within `SAMPLED_SEARCH`; the straight line when it is free on
+them), shortened in the metric (`geosyn.metrics.planning.smoothing`, at most
+`SAMPLED_SHORTCUT` of the budget) and verified like every plan (the exact check
+decides); the collocation stages then get the time left (when less than
+`MIN_COLLOCATION` is left after a verified sampled plan: none, the sampled path is
+shortened further and verified again instead), and the kept plan is the best verified one by the homotopy rule below (the
+sampled plan is one of the "other seeds": never kept when longer than the straight
+line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
+found.
+
 The query's clock, the list of what was tried and the unfinished paths kept for an
 anytime return live here; the planner (its NLPs, checks and clearance bounds) is shared
 by every query. The order of the search is stated in `geosyn.metrics.planning.planner`.
@@ -26,21 +37,48 @@ from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.rrt import rrt_connect, shortcut
-from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check
+from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut
+from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check, feasible_result
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
 
-__all__ = ["COARSE_TO_FINE", "REFINEMENTS", "SAME", "Query", "metric_length"]
+__all__ = [
+    "COARSE_TO_FINE",
+    "REFINEMENTS",
+    "SAME",
+    "SAMPLED_SEARCH",
+    "SAMPLED_SHORTCUT",
+    "Query",
+    "metric_length",
+]
 
 REFINEMENTS = ((1, 3), (2, 1), (2, 3))
 """What a path that fails the fine check is solved again with, in turn, from the same
 seed: (node count as a multiple of ``nodes``, constrained points inside each segment)."""
 
 
+SAMPLED_SEARCH = (0.7, 0.3, 0.1)
+"""RRT-Connect for the sampled first plan (`Query.sampled`) stops after
+``min(a T, b + c T)`` [s] of a budget ``T`` [s] for ``(a, b, c)`` = this (it stops
+sooner when the trees connect, within 0.01-0.5 s on the Panda benchmark scenes: at small
+budgets it may take most of the time, at large ones it leaves most to collocation)."""
+
+MIN_COLLOCATION = 0.4
+"""Time left [s] below which no collocation is started once a sampled plan is verified:
+the time goes to shortening it (`Query.polish`). A Panda collocation among obstacles
+takes 0.3-2 s (median 0.8 s, `benchmarks/RESULTS.md`): stopped sooner, IPOPT mostly
+returns nothing better."""
+
+SAMPLED_SHORTCUT = 0.15
+"""Share of the budget (at most `SAMPLED_SHORTCUT_MAX`) for shortening it in the metric."""
+
+SAMPLED_SHORTCUT_MAX = 0.2
+"""Longest metric shortcutting of the sampled plan [s]."""
+
 COARSE_TO_FINE = 0.8
-"""Share of the budget the coarse-to-fine collocation may take (the coarse solve half of
-it); when the clock stops it, the full collocation from the straight line (a colder
+"""Share of the budget left after the sampled plan that the coarse-to-fine collocation
+may take (the coarse solve half of it); when the clock stops it, the full collocation from the straight line (a colder
 start with less time) is skipped and the time left goes to RRT-Connect."""
 
 SAME = 1e-6
@@ -69,6 +107,8 @@ class Query:
         self.attempts: list[str] = []
         self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         self.first = math.nan  # when the first plan passed every check [s]
+        self.sampled_path: np.ndarray | None = None  # RRT-Connect seed 0, shortened
+        self.check_time = 0.0  # the last sampled plan's checks took [s]
 
     def left(self) -> float:
         """Time left of the budget [s] (negative once spent)."""
@@ -117,24 +157,91 @@ class Query:
                 return None
         return None
 
-    def from_rrt(self, index: int, cap: float = math.inf) -> Plan | None:
-        """Collocation from an RRT-Connect seed (``seed + index``), or None; the sampling
-        takes at most ``cap`` [s], the collocation at most twice that."""
+    def _rrt(self, index: int, budget: float) -> tuple[np.ndarray | None, int]:
+        """RRT-Connect seed ``seed + index`` within ``budget`` [s] (`rrt_connect`)."""
         p, q0, q1 = self.p, self.q0, self.q1
-        name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
         # the sampling box: the limits, or within pi of start and goal where infinite
         lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
         hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
-        path, grown = rrt_connect(p.valid, q0, q1, lo, hi, budget=min(0.6 * self.left(), cap),
-                                  seed=self.seed + index)  # fmt: skip
+        return rrt_connect(p.valid, q0, q1, lo, hi, budget=budget, seed=self.seed + index)
+
+    def sampled(self) -> Plan | None:
+        """The first plan without an NLP (module docstring), or None; its path (when
+        RRT-Connect found one round the obstacles) is kept as the seed of
+        `from_rrt` (0)."""
+        p = self.p
+        a, b, c = SAMPLED_SEARCH
+        search = min(a * self.budget, b + c * self.budget)
+        path, grown = self._rrt(0, search)
         if path is None:
-            self.attempts.append(f"{name}: no connection after {grown} nodes")
+            self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
+                                 f"{grown} nodes in {search:.3f} s")  # fmt: skip
             return None
-        if len(path) == 2:  # the straight line is free: collocation already had it
-            self.attempts.append(f"{name}: the straight line is collision-free")
+        if len(path) == 2:
+            return self.verified(path, "the straight line")
+        cap = min(SAMPLED_SHORTCUT * self.budget, SAMPLED_SHORTCUT_MAX, max(self.left(), 0.0))
+        self.sampled_path = metric_shortcut(p.valid, p.metric, path, budget=cap, seed=self.seed)
+        return self.verified(self.sampled_path,
+                             f"RRT-Connect's path ({grown} nodes) shortened in the metric")  # fmt: skip
+
+    def polish(self, plan: Plan) -> Plan:
+        """``plan`` (sampled) shortened further in the metric in the time left but twice
+        its exact check's time, and verified again: the shorter verified of the two."""
+        p, path = self.p, self.sampled_path
+        reserve = 2.0 * self.check_time + 0.005
+        if path is None or self.left() <= reserve:
+            return plan
+        path = metric_shortcut(p.valid, p.metric, path, budget=self.left() - reserve,
+                               tries=10**6, seed=self.seed + 1)  # fmt: skip
+        better = self.verified(path, "RRT-Connect's path shortened in the metric, then again")
+        if better is None or (metric_length(p.metric, better.q)
+                              >= metric_length(p.metric, plan.q)):  # fmt: skip
+            return plan
+        self.sampled_path = path
+        return better
+
+    def verified(self, path: np.ndarray, how: str) -> Plan | None:
+        """The sampled plan of ``path`` (T, n) [rad] if it passes the checks (the exact
+        one decides), else None; ``how`` it was made goes to its attempts and message."""
+        from geosyn.metrics.planning.planner import ANYTIME_SLACK
+
+        p, t = self.p, time.perf_counter()
+        path = even_in_metric(p.metric, path, p.nodes + 1)
+        coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
+        exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
+                            self.t0 + ANYTIME_SLACK * self.budget)  # fmt: skip
+        self.check_time = time.perf_counter() - t
+        ok = exact.clearance >= 0.0 if p.exact is not None else min(coarse, fine) >= 0.0
+        if not ok:
+            self.attempts.append(f"sampled plan: {how} fails the checks (exact clearance "
+                                 f"{exact.clearance:.4f} m, spheres {min(coarse, fine):.4f} m)")  # fmt: skip
             return None
-        path = shortcut(p.valid, path, budget=0.05 * self.left(), seed=self.seed + index)
-        self.attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
+        wall = time.perf_counter() - self.t0
+        self.first = wall if math.isnan(self.first) else self.first
+        self.attempts.append(f"sampled plan: {how}, verified at {wall:.3f} s")
+        return Plan(feasible_result(p.metric, path, how), "sampled", coarse, wall,
+                    tuple(self.attempts), fine, exact.clearance, p.exact_resolution,
+                    self.first)  # fmt: skip
+
+    def from_rrt(self, index: int, cap: float = math.inf) -> Plan | None:
+        """Collocation from an RRT-Connect seed (``seed + index``; seed 0's path from
+        `sampled` when it found one), or None; the sampling takes at most ``cap`` [s],
+        the collocation at most twice that."""
+        p, q0, q1 = self.p, self.q0, self.q1
+        name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
+        if index == 0 and self.sampled_path is not None:
+            path = self.sampled_path
+            self.attempts.append(f"{name}: the sampled plan's path as the seed")
+        else:
+            found, grown = self._rrt(index, min(0.6 * self.left(), cap))
+            if found is None:
+                self.attempts.append(f"{name}: no connection after {grown} nodes")
+                return None
+            if len(found) == 2:  # the straight line is free: collocation already had it
+                self.attempts.append(f"{name}: the straight line is collision-free")
+                return None
+            path = shortcut(p.valid, found, budget=0.05 * self.left(), seed=self.seed + index)
+            self.attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
         if (remaining := self.left()) <= 0:
             return None
         res = p.solve(p.collocation(p.nodes), q0, q1, init=path, budget=min(remaining, 2 * cap))
@@ -150,7 +257,8 @@ class Query:
         obstacles, else directly), or None."""
         p, q0, q1 = self.p, self.q0, self.q1
         if p.coarse_nodes and p.term.obstacles:
-            res, init = p._coarse_to_fine(q0, q1, COARSE_TO_FINE * self.budget, self.attempts)
+            share = COARSE_TO_FINE * max(self.left(), 1e-3)
+            res, init = p._coarse_to_fine(q0, q1, share, self.attempts)
             if not res.success:
                 self.unfinished += [
                     (res.nodes, "the interrupted collocation from the coarse path"),
@@ -203,29 +311,42 @@ class Query:
             energies = ", ".join(f"{p.result.energy:.4f}" for p in candidates)
             self.attempts.append(f"kept the lowest-energy of {len(candidates)} plans: "
                                  f"{best.seed} (energies {energies})")  # fmt: skip
-        return best._replace(wall_time=time.perf_counter() - self.t0, attempts=tuple(self.attempts))
+        first = self.first if not math.isnan(self.first) else best.first_feasible_time
+        return best._replace(wall_time=time.perf_counter() - self.t0,
+                             attempts=tuple(self.attempts), first_feasible_time=first)  # fmt: skip
 
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
         from geosyn.metrics.planning.planner import ANYTIME_SLACK
 
+        quick = self.sampled()
+        others: list[Plan] = [quick] if quick is not None else []
+        if self.left() <= (0.0 if quick is None else MIN_COLLOCATION):
+            self.attempts.append("no time left for the collocation from the straight line")
+            if quick is None:
+                raise self.refusal()
+            return self.keep(None, [self.polish(quick)])
         line = self.straight_line()
-        others: list[Plan] = []
         if line is None:
             if self.left() <= 0:
                 self.attempts.append("no time left for RRT-Connect seed 0")
             elif (plan := self.from_rrt(0)) is not None:
                 others.append(plan)
         elif line.result.kind == "constrained":
-            others = self.alternatives(line)
+            others += self.alternatives(line)
         if line is None and not others and self.unfinished:  # anytime: the lowest-energy
             end = self.t0 + ANYTIME_SLACK * self.budget  # path that passes the checks
             plan = self.p._anytime(self.unfinished, self.t0, self.attempts, end)
             others += [plan] if plan is not None else []
         if line is not None or others:
-            return self.keep(line, others)
+            best = self.keep(line, others)
+            return self.keep(None, [self.polish(best)]) if best.seed == "sampled" else best
+        raise self.refusal()
+
+    def refusal(self) -> NoPathFound:
+        """`NoPathFound` listing what was tried."""
         elapsed = time.perf_counter() - self.t0
-        raise NoPathFound(
+        return NoPathFound(
             f"no collision-free path from the start to the goal within the {self.budget:g} s "
             f"budget ({elapsed:.2f} s spent): " + "; ".join(self.attempts) + ". Try a larger "
             "budget, a smaller margin, or check that the goal is reachable (not enclosed "

@@ -18,6 +18,7 @@ import numpy as np
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_parts import CollocationResult
 from geosyn.metrics.planning.errors import InCollision, OutsideJointLimits
+from geosyn.metrics.planning.exact_path import path_clearance
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import CollisionSphere, Robot
@@ -71,11 +72,12 @@ def exact_check(
     deadline: float = math.inf,
 ) -> PathClearance:
     """The smallest exact clearance of ``path`` (T, n) [rad] to ``obstacles`` (NaN
-    clearance without an exact checker, or when ``deadline`` [s, perf_counter] passes)."""
+    clearance without an exact checker, or when ``deadline`` [s, perf_counter] passes;
+    batched: `geosyn.metrics.planning.exact_path`)."""
     if exact is None:
         return PathClearance(math.nan, 0.0, "", -1, 0, resolution)
     exact.set_obstacles(obstacles)
-    return exact.path_clearance(path, resolution, deadline)
+    return path_clearance(exact, path, resolution, deadline)
 
 
 def check_end(

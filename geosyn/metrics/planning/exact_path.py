@@ -1,0 +1,119 @@
+"""Exact verification of a whole path at once: best-first over the (sample, link, obstacle)
+pairs, with the same answer as checking sample by sample.
+
+`geosyn.world.exact_clearance.ExactClearance.path_clearance` checks a path one
+configuration at a time (forward kinematics, the links' bounding balls, coal's distance
+for each near pair): about 0.13 ms per configuration, 0.04-0.2 s for one Panda plan at
+0.005 rad, nearly all of it Python work per configuration rather than coal's distances
+(measured). `path_clearance` here checks the same configurations (the same resolution,
+joint max-norm, linear between the path's samples) and returns the same smallest
+clearance whenever it is below ``near``:
+
+1. forward kinematics of every configuration (one Pinocchio call each), then the bounding
+   ball of every link object in every configuration and its signed distance to every
+   obstacle, as arrays: lower bounds of every exact distance;
+2. coal's exact distance for the pairs whose lower bound is below ``near``, in order of
+   that bound, stopping as soon as the next bound is not below the smallest exact distance
+   found (every pair left is at least that far).
+
+The pairs measured are a subset of those the configuration-by-configuration check
+measures, and none left out can be nearer than the returned minimum.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from geosyn.world.distance import signed_distance
+from geosyn.world.exact_clearance import ExactClearance, PathClearance
+
+__all__ = ["checked_configurations", "path_clearance"]
+
+
+def checked_configurations(path: np.ndarray, resolution: float) -> np.ndarray:
+    """(K, n) the configurations ``ExactClearance.path_clearance`` checks on ``path``
+    (T, n) [rad]: its first sample, then each segment's linear points at most
+    ``resolution`` [rad] apart (max-norm), its end included."""
+    path = np.asarray(path, dtype=float)
+    seg = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
+    steps = np.maximum(1, np.ceil(seg / resolution).astype(int))
+    pts = [path[:1]]
+    for a, b, k in zip(path[:-1], path[1:], steps, strict=True):
+        s = np.arange(1, k + 1)[:, None] / k
+        pts.append(a + s * (b - a))
+    return np.vstack(pts)
+
+
+def _frames(exact: ExactClearance, Q: np.ndarray, joints: list[int],
+            deadline: float) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
+    """((K, J, 3, 3), (K, J, 3)) world rotations and translations of ``joints`` at every
+    configuration of ``Q``, or None once ``deadline`` passes."""
+    model, data = exact.robot.model, exact._data
+    H = np.empty((len(Q), len(joints), 4, 4))
+    for i, q in enumerate(Q):
+        if i % 64 == 63 and time.perf_counter() > deadline:
+            return None
+        pin.forwardKinematics(model, data, q)
+        for a, j in enumerate(joints):  # joint 0 is the universe: the identity
+            H[i, a] = data.oMi[j].homogeneous
+    return H[:, :, :3, :3], H[:, :, :3, 3]
+
+
+def path_clearance(
+    exact: ExactClearance, path: np.ndarray, resolution: float, deadline: float = math.inf
+) -> PathClearance:
+    """Smallest exact clearance of the linear interpolation of ``path`` (T, n) [rad] to
+    the obstacles set on ``exact``, at the configurations of `checked_configurations`.
+
+    Same value as ``exact.path_clearance(path, resolution)`` when it is below
+    ``exact.near`` (else at least ``near``); ``inf`` without obstacles; NaN clearance
+    when ``time.perf_counter()`` passes ``deadline`` [s] first. O(K (n + L O)) array work
+    plus coal's distance for the pairs whose bounding-ball bound is below the result.
+    """
+    import coal
+
+    Q = checked_configurations(path, resolution)
+    best = PathClearance(math.inf, 0.0, "", -1, len(Q), resolution)
+    obstacles = exact._obstacles
+    if not obstacles:
+        return best
+    joints = sorted(set(exact._joint))
+    frames = _frames(exact, Q, joints, deadline)
+    if frames is None:
+        return best._replace(clearance=math.nan, checked=0)
+    R, p = frames
+    slot = np.array([joints.index(j) for j in exact._joint])
+    c_local = np.array([c for c, _ in exact._ball])  # (L, 3) in each joint's frame
+    radii = np.array([r for _, r in exact._ball])
+    centres = np.einsum("klab,lb->kla", R[:, slot], c_local) + p[:, slot]  # (K, L, 3)
+    flat = centres.reshape(-1, 3)
+    bound = np.stack(
+        [(signed_distance(ob[3], flat).reshape(len(Q), -1) - radii) for ob in obstacles],
+        axis=-1,
+    )  # (K, L, O) lower bounds of the exact distances
+    near = np.flatnonzero(bound.ravel() < exact.near)
+    order = near[np.argsort(bound.ravel()[near], kind="stable")]
+    low, request = math.inf, exact._request
+    hit: tuple[int, int, int] | None = None
+    for count, index in enumerate(order):
+        i, k, o = (int(x) for x in np.unravel_index(int(index), bound.shape))
+        if bound[i, k, o] >= low:
+            break  # every pair left is at least this far
+        if count % 64 == 63 and time.perf_counter() > deadline:
+            return best._replace(clearance=math.nan)
+        oMg = pin.SE3(R[i, slot[k]], p[i, slot[k]]) * exact._place[k]
+        obj: Any = coal.CollisionObject(
+            exact._geoms[k], coal.Transform3s(oMg.rotation, oMg.translation)
+        )
+        d = float(coal.distance(obj, obstacles[o][1], request, coal.DistanceResult()))
+        if d < low:
+            low, hit = d, (i, k, o)
+    if hit is None:  # no pair nearer than ``near`` anywhere
+        return best._replace(clearance=exact.near)
+    return best._replace(clearance=low, where=hit[0] / max(len(Q) - 1, 1),
+                         link=exact.objects[hit[1]].link, obstacle=hit[2])  # fmt: skip

@@ -1,0 +1,111 @@
+"""Shortening a sampled path in the planner's metric, without an NLP.
+
+`metric_shortcut` replaces a random stretch of a piecewise-linear path (between two
+random points on it, not only its vertices: "partial shortcuts") by the straight joint
+segment between them when that segment is valid and shorter in the metric (midpoint rule
+on `PIECES` pieces per segment). `even_in_metric` then adds points on its segments so
+that consecutive samples are about equally far apart in the metric: the path itself is
+unchanged, and its energy with equally spaced times is then close to its squared metric
+length (what a constant-speed traversal of it costs), so that it compares fairly with a
+collocation's energy.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from geosyn.metrics.base import Metric
+from geosyn.metrics.planning.rrt import Validity
+
+__all__ = ["PIECES", "even_in_metric", "metric_shortcut", "segment_lengths"]
+
+PIECES = 4
+"""Midpoint-rule pieces per segment of the metric length of a joint segment."""
+
+
+def segment_lengths(metric: Metric, path: np.ndarray, pieces: int = PIECES) -> np.ndarray:
+    """(T - 1,) metric length of each straight segment of ``path`` (T, n) [rad], by the
+    midpoint rule on ``pieces`` pieces per segment."""
+    path = np.asarray(path, dtype=float)
+    out = np.zeros(max(len(path) - 1, 0))
+    for i, (a, b) in enumerate(zip(path[:-1], path[1:], strict=True)):
+        d = (b - a) / pieces
+        mids = a + ((np.arange(pieces) + 0.5) / pieces)[:, None] * (b - a)
+        out[i] = sum(math.sqrt(max(float(d @ metric.G(m) @ d), 0.0)) for m in mids)
+    return out
+
+
+def _point(path: np.ndarray, cum: np.ndarray, s: float) -> tuple[np.ndarray, int]:
+    """The point of ``path`` at joint arclength ``s`` and the index of its segment."""
+    i = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(path) - 2))
+    span = cum[i + 1] - cum[i]
+    u = 0.0 if span <= 0.0 else (s - cum[i]) / span
+    return path[i] + u * (path[i + 1] - path[i]), i
+
+
+def metric_shortcut(
+    valid: Validity,
+    metric: Metric,
+    path: np.ndarray,
+    *,
+    resolution: float = 0.02,
+    tries: int = 200,
+    budget: float = 0.1,
+    seed: int = 0,
+) -> np.ndarray:
+    """A path no longer in ``metric`` than ``path`` (T, n) [rad], valid where it was.
+
+    Args:
+        valid: batched validity check (see `geosyn.metrics.planning.rrt.Validity`).
+        metric: the planner's metric (its ``G(q)``).
+        path: (T, n) a valid piecewise-linear path [rad], T >= 2.
+        resolution: check step of a new segment (2-norm) [rad].
+        tries: most shortcuts tried.
+        budget: wall-time limit [s].
+        seed: seed of the random points.
+
+    Returns:
+        (T', n) the shortened path, same ends.
+    """
+    rng = np.random.default_rng(seed)
+    path = np.asarray(path, dtype=float)
+    t_end = time.perf_counter() + budget
+    for _ in range(tries):
+        if len(path) <= 2 or time.perf_counter() > t_end:
+            break
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+        u, v = np.sort(rng.uniform(0.0, cum[-1], size=2))
+        a, i = _point(path, cum, float(u))
+        b, j = _point(path, cum, float(v))
+        if j == i:  # on one segment: already straight
+            continue
+        old = segment_lengths(metric, np.vstack([a, path[i + 1 : j + 1], b])).sum()
+        new = segment_lengths(metric, np.array([a, b]))[0]
+        if new >= old:
+            continue
+        k = max(1, int(math.ceil(float(np.linalg.norm(b - a)) / resolution)))
+        if not np.all(valid(a + (np.arange(k + 1) / k)[:, None] * (b - a))):
+            continue
+        path = np.vstack([path[: i + 1], a, b, path[j + 1 :]])
+        keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12])
+        path = path[keep]  # a or b on a vertex
+    return path
+
+
+def even_in_metric(metric: Metric, path: np.ndarray, samples: int) -> np.ndarray:
+    """``path`` (T, n) [rad] with points added on its segments, about ``samples`` - 1
+    pieces of about equal metric length in all (each segment at least one); the same
+    curve."""
+    path = np.asarray(path, dtype=float)
+    lengths = segment_lengths(metric, path)
+    total = float(lengths.sum())
+    if total <= 0.0:
+        return path
+    counts = np.maximum(1, np.rint(lengths / total * (samples - 1)).astype(int))
+    out = [path[:1]]
+    for a, b, k in zip(path[:-1], path[1:], counts, strict=True):
+        out.append(a + (np.arange(1, k + 1) / k)[:, None] * (b - a))
+    return np.vstack(out)
