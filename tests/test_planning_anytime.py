@@ -23,6 +23,7 @@ import pinocchio as pin
 import pytest
 
 from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.base import Metric
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.exact_path import checked_configurations, path_clearance
 from geosyn.metrics.planning.planner import ANYTIME_SLACK, densify
@@ -66,8 +67,11 @@ HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
 BLOCK = Box((0.36, 0.0, 0.52), (0.05, 0.05, 0.05))  # where the hand passes at joint 1 = 0
 
 
+Case = tuple[Robot, Planner, np.ndarray, np.ndarray]
+
+
 @pytest.fixture(scope="module")
-def panda() -> tuple[Robot, Planner, np.ndarray, np.ndarray]:
+def panda() -> Case:
     robot = load_robot("panda")
     planner = Planner(KineticEnergyMetric(robot), capacity=1)
     q0, q1 = HOME.copy(), HOME.copy()
@@ -105,12 +109,12 @@ def _mesh_referee(robot: Robot, obstacle: Box) -> Callable[[np.ndarray], float]:
     return distance
 
 
-def _metric_length(metric: KineticEnergyMetric, path: np.ndarray) -> float:
+def _metric_length(metric: Metric, path: np.ndarray) -> float:
     dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
     return float(sum(math.sqrt(d @ metric.G(m) @ d) for d, m in zip(dq, mid, strict=True)))
 
 
-def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda) -> None:  # type: ignore[no-untyped-def]
+def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda: Case) -> None:
     """At a 0.1 s budget the plan is the best verified path found by then: clear of the
     URDF's meshes by Pinocchio's own geometry model and coal (checked every 0.005 rad,
     independent of the planner's checker), its reported first feasible time within the
@@ -127,16 +131,17 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda)
     long = planner.plan(q0, q1, [BLOCK], budget=20.0)
     assert long.result.kind == "constrained" and long.seed != "sampled"
     metric = planner.metric
-    assert _metric_length(metric, plan.q) >= 0.99 * _metric_length(metric, long.q)  # type: ignore[arg-type]
+    assert _metric_length(metric, plan.q) >= 0.99 * _metric_length(metric, long.q)
 
 
-def test_batched_exact_check_equals_coal_at_every_configuration(panda) -> None:  # type: ignore[no-untyped-def]
+def test_batched_exact_check_equals_coal_at_every_configuration(panda: Case) -> None:
     """The batched, best-first exact path check returns coal's smallest distance over
     every (configuration, collision object, obstacle) of the path at its resolution,
     computed here by brute force (no bounding balls), on seeded random paths."""
     robot, planner, q0, q1 = panda
     exact = planner.exact
-    obstacles = [BLOCK, Sphere((0.3, 0.3, 0.4), 0.08)]
+    assert exact is not None  # the Panda has file geometry
+    obstacles: list[Box | Sphere] = [BLOCK, Sphere((0.3, 0.3, 0.4), 0.08)]
     exact.set_obstacles(obstacles)
     world = [coal.CollisionObject(*_coal_obstacle(ob)) for ob in obstacles]
     hulls = [coal_shape(o) for o in exact.objects]
