@@ -192,3 +192,59 @@ def test_geosyn_run_stops_on_sigterm_inside_a_solve(tmp_path: Path) -> None:
     assert elapsed < 10.0, f"{elapsed:.1f} s from SIGTERM to exit"
     assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["long_solve.yaml"]
+
+
+_SWALLOWING_RUN = """
+import signal, sys, time
+from geosyn.experiments.run import build
+
+def swallow(*args, **kwargs):  # as native code that eats the handler's SystemExit
+    handler = signal.getsignal(signal.SIGTERM)
+
+    def eat(signum, frame):
+        try:
+            handler(signum, frame)
+        except BaseException:
+            print("swallowed", flush=True)
+
+    signal.signal(signal.SIGTERM, eat)
+    print("simulating", flush=True)
+    while True:
+        time.sleep(0.01)
+
+build.simulate = swallow
+from geosyn.experiments.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow  # ~4 s: a subprocess imports geosyn
+def test_a_swallowed_sigterm_still_ends_the_run(tmp_path: Path) -> None:
+    """When the SIGTERM handler's exit never surfaces (as inside a CasADi call), the
+    watchdog ends the process EXIT_GRACE later: exit 143, nothing left behind."""
+    from geosyn.experiments.run.termination import EXIT_GRACE
+
+    out = tmp_path / "out"
+    args = ["run", "ur5_tracking", "--out", str(out), "--no-progress"]
+    proc = subprocess.Popen(
+        [sys.executable, "-c", _SWALLOWING_RUN, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=tmp_path,
+    )
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().strip() == "simulating", proc.communicate()
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        rest, err = proc.communicate(timeout=60)
+        elapsed = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 143, err
+    assert rest.strip() == "swallowed"  # the handler ran; its exit never surfaced
+    assert EXIT_GRACE <= elapsed < 10.0  # so the watchdog ended the process
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

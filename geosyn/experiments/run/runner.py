@@ -139,6 +139,14 @@ def _run_claimed(
         tmp.mkdir()
     except OSError as err:
         raise OutputNotWritable(out, err) from err
+    with termination.guarded(tmp, rundir.lock_path(out)):
+        return _run_into(cfg, out, tmp, video, progress, quiet)
+
+
+def _run_into(
+    cfg: ExperimentConfig, out: Path, tmp: Path, video: bool, progress: bool, quiet: bool
+) -> RunOutcome:
+    """`_run_claimed` once ``tmp`` exists: run into it and commit it as ``out``."""
     t0 = time.perf_counter()
     started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     try:

@@ -8,14 +8,24 @@ Python discards an exception raised while a finaliser or ``__del__`` runs (it pr
 "Exception ignored"), and geosyn's caches use finalisers, so the handler also records the
 signal: `raise_if_terminated` re-raises it at safe points (between sweep runs, before a
 run directory is committed), and a swallowed signal still ends the process.
+
+Native code can swallow it too: CasADi runs pending signal handlers inside its own calls
+on the main thread and turns their exception into its interrupt, which a solver may take
+as a stop request and return from. So a run writing a partial directory registers it
+(`guarded`); a SIGTERM then also starts a watchdog which, if the process is still alive
+`EXIT_GRACE` seconds later, removes the registered partial directories and lock files and
+ends the process with the same code (``os._exit``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
+import shutil
 import signal
 import threading
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from types import FrameType
 from typing import Any
 
@@ -24,11 +34,44 @@ Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
 _received: int | None = None  # the signal number once SIGTERM arrived (process state)
 
+#: Seconds after SIGTERM by which a process writing a run is gone, whatever it is doing.
+EXIT_GRACE = 1.5
+
+_guarded: dict[int, tuple[Path, Path]] = {}  # partial directories and lock files written
+_watchdog: threading.Timer | None = None
+
 
 def _handler(signum: int, frame: object) -> None:
-    global _received
+    global _received, _watchdog
     _received = signum
+    if _guarded and _watchdog is None:
+        _watchdog = threading.Timer(EXIT_GRACE, _force_exit, args=(128 + signum,))
+        _watchdog.daemon = True
+        _watchdog.start()
     raise SystemExit(128 + signum)
+
+
+def _force_exit(code: int) -> None:
+    """The watchdog: the process outlived `EXIT_GRACE` after SIGTERM (the signal's exit
+    was swallowed): remove what it was writing and end it."""
+    for tmp, lock in list(_guarded.values()):
+        shutil.rmtree(tmp, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            os.unlink(lock)
+    os._exit(code)
+
+
+@contextlib.contextmanager
+def guarded(tmp: Path, lock: Path) -> Iterator[None]:
+    """While the block runs, a SIGTERM whose exit is swallowed still ends the process
+    within `EXIT_GRACE` seconds, ``tmp`` (a partial run directory) and ``lock`` (its lock
+    file) removed."""
+    key = object()
+    _guarded[id(key)] = (Path(tmp), Path(lock))
+    try:
+        yield
+    finally:
+        _guarded.pop(id(key), None)
 
 
 def install() -> Handler:
@@ -39,10 +82,13 @@ def install() -> Handler:
     Returns:
         The handler it replaced, for `restore` (None off the main thread).
     """
-    global _received
+    global _received, _watchdog
     if threading.current_thread() is not threading.main_thread():
         return None
     _received = None
+    if _watchdog is not None:
+        _watchdog.cancel()
+        _watchdog = None
     return signal.signal(signal.SIGTERM, _handler)
 
 
@@ -71,4 +117,12 @@ def raise_if_terminated() -> None:
         raise SystemExit(128 + _received)
 
 
-__all__ = ["Handler", "install", "raise_if_terminated", "restore", "sigterm_exits"]
+__all__ = [
+    "EXIT_GRACE",
+    "Handler",
+    "guarded",
+    "install",
+    "raise_if_terminated",
+    "restore",
+    "sigterm_exits",
+]
