@@ -5,6 +5,11 @@ One query, within a stated time budget:
 1. checks the input: start and goal within the joint limits and collision-free (else
    `OutsideJointLimits` / `InCollision` naming the obstacle and the robot sphere), at most
    ``capacity`` obstacles (else `geosyn.metrics.shaping.CapacityExceeded`);
+   then a sampled first plan without an NLP, for the anytime return (RRT-Connect on the
+   spheres, shortened in the metric, verified as in 4.: `geosyn.metrics.planning.query`),
+   whose path is also RRT-Connect's first seed in 3.; with less than
+   `query.MIN_COLLOCATION` left after it, the rest of the budget shortens it further
+   instead of 2.-3.;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
    (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the

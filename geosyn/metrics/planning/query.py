@@ -4,9 +4,9 @@ Anytime: a query first makes a plan without an NLP (`Query.sampled`): RRT-Connec
 the planner's spheres (within `SAMPLED_SEARCH`; the straight line when it is free on
 them), shortened in the metric (`geosyn.metrics.planning.smoothing`, at most
 `SAMPLED_SHORTCUT` of the budget) and verified like every plan (the exact check
-decides); the collocation stages then get the time left (when less than
-`MIN_COLLOCATION` is left after a verified sampled plan: none, the sampled path is
-shortened further and verified again instead), and the kept plan is the best verified one by the homotopy rule below (the
+decides); the collocation stages then get the time left (none when less than
+`MIN_COLLOCATION` is left: the sampled path, if any, is then shortened further and
+verified again instead), and the kept plan is the best verified one by the homotopy rule below (the
 sampled plan is one of the "other seeds": never kept when longer than the straight
 line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
 found.
@@ -45,10 +45,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "COARSE_TO_FINE",
+    "MIN_COLLOCATION",
     "REFINEMENTS",
     "SAME",
     "SAMPLED_SEARCH",
     "SAMPLED_SHORTCUT",
+    "SAMPLED_SMALL",
     "Query",
     "metric_length",
 ]
@@ -63,6 +65,10 @@ SAMPLED_SEARCH = (0.7, 0.3, 0.1)
 ``min(a T, b + c T)`` [s] of a budget ``T`` [s] for ``(a, b, c)`` = this (it stops
 sooner when the trees connect, within 0.01-0.5 s on the Panda benchmark scenes: at small
 budgets it may take most of the time, at large ones it leaves most to collocation)."""
+
+SAMPLED_SMALL = 0.8
+"""Share of a budget too small for collocation (less than `MIN_COLLOCATION` would be
+left after `SAMPLED_SEARCH`) that RRT-Connect may take for the sampled plan."""
 
 MIN_COLLOCATION = 0.4
 """Time left [s] below which no collocation is started once a sampled plan is verified:
@@ -172,6 +178,8 @@ class Query:
         p = self.p
         a, b, c = SAMPLED_SEARCH
         search = min(a * self.budget, b + c * self.budget)
+        if self.budget - search < MIN_COLLOCATION:  # no collocation after it anyway
+            search = SAMPLED_SMALL * self.budget
         path, grown = self._rrt(0, search)
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
@@ -321,8 +329,9 @@ class Query:
 
         quick = self.sampled()
         others: list[Plan] = [quick] if quick is not None else []
-        if self.left() <= (0.0 if quick is None else MIN_COLLOCATION):
-            self.attempts.append("no time left for the collocation from the straight line")
+        if self.left() <= MIN_COLLOCATION:
+            self.attempts.append(f"collocation not started: {max(self.left(), 0.0):.3f} s "
+                                 f"left, less than {MIN_COLLOCATION:g} s")  # fmt: skip
             if quick is None:
                 raise self.refusal()
             return self.keep(None, [self.polish(quick)])
