@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import get_metric, get_robot
-from geosyn.controllers.mpc import GeodesicMPC, NLPOptions
+from geosyn.controllers.mpc import DDPOptions, GeodesicMPC, NLPOptions
 from geosyn.controllers.mpc.nlp.options import MAX_ITER, MIN_TOL
 from geosyn.controllers.mpc.ocp.settings import (
     MAX_HORIZON,
@@ -68,6 +68,25 @@ def test_nlp_options_refuse_meaningless_tolerances_and_limits(kwargs: dict[str, 
     (name,) = kwargs
     with pytest.raises(InvalidArgument, match=rf"^{name} must be"):
         NLPOptions("fatrop", **kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"tol": 1e-300},
+        {"tol": 2.0},
+        {"max_iter": 10**12},
+        {"max_iter": MAX_ITER + 1},
+        {"warm_iterations": 10**12},
+        {"warm_iterations": 0},
+    ],
+    ids=lambda k: f"{k}",
+)
+def test_ddp_options_refuse_meaningless_tolerances_and_limits(kwargs: dict[str, float]) -> None:
+    (name,) = kwargs
+    with pytest.raises(InvalidArgument, match=rf"^{name} must be"):
+        DDPOptions(**kwargs)
+    assert DDPOptions(tol=MIN_TOL, max_iter=MAX_ITER).max_iter == MAX_ITER  # the edges
 
 
 def test_the_edges_are_accepted() -> None:
@@ -149,6 +168,8 @@ MPC_SET = "controllers=[{type: mpc, %s}]"
         ("dt", "1.0e-300"),
         ("solver", "{type: fatrop, tol: 1.0e-300}"),
         ("solver", "{type: ipopt, max_iter: 1000000000}"),
+        ("solver", "{type: ddp, max_iter: 1000000000}"),
+        ("solver", "{type: ddp, tol: 1.0e-300}"),
     ],
 )
 def test_schema_refuses_them_naming_the_field(field: str, value: str) -> None:

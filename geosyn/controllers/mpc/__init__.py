@@ -97,7 +97,16 @@ from geosyn.controllers.mpc.families import SOLVERS
 from geosyn.controllers.mpc.nlp.open_loop import OpenLoopSolution
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.ocp.plan import MPCPlan
-from geosyn.controllers.mpc.ocp.settings import CONTROLS, EFFORTS, HESSIANS
+from geosyn.controllers.mpc.ocp.settings import (
+    CONTROLS,
+    EFFORTS,
+    HESSIANS,
+    MAX_HORIZON,
+    MAX_SOLVER_ITER,
+    MAX_STAGE_DT,
+    MIN_SOLVER_TOL,
+    MIN_STAGE_DT,
+)
 
 __all__ = [
     "CONTROLS",
@@ -105,6 +114,11 @@ __all__ = [
     "EFFORTS",
     "GeodesicMPC",
     "HESSIANS",
+    "MAX_HORIZON",
+    "MAX_SOLVER_ITER",
+    "MAX_STAGE_DT",
+    "MIN_SOLVER_TOL",
+    "MIN_STAGE_DT",
     "MPCPlan",
     "NLPOptions",
     "OpenLoopSolution",

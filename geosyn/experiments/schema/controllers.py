@@ -13,16 +13,21 @@ from typing import Annotated, Literal
 from pydantic import Field
 
 from geosyn.controllers import ComputedTorque, GeodesicMPC, QPController, RiemannianPD
-from geosyn.controllers.mpc import DDPOptions, NLPOptions
-from geosyn.controllers.mpc.nlp.options import MAX_ITER as NLP_MAX_ITER
-from geosyn.controllers.mpc.nlp.options import MIN_TOL as NLP_MIN_TOL
-from geosyn.controllers.mpc.ocp.settings import MAX_HORIZON, MAX_STAGE_DT, MIN_STAGE_DT
+from geosyn.controllers.mpc import (
+    MAX_HORIZON,
+    MAX_SOLVER_ITER,
+    MAX_STAGE_DT,
+    MIN_SOLVER_TOL,
+    MIN_STAGE_DT,
+    DDPOptions,
+    NLPOptions,
+)
+from geosyn.controllers.qp import MAX_ITER as QP_MAX_ITER
 from geosyn.controllers.whole_body import WholeBodyController
 from geosyn.experiments.schema.section import Section, python_defaults
 from geosyn.experiments.schema.values import Gain, NonNegFloat, PositiveFloat
 
 Label = Annotated[str, Field(pattern=r"^[A-Za-z0-9_\-]+$")]
-Iterations = Annotated[int, Field(ge=1)]
 
 _COMPUTED_TORQUE = python_defaults(ComputedTorque, kp=400.0, kd=40.0)
 _RIEMANNIAN_PD = python_defaults(RiemannianPD, lam=20.0, k=50.0)
@@ -74,8 +79,8 @@ class QPConfig(_ControllerBase):
     eps_abs: PositiveFloat = _QP["eps_abs"]
     position_horizon: PositiveFloat | None = _QP["position_horizon"]
     braking_acceleration: PositiveFloat | None = _QP["braking_acceleration"]
-    max_iter: Iterations = _QP["max_iter"]
-    max_inner_iter: Iterations = _QP["max_inner_iter"]
+    max_iter: Annotated[int, Field(ge=1, le=QP_MAX_ITER)] = _QP["max_iter"]
+    max_inner_iter: Annotated[int, Field(ge=1, le=QP_MAX_ITER)] = _QP["max_inner_iter"]
     compensate_friction: bool | None = _QP["compensate_friction"]
     friction_velocity: PositiveFloat = _QP["friction_velocity"]
 
@@ -87,8 +92,8 @@ class NLPSolverConfig(Section):
     builds = (NLPOptions,)
     parameter_names = {"type": "solver"}
     type: Literal["fatrop", "ipopt"]
-    tol: Annotated[float, Field(ge=NLP_MIN_TOL, le=1.0)] = _NLP["tol"]
-    max_iter: Annotated[int, Field(ge=1, le=NLP_MAX_ITER)] = _NLP["max_iter"]
+    tol: Annotated[float, Field(ge=MIN_SOLVER_TOL, le=1.0)] = _NLP["tol"]
+    max_iter: Annotated[int, Field(ge=1, le=MAX_SOLVER_ITER)] = _NLP["max_iter"]
     mu_init: PositiveFloat = _NLP["mu_init"]
     mu_warm: PositiveFloat = _NLP["mu_warm"]
     plugin_options: dict[str, bool | int | float | str] | None = _NLP["plugin_options"]
@@ -105,9 +110,9 @@ class DDPSolverConfig(Section):
 
     builds = (DDPOptions,)
     type: Literal["ddp"]
-    tol: PositiveFloat = _DDP["tol"]
-    max_iter: Iterations = _DDP["max_iter"]
-    warm_iterations: Iterations = _DDP["warm_iterations"]
+    tol: Annotated[float, Field(ge=MIN_SOLVER_TOL, le=1.0)] = _DDP["tol"]
+    max_iter: Annotated[int, Field(ge=1, le=MAX_SOLVER_ITER)] = _DDP["max_iter"]
+    warm_iterations: Annotated[int, Field(ge=1, le=MAX_SOLVER_ITER)] = _DDP["warm_iterations"]
     limit_weight: PositiveFloat = _DDP["limit_weight"]
     regularisation: PositiveFloat = _DDP["regularisation"]
     clearance_weight: PositiveFloat = _DDP["clearance_weight"]

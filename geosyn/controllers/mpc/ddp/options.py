@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from geosyn.controllers.mpc.ocp.settings import MAX_SOLVER_ITER, MIN_SOLVER_TOL
 from geosyn.core.errors import InvalidArgument
-from geosyn.core.validation import check_int, check_positive
+from geosyn.core.validation import check_float, check_int, check_positive
 
 __all__ = ["BACKWARDS", "DDPOptions"]
 
@@ -20,10 +21,10 @@ class DDPOptions:
 
     Attributes:
         tol: convergence tolerance of cold solves: the largest control update divided by
-            ``1 + max |u|`` [-].
-        max_iter: iteration limit of cold solves.
+            ``1 + max |u|`` [-], in [`MIN_SOLVER_TOL`, 1].
+        max_iter: iteration limit of cold solves, in [1, `MAX_SOLVER_ITER`].
         warm_iterations: DDP iterations per warm solve (1: a real-time iteration, like
-            Crocoddyl's one-iteration MPC).
+            Crocoddyl's one-iteration MPC), in [1, `MAX_SOLVER_ITER`].
         limit_weight: weight of the soft position and velocity limits ([1/rad^2],
             [s^2/rad^2]; zero inside the limits).
         regularisation: added to the diagonal of each stage's control Hessian
@@ -52,9 +53,11 @@ class DDPOptions:
 
     def __post_init__(self) -> None:
         checked = {
-            "tol": check_positive(self.tol, "tol"),
-            "max_iter": check_int(self.max_iter, "max_iter", low=1),
-            "warm_iterations": check_int(self.warm_iterations, "warm_iterations", low=1),
+            "tol": check_float(self.tol, "tol", low=MIN_SOLVER_TOL, high=1.0),
+            "max_iter": check_int(self.max_iter, "max_iter", low=1, high=MAX_SOLVER_ITER),
+            "warm_iterations": check_int(
+                self.warm_iterations, "warm_iterations", low=1, high=MAX_SOLVER_ITER
+            ),
             "limit_weight": check_positive(self.limit_weight, "limit_weight"),
             "regularisation": check_positive(self.regularisation, "regularisation"),
             "clearance_weight": check_positive(self.clearance_weight, "clearance_weight"),

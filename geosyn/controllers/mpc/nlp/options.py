@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from geosyn.controllers.mpc.ocp.settings import MAX_SOLVER_ITER, MIN_SOLVER_TOL
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_choice, check_float, check_int, check_positive
 
@@ -12,9 +13,9 @@ __all__ = ["MAX_ITER", "MIN_TOL", "NLP_SOLVERS", "NLPOptions"]
 
 NLP_SOLVERS = ("fatrop", "ipopt")
 """Interior-point plugins of ``casadi.nlpsol`` the family uses."""
-MIN_TOL = 1e-14
-"""Smallest ``tol`` (float64 resolution of O(1) residuals; below it a solve never converges)."""
-MAX_ITER = 1_000_000
+MIN_TOL = MIN_SOLVER_TOL
+"""Smallest ``tol`` (`geosyn.controllers.mpc.ocp.settings.MIN_SOLVER_TOL`)."""
+MAX_ITER = MAX_SOLVER_ITER
 """Largest ``max_iter`` (the wall-time budget bounds a solve anyway: `bounded`)."""
 
 

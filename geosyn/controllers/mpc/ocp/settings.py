@@ -19,6 +19,8 @@ from geosyn.core.types import Vector
 from geosyn.core.validation import check_choice, check_float, check_int, check_positive
 
 __all__ = [
+    "MAX_SOLVER_ITER",
+    "MIN_SOLVER_TOL",
     "CONTROLS",
     "DEFAULT_EFFORT_WEIGHT",
     "EFFORTS",
@@ -48,6 +50,11 @@ MIN_STAGE_DT = 1e-6
 """Shortest stage length [s]."""
 MAX_STAGE_DT = 1.0
 """Longest stage length [s] (one RK4 step per stage: longer steps mean nothing)."""
+MIN_SOLVER_TOL = 1e-14
+"""Smallest solver tolerance of every family (float64 resolution of O(1) residuals;
+below it a solve never converges)."""
+MAX_SOLVER_ITER = 1_000_000
+"""Largest iteration limit of every family (the wall-time budget bounds a solve anyway)."""
 
 STATE_MARGIN = (0.1, 1.0)
 """How far a measured state may lie outside the OCP's state bounds and still be solved:
