@@ -11,8 +11,9 @@ same way, as in ``planning.py``: metric length under geosyn's Panda (armature 0)
 exact distance to the URDF collision meshes and geodex's checker, on the path resampled
 every ``--check-step`` rad.
 
-Printed per budget: paths returned, median and largest wall time to the returned path
-(geosyn: also its CPU time and its first feasible path's time), the length ratio
+Printed per budget: paths returned (geosyn: how many of them are its sampled plan, not
+collocated: ``Plan.seed == "sampled"``), median and largest wall time to the returned
+path (geosyn: also its CPU time and its first feasible path's time), the length ratio
 geosyn / geodex on the scenes both solved, how many of them geosyn is <= geodex on, and
 the paths that touch the meshes (< 0) or collide for geodex's checker.
 
@@ -129,7 +130,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"\nmetric length [sqrt(kg) m] under geosyn's panda (armature 0); mesh = coal's "
           f"distance to the URDF collision meshes; paths resampled every {args.check_step:g} rad")  # fmt: skip
     print(f"{'T [s]':>6s} {'load':>5s} | {'gdx ok':>6s} {'gdx wall med/max':>16s} | "
-          f"{'gsy ok':>6s} {'gsy wall med/max':>16s} {'cpu med':>7s} {'1st med':>7s} | "
+          f"{'gsy ok':>6s} {'smp':>3s} {'gsy wall med/max':>16s} {'cpu med':>7s} {'1st med':>7s} | "
           f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s}")  # fmt: skip
     for T, r in runs.items():
         g, s = r["geodex"], r["geosyn"]
@@ -142,6 +143,7 @@ def main(argv: list[str] | None = None) -> None:
         print(
             f"{T:6g} {r['load']:5.1f} | {len(g_ok):3d}/{len(g):<2d} "
             f"{_median(gw):7.3f}/{max(gw, default=math.nan):<8.3f} | {len(s_ok):3d}/{len(s):<2d} "
+            f"{sum(s[n]['seed'] == 'sampled' for n in s_ok):3d} "
             f"{_median(sw):7.3f}/{max(sw, default=math.nan):<8.3f} "
             f"{_median([s[n]['cpu_time'] for n in s_ok]):7.3f} "
             f"{_median([s[n]['first_feasible_time'] for n in s_ok]):7.3f} | "
