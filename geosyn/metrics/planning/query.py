@@ -38,7 +38,7 @@ from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.rrt import rrt_connect, shortcut
-from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut
+from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut, metric_smooth
 from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check, feasible_result
 
 if TYPE_CHECKING:
@@ -119,7 +119,7 @@ class Query:
         self.attempts: list[str] = []
         self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         self.first = math.nan  # when the first plan passed every check [s]
-        self.sampled_path: np.ndarray | None = None  # RRT-Connect seed 0, shortened
+        self.sampled_path: np.ndarray | None = None  # the sampled plan's path
         self.check_time = 0.0  # the last sampled plan's checks took [s]
 
     def left(self) -> float:
@@ -192,6 +192,7 @@ class Query:
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
             return None
         if len(path) == 2:
+            self.sampled_path = path  # `polish` may bend it towards the geodesic
             return self.verified(path, "the straight line")
         cap = min(SAMPLED_SHORTCUT * self.budget, SAMPLED_SHORTCUT_MAX, max(self.left(), 0.0))
         self.sampled_path = metric_shortcut(p.valid, p.metric, path, budget=cap, seed=self.seed)
@@ -200,7 +201,8 @@ class Query:
 
     def polish(self, plan: Plan) -> Plan:
         """``plan`` (sampled) improved in the time left but twice its exact check's time:
-        its path shortened further (`POLISH_TRIES` shortcuts), then new RRT-Connect paths
+        its path shortened further (`POLISH_TRIES` shortcuts, then `metric_smooth` for
+        half the time left), then new RRT-Connect paths
         (seeds ``seed + 1, 2, ...``, each sampled in at most half the time left) shortened
         alike, each verified; the shortest verified plan in the metric."""
         p, path, best = self.p, self.sampled_path, plan
@@ -211,7 +213,9 @@ class Query:
                 break
             path = metric_shortcut(p.valid, p.metric, path, budget=self.left() - reserve,
                                    tries=POLISH_TRIES, seed=self.seed + restart)  # fmt: skip
-            how = f"RRT-Connect path #{restart - 1} shortened in the metric"
+            path = metric_smooth(p.valid, p.metric, even_in_metric(p.metric, path, p.nodes + 1),
+                                 budget=0.5 * (self.left() - reserve))  # fmt: skip
+            how = f"RRT-Connect path #{restart - 1} shortened and smoothed in the metric"
             if (better := self.verified(path, how)) is not None and (
                     new := metric_length(p.metric, better.q)) < length:  # fmt: skip
                 best, length, self.sampled_path = better, new, path
@@ -249,7 +253,7 @@ class Query:
         the collocation at most twice that."""
         p, q0, q1 = self.p, self.q0, self.q1
         name = "RRT-Connect" if index == 0 else f"RRT-Connect #{index}"
-        if index == 0 and self.sampled_path is not None:
+        if index == 0 and self.sampled_path is not None and len(self.sampled_path) > 2:
             path = self.sampled_path
             self.attempts.append(f"{name}: the sampled plan's path as the seed")
         else:
