@@ -59,7 +59,13 @@ from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.query import COARSE_TO_FINE, REFINEMENTS, Query
+from geosyn.metrics.planning.query import (
+    ANYTIME_CHECKS,
+    ANYTIME_SLACK,
+    COARSE_TO_FINE,
+    REFINEMENTS,
+    Query,
+)
 from geosyn.metrics.planning.self_collision import SelfCollision
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.metrics.planning.verify import (
@@ -81,12 +87,6 @@ __all__ = [
     "Planner",
     "densify",
 ]
-
-ANYTIME_CHECKS = 3
-"""Most unfinished paths checked when a budget ends without a converged plan."""
-
-ANYTIME_SLACK = 1.05
-"""Those checks stop at this multiple of the budget (an unchecked path is not returned)."""
 
 
 def densify(path: np.ndarray, factor: int) -> np.ndarray:

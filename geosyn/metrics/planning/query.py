@@ -45,6 +45,8 @@ if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
 
 __all__ = [
+    "ANYTIME_CHECKS",
+    "ANYTIME_SLACK",
     "COARSE_TO_FINE",
     "MIN_COLLOCATION",
     "POLISH_TRIES",
@@ -56,6 +58,12 @@ __all__ = [
     "Query",
     "metric_length",
 ]
+
+ANYTIME_CHECKS = 3
+"""Most unfinished paths checked when a budget ends without a converged plan."""
+
+ANYTIME_SLACK = 1.05
+"""Those checks stop at this multiple of the budget (an unchecked path is not returned)."""
 
 REFINEMENTS = ((1, 3), (2, 1), (2, 3))
 """What a path that fails the fine check is solved again with, in turn, from the same
@@ -227,8 +235,6 @@ class Query:
     def verified(self, path: np.ndarray, how: str) -> Plan | None:
         """The sampled plan of ``path`` (T, n) [rad] if it passes the checks (the exact
         one decides), else None; ``how`` it was made goes to its attempts and message."""
-        from geosyn.metrics.planning.planner import ANYTIME_SLACK
-
         p, t = self.p, time.perf_counter()
         path = even_in_metric(p.metric, path, p.nodes + 1)
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
@@ -341,8 +347,6 @@ class Query:
 
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
-        from geosyn.metrics.planning.planner import ANYTIME_SLACK
-
         quick = self.sampled()
         others: list[Plan] = [quick] if quick is not None else []
         if self.left() <= MIN_COLLOCATION:
