@@ -115,6 +115,13 @@ class HumanSynergies(Procedure):
     @classmethod
     def check(cls, cfg: ExperimentConfig, params: Any, robot: Any) -> list[tuple[str, str]]:
         out = []
+        if cfg.robot.plant != "model":
+            out.append(
+                (
+                    "robot.plant",
+                    "must be 'model': the transferred segments are tracked on geosyn's model",
+                )
+            )
         if len(params.q_home) != robot.nv:
             out.append(("params.q_home", f"must have nv={robot.nv} values"))
         if not robot.model.existFrame(params.shoulder_frame):

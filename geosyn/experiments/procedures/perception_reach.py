@@ -235,6 +235,10 @@ class PerceptionReach(Procedure):
         out = check_required(cfg, "synergies", "controllers")
         if cfg.controllers and cfg.controllers[0].type != "computed_torque":
             out.append(("controllers.0.type", "computed_torque"))
+        if cfg.robot.plant != "model":
+            out.append(
+                ("robot.plant", "must be 'model': the cameras render geosyn's model of the scene")
+            )
         return out
 
     def run(self, ctx: RunContext) -> dict[str, np.ndarray]:
