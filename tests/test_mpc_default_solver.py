@@ -107,3 +107,38 @@ def test_fatrop_command_stays_within_the_torque_limits_and_is_flagged(guard):
     assert cost <= float((clipped - law) @ m_inv @ (clipped - law)) + 1e-9
     mpc.reset(q, v)  # a reset forgets the count and its note
     assert mpc.command.count == 0 and "joint_limit_guard" not in d.notes
+
+
+def test_ddp_feedback_saturated_between_solves_is_flagged():
+    """Between solves the default DDP MPC follows its plan with the Riccati feedback
+    ``u_j + f_j + K_j dx``, saturated at the torque limits: a joint whose feedback torque,
+    written out here from the public plan, is over its limit is flagged as saturated and
+    the command is that torque clipped (the state pushed off the plan)."""
+    robot, metric = get_robot("planar2"), get_metric("planar2")
+    mpc = GeodesicMPC(robot, metric, horizon=5, dt=0.02, control="torque")
+    assert mpc.solver_options.name == "ddp"
+    ref = _far_reference(robot)
+    mpc.set_reference(ref)
+    q, v = np.zeros(2), np.zeros(2)
+    mpc.reset(q, v)
+    mpc.compute(0.0, q, v)  # the solve tick: a plan with gains
+    plan = mpc.plan
+    assert plan is not None and plan.K is not None
+    from geosyn.controllers.mpc.follow import plan_state
+
+    t = 0.005  # inside the first stage, before the next solve (every 0.02 s)
+    j, q_s, v_s = plan_state(plan, t, 0.02)
+    f = 0.0 if plan.friction is None else plan.friction[j]
+    # an offset driving joint 1's feedback 20 N m over its limit, along its gain row (a
+    # joint the box QP clamps has no feedback gain: it stays at its limit, not over it)
+    row = plan.K[j][1]
+    u1 = plan.u[j][1] + (0.0 if np.isscalar(f) else f[1])
+    dx = (robot.tau_max[1] + 20.0 - u1) * row / (row @ row)
+    law = plan.u[j] + f + plan.K[j] @ dx
+    over = np.abs(law) > robot.tau_max
+    assert over.any(), law
+    q1, v1 = q_s + dx[:2], v_s + dx[2:]
+    tau = mpc.compute(t, q1, v1)
+    assert not mpc.diagnostics.fallback_used  # still following the plan
+    np.testing.assert_array_equal(mpc.diagnostics.saturated, over)
+    np.testing.assert_allclose(tau, np.clip(law, -robot.tau_max, robot.tau_max), atol=1e-12)

@@ -386,11 +386,15 @@ class GeodesicMPC(Controller):
     # -- control ---------------------------------------------------------------------
     def compute(self, t: float, q: Vector, v: Vector) -> Vector:
         """`Controller.compute`; a joint whose torque the law asked over its limit (then
-        guarded or clamped inside) is flagged in ``diagnostics.saturated``."""
+        guarded or clamped inside, or its DDP feedback saturated by the plan follower) is
+        flagged in ``diagnostics.saturated``."""
+        self._follower.clipped[:] = False
         tau = super().compute(t, q, v)
         sat = self.diagnostics.saturated
-        if sat is not None and self.command.over_box.any():
-            np.logical_or(sat, self.command.over_box, out=sat)
+        if sat is not None:
+            for asked_over in (self.command.over_box, self._follower.clipped):
+                if asked_over.any():
+                    np.logical_or(sat, asked_over, out=sat)
         return tau
 
     def _compute(self, t: float, q: Vector, v: Vector) -> Vector:

@@ -50,7 +50,8 @@ class PlanFollower:
     (acceleration control), with ``(q^*, v^*)`` the cubic Hermite interpolation of the
     planned states (`plan_state`). A plan with DDP gains (``plan.K``) is followed by its
     own feedback, saturated at the torque limits like the DDP rollout:
-    ``tau = clip(u^*_j + K_j ((q, v) - (q^*, v^*)), -tau_max, tau_max)``. A plan's
+    ``tau = clip(u^*_j + K_j ((q, v) - (q^*, v^*)), -tau_max, tau_max)`` (the saturated
+    joints in `clipped`, which `GeodesicMPC` flags in its diagnostics). A plan's
     dry-friction feed-forward of the stage (`MPCPlan.friction`) is added to each of
     these torques; the computed torque on the reference adds ``f_c tanh(v_r / v_s)``.
 
@@ -92,13 +93,17 @@ class PlanFollower:
         self.torque_control = control == "torque"
         self.dt, self.kp, self.kd = dt, kp, kd
         self.plan_tolerance = plan_tolerance
+        #: (nv,) joints whose DDP feedback torque the last `torque` call saturated.
+        self.clipped = np.zeros(model.nv, dtype=bool)
 
     def torque(self, plan: MPCPlan, t: float, q: Vector, v: Vector) -> Vector:
         """(nv,) torque [N m] that follows ``plan`` at time ``t`` from the state ``(q, v)``."""
         j, q_p, v_p = plan_state(plan, t, self.dt)
         f = 0.0 if plan.friction is None else plan.friction[j]
+        self.clipped[:] = False
         if plan.K is not None and self.tau_max is not None:
             tau = plan.u[j] + f + plan.K[j] @ np.concatenate([q - q_p, v - v_p])
+            np.greater(np.abs(tau), self.tau_max, out=self.clipped)
             return np.clip(tau, -self.tau_max, self.tau_max)
         fb = self.kp * (q_p - q) + self.kd * (v_p - v)
         if self.torque_control:
@@ -117,6 +122,7 @@ class PlanFollower:
 
     def reference_torque(self, reference: Reference, t: float, q: Vector, v: Vector) -> Vector:
         """(nv,) computed torque [N m] on ``reference`` with the same gains (no plan)."""
+        self.clipped[:] = False
         q_ref, v_ref, a_ref = reference.sample(t)
         a = a_ref + self.kp * (q_ref - q) + self.kd * (v_ref - v)
         tau = self._inverse_dynamics(q, v, a)
