@@ -159,6 +159,8 @@ class SimResult:
         status: ``"ok"``, ``"diverged: ..."`` or ``"controller failed: ..."``.
         wall_time: wall time of the run [s].
         seed: the seed of the run's random generators.
+        controller_notes: the controller's ``diagnostics.notes`` at the end of the run,
+            ``"name: text"`` each (what it changed, modelled or guarded; () if none).
     """
 
     t: np.ndarray
@@ -194,6 +196,7 @@ class SimResult:
     status: str
     wall_time: float
     seed: int
+    controller_notes: tuple[str, ...] = ()
 
     # -- summaries --------------------------------------------------------------------
     @property
@@ -258,6 +261,7 @@ class SimResult:
         meta = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ARRAY_FIELDS}
         meta["solver_status_names"] = list(meta["solver_status_names"])
         meta["joint_names"] = list(meta["joint_names"])
+        meta["controller_notes"] = list(meta["controller_notes"])
         return json.dumps(meta)
 
     @classmethod
@@ -294,6 +298,7 @@ class SimResult:
             raise InvalidArgument(f"path {str(path)!r} is not a saved SimResult: {err}") from err
         meta["solver_status_names"] = tuple(meta["solver_status_names"])
         meta["joint_names"] = tuple(meta["joint_names"])
+        meta["controller_notes"] = tuple(meta.get("controller_notes", ()))  # older files: none
         return cls(**arrays, **meta)
 
 

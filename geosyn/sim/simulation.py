@@ -486,7 +486,18 @@ class Simulation:
             status=status,
             wall_time=wall,
             seed=seed,
+            controller_notes=_controller_notes(self.controller),
         )
+
+
+def _controller_notes(controller: object) -> tuple[str, ...]:
+    """``"name: text"`` for each note in the controller's ``diagnostics.notes`` at the end
+    of a run (settings it changed when built, what it modelled, what a guard did); ()
+    for a controller without diagnostics."""
+    notes = getattr(getattr(controller, "diagnostics", None), "notes", None)
+    if not isinstance(notes, dict):
+        return ()
+    return tuple(f"{name}: {text}" for name, text in notes.items())
 
 
 __all__ = ["SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]

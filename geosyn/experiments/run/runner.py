@@ -44,6 +44,7 @@ from geosyn.experiments.run.progress import progress_bars
 from geosyn.experiments.run.runlog import RunLog, geosyn_version, git_commit
 from geosyn.experiments.run.scene import build_run_scene
 from geosyn.experiments.schema import ExperimentConfig
+from geosyn.sim.log import RUN_META
 
 
 class RunOutcome(NamedTuple):
@@ -84,6 +85,14 @@ def _run_statuses(results: dict[str, Any]) -> dict[str, str]:
     """Status of each closed-loop run stored in ``results`` (``ok``, ``diverged: ...``)."""
     tail = "__status"
     return {k[: -len(tail)]: str(v) for k, v in results.items() if k.endswith(tail)}
+
+
+def _controller_notes(results: dict[str, Any], run: str) -> list[str]:
+    """The controller notes stored with closed-loop run ``run`` (`SimResult.controller_notes`)."""
+    meta = results.get(f"{run}{RUN_META}")
+    if meta is None:
+        return []
+    return [str(n) for n in json.loads(str(meta)).get("controller_notes", [])]
 
 
 def run_experiment(
@@ -203,6 +212,8 @@ def _write_results(
     np.savez_compressed(tmp / "results.npz", **arrays)
     for name, status in _run_statuses(results).items():
         log.write(f"closed-loop run {name}: {status}")
+        for note in _controller_notes(results, name):
+            log.write(f"closed-loop run {name}: controller note {note}")
     if cfg.outputs.csv:
         for path in write_csv(tmp, cfg.controller_labels(), arrays):
             log.write(f"wrote {path.relative_to(tmp)}")
