@@ -5,17 +5,27 @@ by the test from the file) with ``pinocchio.computeDistance`` and
 ``pinocchio.computeCollision`` for the same link pairs, at seeded random configurations.
 The UR5's forearm and wrist-3 convex hulls overlap by ~1 cm where the meshes are ~1 cm
 apart: the meshes, not their hulls, decide for a URDF.
+
+Plans (`Planner`): Pinocchio's collision model of the Panda URDF with the file's self
+pairs referees that no returned plan self-collides, that the spheres' self distances are
+lower bounds of the exact ones, and that a self-colliding start is refused.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
-from geosyn.metrics.planning.self_collision import INTERSECTING, SelfCollision
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.planning.errors import InCollision
+from geosyn.metrics.planning.exact_path import checked_configurations
+from geosyn.metrics.planning.planner import Planner
+from geosyn.metrics.planning.self_collision import INTERSECTING, SELF_NEAR, SelfCollision
 from geosyn.robots import load_robot
 from geosyn.robots.collision_geometry import CollisionObject
 
@@ -94,3 +104,123 @@ def test_overlapping_hulls_of_clear_meshes_are_not_a_self_collision() -> None:
         raise AssertionError("no seeded configuration with overlapping hulls")
     d, a, b = checker.clearance(q)
     assert (a, b) == PAIRS[0] and d > 0.005  # the meshes are clear by more than 5 mm
+
+
+# Panda: the straight line between these two self-clear configurations folds the hand
+# into link 2 halfway (found by a seeded search: a self-colliding random configuration
+# plus and minus 0.3 rad along a random direction; both ends >= 16 mm clear).
+FOLD_START = np.array([-2.43, -0.95, 1.23, -2.67, 0.62, 0.59, 1.39])
+FOLD_GOAL = np.array([-2.42, -0.92, 1.6, -2.8, 0.04, 1.19, 1.38])
+
+
+class _Referee:
+    """Pinocchio's own collision model of a robot's URDF (coal on its collision
+    geometry), with the self pairs of the robot's file, link by link."""
+
+    def __init__(self, robot: Any, pairs: tuple[tuple[str, str], ...]) -> None:
+        urdf = Path(str(robot.source_file))
+        self.nq = robot.nq
+        self.full = pin.buildModelFromUrdf(str(urdf))
+        share = [str(p) for p in urdf.parents if p.name == "share"]
+        self.gm = pin.buildGeomFromUrdf(self.full, str(urdf), pin.GeometryType.COLLISION,
+                                        package_dirs=share)  # fmt: skip
+        by_link: dict[str, list[int]] = {}
+        for i, g in enumerate(self.gm.geometryObjects):
+            by_link.setdefault(self.full.frames[g.parentFrame].name, []).append(i)
+        for a, b in pairs:
+            for i in by_link.get(a, []):
+                for j in by_link.get(b, []):
+                    self.gm.addCollisionPair(pin.CollisionPair(i, j))
+        self.gd, self.data = self.gm.createData(), self.full.createData()
+
+    def _place(self, q: np.ndarray) -> None:
+        qf = pin.neutral(self.full)
+        qf[: self.nq] = q
+        pin.updateGeometryPlacements(self.full, self.data, self.gm, self.gd, qf)
+
+    def collides(self, q: np.ndarray) -> bool:
+        self._place(q)
+        return bool(pin.computeCollisions(self.gm, self.gd, False))
+
+    def distances(self, q: np.ndarray) -> dict[tuple[str, str], float]:
+        """Smallest distance [m] per link pair (-inf where the meshes intersect)."""
+        self._place(q)
+        pin.computeCollisions(self.gm, self.gd, False)
+        pin.computeDistances(self.gm, self.gd)
+        out: dict[tuple[str, str], float] = {}
+        for k, cp in enumerate(self.gm.collisionPairs):
+            key = (self.full.frames[self.gm.geometryObjects[cp.first].parentFrame].name,
+                   self.full.frames[self.gm.geometryObjects[cp.second].parentFrame].name)  # fmt: skip
+            hit = self.gd.collisionResults[k].isCollision()
+            d = -math.inf if hit else self.gd.distanceResults[k].min_distance
+            out[key] = min(out.get(key, math.inf), d)
+        return out
+
+
+@pytest.fixture(scope="module")
+def panda_planner() -> Planner:
+    return Planner(KineticEnergyMetric(load_robot("panda")))
+
+
+@pytest.fixture(scope="module")
+def panda_referee(panda_planner: Planner) -> _Referee:
+    return _Referee(panda_planner.robot, panda_planner.sphere_check.self_pairs)
+
+
+def test_sphere_self_distances_are_lower_bounds_of_pinocchios(
+    panda_planner: Planner, panda_referee: _Referee
+) -> None:
+    """Per self pair, the spheres' distance is at most Pinocchio's exact one (the fitted
+    spheres cover the meshes), at seeded random configurations (1e-9 m)."""
+    check, rng = panda_planner.sphere_check, np.random.default_rng(7)
+    assert len(check.self_pairs) >= 30
+    for _ in range(15):
+        q = panda_planner.robot.random_q(rng)
+        bounds = check.self_clearances(q)[0]
+        ref = panda_referee.distances(q)
+        for k, pair in enumerate(check.self_pairs):
+            assert bounds[k] <= ref[pair] + 1e-9, (pair, bounds[k], ref[pair])
+
+
+def test_a_plan_never_folds_the_panda_into_itself(
+    panda_planner: Planner, panda_referee: _Referee
+) -> None:
+    """The straight line (and the unconstrained geodesic near it) folds the hand into
+    link 2; the returned plan goes round: Pinocchio finds no self-collision at any
+    configuration of the plan at its exact resolution, and its reported self-clearance
+    is not negative and not above Pinocchio's distance at those configurations."""
+    line = checked_configurations(np.array([FOLD_START, FOLD_GOAL]), 0.02)
+    assert any(panda_referee.collides(q) for q in line)  # the test means something
+    assert not panda_referee.collides(FOLD_START) and not panda_referee.collides(FOLD_GOAL)
+    plan = panda_planner.plan(FOLD_START, FOLD_GOAL, budget=1.0, seed=0)
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    assert not any(panda_referee.collides(q) for q in Q)
+    assert 0.0 <= plan.self_clearance <= SELF_NEAR
+    lowest = min(min(panda_referee.distances(q).values()) for q in Q[:: max(len(Q) // 40, 1)])
+    assert plan.self_clearance <= lowest + 1e-6
+    np.testing.assert_allclose(plan.q[0], FOLD_START, atol=1e-9)
+    np.testing.assert_allclose(plan.q[-1], FOLD_GOAL, atol=1e-9)
+
+
+def test_the_verification_catches_a_self_colliding_path(
+    panda_planner: Planner, panda_referee: _Referee
+) -> None:
+    """The straight line, which Pinocchio finds self-colliding, gets a negative
+    self-clearance (refused); each half of it up to the last configuration Pinocchio
+    finds clear is accepted."""
+    line = np.array([FOLD_START, FOLD_GOAL])
+    assert panda_planner.self_check(line) < 0.0
+    assert not panda_planner.self_ok(panda_planner.self_check(line))
+    Q = checked_configurations(line, panda_planner.exact_resolution)
+    first_hit = next(i for i, q in enumerate(Q) if panda_referee.collides(q))
+    clear_part = np.array([FOLD_START, Q[max(first_hit - 2, 0)]])
+    assert panda_planner.self_ok(panda_planner.self_check(clear_part))
+
+
+def test_a_self_colliding_start_is_refused(panda_planner: Planner, panda_referee: _Referee) -> None:
+    mid = 0.5 * (FOLD_START + FOLD_GOAL)
+    rng = np.random.default_rng(0)
+    hit = next(q for q in (mid + 0.05 * s * rng.uniform(-1, 1, 7) for s in range(20))
+               if panda_referee.collides(q))  # fmt: skip
+    with pytest.raises(InCollision, match="self-collision"):
+        panda_planner.plan(hit, FOLD_GOAL, budget=0.5)

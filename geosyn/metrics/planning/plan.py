@@ -45,6 +45,12 @@ class Plan(NamedTuple):
             from the query's start [s].
         nlp_build_time: time spent before the query's clock started building the NLPs
             of its obstacle slot count (its first query with that count; else 0) [s].
+        self_clearance: smallest exact distance [m] between the file's self-collision
+            link pairs along the path, at the configurations ``exact_resolution`` apart
+            (`geosyn.metrics.planning.self_collision.path_self_clearance`: the sphere
+            bounds everywhere, coal where they are closest); never negative for a
+            returned plan (a self-colliding path is refused); at most `SELF_NEAR`
+            (0.02 m: "at least" that); NaN when the robot has no file geometry.
     """
 
     result: CollocationResult
@@ -57,6 +63,7 @@ class Plan(NamedTuple):
     exact_resolution: float = math.nan
     first_feasible_time: float = math.nan
     nlp_build_time: float = 0.0
+    self_clearance: float = math.nan
 
     @property
     def q(self) -> np.ndarray:

@@ -31,7 +31,10 @@ One query, within a stated time budget:
    file's meshes every ``exact_resolution`` rad, which then decide); a path that touches
    an obstacle is solved again with more constrained points (`REFINEMENTS`) and, after an
    exact failure, a sphere margin larger by the penetration plus `REPAIR_STEP`, until one
-   passes, or refused.
+   passes, or refused; and for self-collision on the file's self pairs
+   (`geosyn.metrics.planning.self_collision.path_self_clearance`, same resolution): a
+   self-colliding path is refused (the sampled plans avoid it: their validity includes
+   the self pairs' sphere distances), never returned.
 
 Default spheres: fitted to the file's meshes (`geosyn.robots.collision_spheres`); they
 and the NLP's per-node functions are cached on disk (`collocation_nlp`).
@@ -66,7 +69,11 @@ from geosyn.metrics.planning.query import (
     REFINEMENTS,
     Query,
 )
-from geosyn.metrics.planning.self_collision import SelfCollision
+from geosyn.metrics.planning.self_collision import (
+    SelfCollision,
+    check_self_end,
+    path_self_clearance,
+)
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.metrics.planning.verify import (
     check_end,
@@ -172,6 +179,11 @@ class Planner:
         self.term = ObstacleTerm((), capacity=capacity, spheres=spheres, distance=distance)
         self.term.bind(robot)
         self.sphere_check = SphereCheck(robot, spheres)
+        if self.exact is not None:  # self pairs on the file's spheres (cached on disk)
+            from geosyn.robots.collision_spheres import file_spheres
+
+            fitted = file_spheres(robot)
+            self.sphere_check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
         self.margin = check_float(margin, "margin", low=0.0)
         self.nodes = check_int(nodes, "nodes", low=2)
         self.check_factor = check_int(check_factor, "check_factor", low=1)
@@ -290,9 +302,30 @@ class Planner:
     def valid(self, Q: np.ndarray) -> np.ndarray:
         """(K,) True where the configurations ``Q`` (K, n) keep clearance >= margin / 2
         (exact sphere distances to the query's obstacles, `SphereCheck`: a few times
-        cheaper than the collocation's clearance function, for sampling)."""
-        self.sphere_check.set_obstacles(self.term.obstacles)
-        return self.sphere_check.clearances(Q) >= 0.5 * self.margin
+        cheaper than the collocation's clearance function, for sampling) and no self
+        pair's sphere distance is below its floor (`SphereCheck.self_valid`)."""
+        check = self.sphere_check
+        check.set_obstacles(self.term.obstacles)
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.metric.n)
+        R, p = check.frames(Q)
+        ok = check.clearances(Q, (R, p)) >= 0.5 * self.margin
+        if check.self_pairs and ok.any():
+            ok[ok] = check.self_valid(Q[ok], (R[ok], p[ok]))
+        return ok
+
+    def self_check(self, path: np.ndarray, deadline: float = math.inf) -> float:
+        """Self-clearance [m] of ``path`` (T, n) [rad] at ``exact_resolution``
+        (`path_self_clearance`; NaN without file geometry or past ``deadline``)."""
+        checker = self.self_collision if self.sphere_check.self_pairs else None
+        return path_self_clearance(checker, self.sphere_check, path, self.exact_resolution,
+                                   deadline)  # fmt: skip
+
+    def self_ok(self, clearance: float) -> bool:
+        """Whether a path of that `self_check` value may be returned: not negative, and
+        decided (NaN only for a robot without file geometry)."""
+        if not self.sphere_check.self_pairs:
+            return True
+        return clearance >= 0.0
 
     COARSE_RAMP = 0.25
     """Fraction of the path over which the coarse clearance bound rises from the start's
@@ -352,11 +385,16 @@ class Planner:
             exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution,
                                 end)  # fmt: skip
             ok = exact.clearance >= 0.0 if self.exact is not None else min(coarse, fine) >= 0.0
-            if ok:
+            own = self.self_check(res.q, end) if ok else math.nan
+            if ok and self.self_ok(own):
                 wall = time.perf_counter() - t0
                 attempts.append(f"returned {res.message.split(': ', 1)[1]} (not converged)")
                 return Plan(res, "anytime", coarse, wall, tuple(attempts), fine,
-                            exact.clearance, self.exact_resolution, wall)  # fmt: skip
+                            exact.clearance, self.exact_resolution, wall,
+                            self_clearance=own)  # fmt: skip
+            if ok:
+                attempts.append(f"{res.message.split(': ', 1)[1]}: self-collision check "
+                                f"fails (self-clearance {own:.4f} m)")  # fmt: skip
         return None
 
     def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
@@ -383,6 +421,8 @@ class Planner:
 
     def _check_end(self, q: np.ndarray, which: str) -> None:
         check_end(self.robot, self.term, self.exact, q, which)
+        if self.sphere_check.self_pairs:
+            check_self_end(self.self_collision, self.sphere_check, q, which)
 
     def plan(
         self,
@@ -432,6 +472,7 @@ class Planner:
             self.term.set_obstacles(obstacles)
             self._check_end(q0, "start")
             self._check_end(q1, "goal")
+            self.sphere_check.set_self_floor(q0, q1)
             plan = Query(self, q0, q1, budget, seed, t0 + built).run()
         finally:  # ``term`` holds the last query's obstacles, on every slot
             if self.term is not self._full_term:

@@ -4,7 +4,7 @@ Anytime: a query first makes a plan without an NLP (`Query.sampled`): RRT-Connec
 the planner's spheres (within `SAMPLED_SEARCH`; the straight line when it is free on
 them), shortened in the metric (`geosyn.metrics.planning.smoothing`, at most
 `SAMPLED_SHORTCUT` of the budget) and verified like every plan (the exact check
-decides); the collocation stages then get the time left (none when less than
+decides, self-collision included); the collocation stages then get the time left (none when less than
 `MIN_COLLOCATION` is left: the sampled path, if any, is then shortened further, and
 other RRT-Connect paths are tried and shortened, each verified: `Query.polish`), and the
 kept plan is the best verified one by the homotopy rule below (the
@@ -147,11 +147,17 @@ class Query:
             exact = exact_check(p.exact, res.q, p.term.obstacles, p.exact_resolution)
             if p.exact is not None:  # the robot's own geometry decides
                 check, what = exact.clearance, f"the exact check ({exact.link})"
+            own = p.self_check(res.q) if check >= 0.0 else math.nan
+            if check >= 0.0 and not p.self_ok(own):  # no NLP term for it: refused
+                self.attempts.append(f"{res.kind} path self-collides (exact self-clearance "
+                                     f"{own:.4f} m): refused")  # fmt: skip
+                return None
             if check >= 0.0:
                 wall = time.perf_counter() - self.t0
                 self.first = wall if math.isnan(self.first) else self.first
                 return Plan(res, seed_name, coarse, wall, tuple(self.attempts), fine,
-                            exact.clearance, p.exact_resolution, self.first)  # fmt: skip
+                            exact.clearance, p.exact_resolution, self.first,
+                            self_clearance=own)  # fmt: skip
             self.attempts.append(
                 f"{res.kind} path ({len(res.nodes) - 1} segments, {sub} constrained "
                 f"point(s) inside each) crosses an obstacle on {what} (clearance {check:.4f} m)"
@@ -240,18 +246,20 @@ class Query:
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
                             self.t0 + ANYTIME_SLACK * self.budget)  # fmt: skip
-        self.check_time = time.perf_counter() - t
         ok = exact.clearance >= 0.0 if p.exact is not None else min(coarse, fine) >= 0.0
-        if not ok:
+        own = p.self_check(path, self.t0 + ANYTIME_SLACK * self.budget) if ok else math.nan
+        self.check_time = time.perf_counter() - t
+        if not ok or not p.self_ok(own):
             self.attempts.append(f"sampled plan: {how} fails the checks (exact clearance "
-                                 f"{exact.clearance:.4f} m, spheres {min(coarse, fine):.4f} m)")  # fmt: skip
+                                 f"{exact.clearance:.4f} m, spheres {min(coarse, fine):.4f} m, "
+                                 f"self-clearance {own:.4f} m)")  # fmt: skip
             return None
         wall = time.perf_counter() - self.t0
         self.first = wall if math.isnan(self.first) else self.first
         self.attempts.append(f"sampled plan: {how}, verified at {wall:.3f} s")
         return Plan(feasible_result(p.metric, path, how), "sampled", coarse, wall,
                     tuple(self.attempts), fine, exact.clearance, p.exact_resolution,
-                    self.first)  # fmt: skip
+                    self.first, self_clearance=own)  # fmt: skip
 
     def from_rrt(self, index: int, cap: float = math.inf) -> Plan | None:
         """Collocation from an RRT-Connect seed (``seed + index``; seed 0's path from

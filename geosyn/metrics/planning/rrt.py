@@ -87,6 +87,7 @@ def rrt_connect(
     if _edge_valid(valid, q0, q1, resolution):
         return np.array([q0, q1]), 2
     trees = [_Tree(q0, max_nodes), _Tree(q1, max_nodes)]
+    from_start = trees[0]  # ``trees`` swaps every round
 
     def extend(tree: _Tree, target: np.ndarray) -> tuple[int, bool]:
         i = tree.nearest(target)
@@ -109,7 +110,7 @@ def rrt_connect(
                     break
                 if reached:
                     path = np.vstack([a.branch(j)[::-1], b.branch(k)[1:]])
-                    if trees[0] is b:  # tree a grew from the goal
+                    if a is not from_start:  # tree a grew from the goal
                         path = path[::-1]
                     return path, trees[0].size + trees[1].size
         trees.reverse()

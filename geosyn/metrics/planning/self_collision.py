@@ -9,23 +9,40 @@ the UR5's forearm and wrist 3), an MJCF mesh its convex hull (what MuJoCo collid
 primitive itself (`geosyn.world.exact_clearance.coal_shape`); `clearance` returns the
 smallest coal distance over the pairs. Triangle meshes that intersect have no
 penetration depth in coal: such a pair counts as `INTERSECTING`. The planner checks IK
-goals with it (`geosyn.metrics.planning.goals`).
+goals with it (`geosyn.metrics.planning.goals`), the start and goal of every query, and
+every returned plan (`path_self_clearance`).
+
+Rule for plans: a path is checked at the configurations of
+`geosyn.metrics.planning.exact_path.checked_configurations` (the exact check's
+resolution); at each, every pair's sphere distance (`SphereCheck.self_clearances`: a
+lower bound of the exact one) is computed, then coal's exact distance for the
+(configuration, pair) items whose bound is below `SELF_NEAR`, closest bound first,
+stopping as soon as the next bound is not below the smallest exact distance found (or
+that distance is negative: the plan is then refused or repaired, never returned).
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
+from geosyn.metrics.planning.errors import InCollision
+from geosyn.metrics.planning.exact_path import checked_configurations
+from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.robots.collision_geometry import CollisionObject, collision_objects
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import Robot
 from geosyn.world.exact_clearance import coal_shape
 
-__all__ = ["INTERSECTING", "SelfCollision"]
+__all__ = ["INTERSECTING", "SELF_NEAR", "SelfCollision", "check_self_end", "path_self_clearance"]
+
+SELF_NEAR = 0.02
+"""Self-clearance [m] beyond which the sphere bound is not refined: a plan whose pairs'
+sphere distances all exceed it reports this value ("at least")."""
 
 INTERSECTING = -1e-6
 """Clearance [m] reported for two intersecting triangle meshes (coal gives no depth)."""
@@ -78,6 +95,7 @@ class SelfCollision:
             by_link.setdefault(o.link, []).append(k)
         self._checks = [(a, b, i, j) for a, b in self.pairs
                         for i in by_link.get(a, ()) for j in by_link.get(b, ())]  # fmt: skip
+        self._of_pair = {ab: [c for c in self._checks if c[:2] == ab] for ab in self.pairs}
         self._request = coal.DistanceRequest()
         self._data = robot.model.createData()
 
@@ -92,12 +110,15 @@ class SelfCollision:
         except RobotFileError:
             return None
 
-    def clearance(self, q: np.ndarray) -> tuple[float, str, str]:
-        """(smallest signed distance [m], link a, link b) over the pairs at ``q`` (n,)
-        [rad] (`INTERSECTING` for intersecting triangle meshes); ``(inf, "", "")``
-        without pairs."""
+    def clearance(
+        self, q: np.ndarray, pair: tuple[str, str] | None = None
+    ) -> tuple[float, str, str]:
+        """(smallest signed distance [m], link a, link b) over the pairs (or only
+        ``pair``, one of them) at ``q`` (n,) [rad] (`INTERSECTING` for intersecting
+        triangle meshes); ``(inf, "", "")`` without pairs."""
         import coal
 
+        checks = self._checks if pair is None else self._of_pair.get(pair, [])
         model, data = self.robot.model, self._data
         pin.forwardKinematics(model, data, np.asarray(q, dtype=float))
         poses: dict[int, Any] = {}
@@ -112,7 +133,7 @@ class SelfCollision:
             return poses[k]
 
         best: tuple[float, str, str] = (math.inf, "", "")
-        for a, b, i, j in self._checks:
+        for a, b, i, j in checks:
             if (self._bvh[i] or self._bvh[j]) and coal.collide(
                 placed(i), placed(j), coal.CollisionRequest(), coal.CollisionResult()
             ):
@@ -122,3 +143,54 @@ class SelfCollision:
             if d < best[0]:
                 best = (d, a, b)
         return best
+
+
+def path_self_clearance(
+    checker: SelfCollision | None,
+    spheres: SphereCheck,
+    path: np.ndarray,
+    resolution: float,
+    deadline: float = math.inf,
+) -> float:
+    """Smallest exact self-clearance [m] of the linear interpolation of ``path`` (T, n)
+    [rad] at most ``resolution`` [rad] apart (the module's rule; ``spheres`` has the same
+    pairs set, `SphereCheck.set_self_pairs`).
+
+    Returns the exact minimum when it is below `SELF_NEAR` and not negative, else
+    `SELF_NEAR` ("at least"); a negative value (some exact penetration, not
+    necessarily the deepest) when the path self-collides; NaN without ``checker`` or
+    when ``time.perf_counter()`` passes ``deadline`` [s] first.
+    """
+    if checker is None:
+        return math.nan
+    Q = checked_configurations(path, resolution)
+    bound = spheres.self_clearances(Q)  # (K, P)
+    near = np.flatnonzero(bound.ravel() < SELF_NEAR)
+    order = near[np.argsort(bound.ravel()[near], kind="stable")]
+    low = SELF_NEAR
+    for count, index in enumerate(order):
+        i, k = (int(x) for x in np.unravel_index(int(index), bound.shape))
+        if bound[i, k] >= low:
+            break  # every item left is at least this far
+        if count % 16 == 15 and time.perf_counter() > deadline:
+            return math.nan
+        low = min(low, checker.clearance(Q[i], spheres.self_pairs[k])[0])
+        if low < 0.0:
+            break
+    return low
+
+
+def check_self_end(
+    checker: SelfCollision | None, spheres: SphereCheck, q: np.ndarray, which: str
+) -> None:
+    """Raise `InCollision` if ``q`` (n,) [rad], the ``which`` end of a query, is in
+    self-collision (coal on the pairs, only where a pair's sphere bound is negative)."""
+    if checker is None or spheres.self_clearances(q).min(initial=math.inf) >= 0.0:
+        return
+    d, a, b = checker.clearance(q)
+    if d < 0.0:
+        raise InCollision(
+            f"{which} is in self-collision: links {a!r} and {b!r} of the robot's own "
+            f"collision geometry intersect ({d:.4f} m); move the {which} configuration",
+            which, -1, -1, f"{a}/{b}", d,
+        )  # fmt: skip

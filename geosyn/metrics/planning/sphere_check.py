@@ -8,6 +8,12 @@ kinematics per configuration places every sphere (centre in its joint's frame) a
 signed distances (`geosyn.world.distance.signed_distance`; all boxes in one array
 operation) to the active obstacles are array work over all spheres and configurations. The distances are the exact sphere
 clearances (no smooth minimum), of the same spheres.
+
+Self-collision (`set_self_pairs`): the distances between the spheres of the file's
+self-collision link pairs (`geosyn.robots.collision_spheres.SphereModel.self_pairs`),
+per link pair, as array work too. The fitted spheres cover every point of their link's
+collision geometry, so a pair's sphere distance is a lower bound of its exact distance
+(`geosyn.metrics.planning.self_collision`).
 """
 
 from __future__ import annotations
@@ -22,7 +28,10 @@ from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.distance import signed_distance
 from geosyn.world.shapes import Box, Shape
 
-__all__ = ["SphereCheck"]
+__all__ = ["Frames", "SphereCheck"]
+
+Frames = tuple[np.ndarray, np.ndarray]
+"""((K, J, 3, 3), (K, J, 3)): world rotations and positions of the sphere joints."""
 
 
 class SphereCheck:
@@ -38,12 +47,86 @@ class SphereCheck:
     def __init__(self, robot: Robot, spheres: Sequence[CollisionSphere]) -> None:
         self.robot = robot
         ids = [robot.joint_id(s.joint) if s.joint != "universe" else 0 for s in spheres]
+        self._ids = ids
         self._joints = sorted(set(ids))
         self._slot = np.array([self._joints.index(j) for j in ids], dtype=int)
         self._centre = np.array([s.center for s in spheres], dtype=float).reshape(-1, 3)
         self._radius = np.array([s.radius for s in spheres], dtype=float)
         self._data = robot.model.createData()
         self.obstacles: tuple[Shape, ...] = ()
+        self.self_pairs: tuple[tuple[str, str], ...] = ()
+        self._self_floor = np.zeros(0)
+
+    def set_self_pairs(self, spheres: Sequence[CollisionSphere], links: Sequence[str],
+                       pairs: Sequence[tuple[str, str]]) -> None:  # fmt: skip
+        """Check the link ``pairs`` for self-collision on ``spheres`` (each covering the
+        link of the same index of ``links``; pairs without spheres are left out).
+        Allocates; the floors of `self_valid` are reset to 0."""
+        ids = [self.robot.joint_id(s.joint) if s.joint != "universe" else 0 for s in spheres]
+        self._joints = sorted(set(self._ids) | set(ids))  # one kinematics for both
+        self._slot = np.array([self._joints.index(j) for j in self._ids], dtype=int)
+        self._s_slot = np.array([self._joints.index(j) for j in ids], dtype=int)
+        self._s_centre = np.array([s.center for s in spheres], dtype=float).reshape(-1, 3)
+        self._s_radius = np.array([s.radius for s in spheres], dtype=float)
+        first: list[int] = []
+        second: list[int] = []
+        start: list[int] = []
+        kept: list[tuple[str, str]] = []
+        for a, b in pairs:
+            ia = [k for k, link in enumerate(links) if link == a]
+            ib = [k for k, link in enumerate(links) if link == b]
+            if ia and ib:
+                start.append(len(first))
+                kept.append((a, b))
+                first += [i for i in ia for _ in ib]
+                second += [j for _ in ia for j in ib]
+        self.self_pairs = tuple(kept)
+        self._I, self._J = np.array(first, dtype=int), np.array(second, dtype=int)
+        self._start = np.array(start, dtype=int)
+        self._self_floor = np.zeros(len(kept))
+
+    def frames(self, Q: np.ndarray) -> Frames:
+        """((K, J, 3, 3), (K, J, 3)) world rotations and positions of the joints carrying
+        spheres at each configuration of ``Q`` (K, n) [rad] (one Pinocchio forward
+        kinematics each), to share between `clearances` and `self_clearances`."""
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
+        model, data, joints = self.robot.model, self._data, self._joints
+        H = np.empty((len(Q), len(joints), 4, 4))
+        for i, q in enumerate(Q):
+            pin.forwardKinematics(model, data, q)
+            for a, j in enumerate(joints):  # joint 0 is the universe: the identity
+                H[i, a] = data.oMi[j].homogeneous
+        return H[:, :, :3, :3], H[:, :, :3, 3]
+
+    def self_clearances(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
+        """(K, P) smallest sphere distance [m] of each of the ``self_pairs`` (P) at each
+        configuration of ``Q`` (K, n) [rad] (``frames``: theirs, from `frames`): lower
+        bounds of the exact distances."""
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
+        if not self.self_pairs:
+            return np.full((len(Q), 0), math.inf)
+        R, p = self.frames(Q) if frames is None else frames
+        c = np.einsum("ksab,sb->ksa", R[:, self._s_slot], self._s_centre) + p[:, self._s_slot]
+        r = self._s_radius
+        d = np.linalg.norm(c[:, self._I] - c[:, self._J], axis=2) - r[self._I] - r[self._J]
+        return np.asarray(np.minimum.reduceat(d, self._start, axis=1))
+
+    def set_self_floor(self, *Q: np.ndarray) -> None:
+        """Per pair, the lowest sphere distance `self_valid` accepts: min(0, the pair's
+        distance at the configurations ``Q`` (n,) [rad] each, e.g. start and goal). The
+        spheres reach up to their model's ``excess`` beyond the links: a query whose
+        ends are exactly clear but sphere-close keeps them valid."""
+        floor = np.zeros(len(self.self_pairs))
+        for q in Q:
+            floor = np.minimum(floor, self.self_clearances(q)[0] if len(floor) else floor)
+        self._self_floor = floor
+
+    def self_valid(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
+        """(K,) True where no self pair's sphere distance is below its floor
+        (`set_self_floor`; ``frames`` as in `self_clearances`)."""
+        if not self.self_pairs:
+            return np.ones(len(np.asarray(Q).reshape(-1, self.robot.model.nq)), dtype=bool)
+        return np.asarray(np.all(self.self_clearances(Q, frames) >= self._self_floor, axis=1))
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Replace the obstacles (shapes of `geosyn.world`, already checked)."""
@@ -63,19 +146,14 @@ class SphereCheck:
         inside = np.minimum(local.max(axis=2), 0.0)
         return np.asarray((outside + inside).min(axis=1))
 
-    def clearances(self, Q: np.ndarray) -> np.ndarray:
+    def clearances(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
         """(K,) smallest sphere-obstacle signed distance [m] at each configuration of
-        ``Q`` (K, n) [rad]; inf without obstacles or spheres. O(K (n + S O))."""
+        ``Q`` (K, n) [rad] (``frames``: theirs, from `frames`); inf without obstacles
+        or spheres. O(K (n + S O))."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
         if not self.obstacles or not self._radius.size:
             return np.full(len(Q), math.inf)
-        model, data, joints = self.robot.model, self._data, self._joints
-        H = np.empty((len(Q), len(joints), 4, 4))
-        for i, q in enumerate(Q):
-            pin.forwardKinematics(model, data, q)
-            for a, j in enumerate(joints):  # joint 0 is the universe: the identity
-                H[i, a] = data.oMi[j].homogeneous
-        R, p = H[:, :, :3, :3], H[:, :, :3, 3]
+        R, p = self.frames(Q) if frames is None else frames
         centres = np.einsum("ksab,sb->ksa", R[:, self._slot], self._centre) + p[:, self._slot]
         flat = centres.reshape(-1, 3)
         nearest = np.full(len(flat), math.inf)  # (K S,) to the nearest obstacle
