@@ -180,9 +180,13 @@ def test_rest_to_rest_is_expressible_in_yaml():
             np.testing.assert_allclose(v_start, geo.v[0] / ref.time_scale, rtol=1e-9)
 
 
-def test_planned_reference_goes_around_the_box_the_geodesic_goes_through(tmp_path):
-    data = {
-        "name": "planned",
+UR5_GOAL = [1.2, -1.0, 1.3, -1.9, -1.57, 0.0]  # [rad]
+
+
+def _ur5_planned(name: str, goal) -> dict:
+    """A UR5 tracking config: a planned reference to ``goal`` around a box on the way."""
+    return {
+        "name": name,
         "kind": "tracking",
         "robot": {"name": "ur5"},
         "scene": {
@@ -193,7 +197,7 @@ def test_planned_reference_goes_around_the_box_the_geodesic_goes_through(tmp_pat
         "reference": {
             "type": "planned",
             "q_start": [0.0, -1.2, 1.6, -1.9, -1.57, 0.0],
-            "goal": [1.2, -1.0, 1.3, -1.9, -1.57, 0.0],
+            "goal": goal,
             "duration": 2.0,
             "rest_to_rest": True,
         },
@@ -201,6 +205,10 @@ def test_planned_reference_goes_around_the_box_the_geodesic_goes_through(tmp_pat
         "simulation": {"duration": 2.1, "control_dt": 0.002},
         "outputs": {"plots": False, "csv": False},
     }
+
+
+def test_planned_reference_goes_around_the_box_the_geodesic_goes_through(tmp_path):
+    data = _ur5_planned("planned", UR5_GOAL)
     planned = run_experiment(validate_config(data), tmp_path / "p", progress=False, quiet=True)
     data["reference"]["type"] = "log"
     del data["reference"]["rest_to_rest"]
@@ -224,31 +232,13 @@ def test_planned_reference_to_an_end_effector_position_in_yaml(tmp_path):
     from geosyn.robots import load_robot
 
     robot = load_robot("ur5")
-    q_goal = np.array([1.2, -1.0, 1.3, -1.9, -1.57, 0.0])
+    q_goal = np.array(UR5_GOAL)
     data_pin = robot.model.createData()
     frame = robot.model.getFrameId(robot.ee_frame)
     pin.framesForwardKinematics(robot.model, data_pin, q_goal)
     target = data_pin.oMf[frame].translation.copy()
-    data = {
-        "name": "planned_ee",
-        "kind": "tracking",
-        "robot": {"name": "ur5"},
-        "scene": {
-            "obstacles": [
-                {"type": "box", "center": [0.45, 0.45, 0.2], "half_extents": [0.08, 0.08, 0.08]}
-            ]
-        },
-        "reference": {
-            "type": "planned",
-            "q_start": [0.0, -1.2, 1.6, -1.9, -1.57, 0.0],
-            "goal": {"position": target.tolist(), "position_tolerance": 0.002},
-            "duration": 2.0,
-            "rest_to_rest": True,
-        },
-        "controllers": [{"type": "qp", "kp": 900.0, "kd": 60.0}],
-        "simulation": {"duration": 2.1, "control_dt": 0.002},
-        "outputs": {"plots": False, "csv": False},
-    }
+    goal = {"position": target.tolist(), "position_tolerance": 0.002}
+    data = _ur5_planned("planned_ee", goal)
     run = run_experiment(validate_config(data), tmp_path / "p", progress=False, quiet=True)
     with np.load(run.path / "results.npz") as d:
         q_end = d["qp__q_ref"][-1]
