@@ -29,7 +29,21 @@ from geosyn.robots.collision_geometry import CollisionObject, collision_objects
 from geosyn.robots.robot import Robot
 from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere, check_shape
 
-__all__ = ["ExactClearance", "PathClearance", "coal_shape"]
+__all__ = ["ExactClearance", "PathClearance", "checked_configurations", "coal_shape"]
+
+
+def checked_configurations(path: np.ndarray, resolution: float) -> np.ndarray:
+    """(K, n) the configurations `ExactClearance.path_clearance` checks on ``path``
+    (T, n) [rad]: its first sample, then each segment's linear points at most
+    ``resolution`` [rad] apart (max-norm), its end included."""
+    path = np.asarray(path, dtype=float)
+    seg = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
+    steps = np.maximum(1, np.ceil(seg / resolution).astype(int))
+    pts = [path[:1]]
+    for a, b, k in zip(path[:-1], path[1:], steps, strict=True):
+        s = np.arange(1, k + 1)[:, None] / k
+        pts.append(a + s * (b - a))
+    return np.vstack(pts)
 
 
 class PathClearance(NamedTuple):
@@ -195,14 +209,7 @@ class ExactClearance:
         checked at configurations at most ``resolution`` [rad] apart (max-norm); NaN when
         ``time.perf_counter()`` passes ``deadline`` [s] before every one is checked."""
         resolution = check_positive(resolution, "resolution", "rad")
-        path = np.asarray(path, dtype=float)
-        seg = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
-        steps = np.maximum(1, np.ceil(seg / resolution).astype(int))
-        pts = [path[:1]]
-        for a, b, k in zip(path[:-1], path[1:], steps, strict=True):
-            s = np.arange(1, k + 1)[:, None] / k
-            pts.append(a + s * (b - a))
-        Q = np.vstack(pts)
+        Q = checked_configurations(path, resolution)
         best = PathClearance(math.inf, 0.0, "", -1, len(Q), resolution)
         for i, q in enumerate(Q):
             if i % 16 == 15 and time.perf_counter() > deadline:

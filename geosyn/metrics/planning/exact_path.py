@@ -30,23 +30,9 @@ import numpy as np
 import pinocchio as pin
 
 from geosyn.world.distance import signed_distance
-from geosyn.world.exact_clearance import ExactClearance, PathClearance
+from geosyn.world.exact_clearance import ExactClearance, PathClearance, checked_configurations
 
 __all__ = ["checked_configurations", "path_clearance"]
-
-
-def checked_configurations(path: np.ndarray, resolution: float) -> np.ndarray:
-    """(K, n) the configurations ``ExactClearance.path_clearance`` checks on ``path``
-    (T, n) [rad]: its first sample, then each segment's linear points at most
-    ``resolution`` [rad] apart (max-norm), its end included."""
-    path = np.asarray(path, dtype=float)
-    seg = np.abs(np.diff(path, axis=0)).max(axis=1) if len(path) > 1 else np.zeros(0)
-    steps = np.maximum(1, np.ceil(seg / resolution).astype(int))
-    pts = [path[:1]]
-    for a, b, k in zip(path[:-1], path[1:], steps, strict=True):
-        s = np.arange(1, k + 1)[:, None] / k
-        pts.append(a + s * (b - a))
-    return np.vstack(pts)
 
 
 def _frames(exact: ExactClearance, Q: np.ndarray, joints: list[int],
