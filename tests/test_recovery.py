@@ -125,6 +125,42 @@ def test_standard_metrics_use_the_logged_reference_end():
     assert m["ok"] == 1.0 and m["saturations"] == 0.0
 
 
+@pytest.mark.parametrize("block", [7, 600, 1201])
+def test_metrics_a_block_at_a_time_are_the_whole_arrays_ones(block, monkeypatch):
+    """A spooled log is reduced a block of ticks at a time (`geosyn.sim.blocks`): blocks
+    of 7, 600 (the reference's last move ends a block) and 1201 ticks give the counts,
+    extremes, recovery times and reference end of the whole arrays, the sums to rounding."""
+    from geosyn.sim import blocks
+
+    q_ref = np.minimum(T, 1.2)[:, None] * np.array([[0.4, -0.3]])
+    e = np.stack([_bump(0.5, 0.1, 0.05) + _bump(1.5, 0.05, 0.1), 0.01 * np.sin(T)], axis=1)
+    rng = np.random.default_rng(4)
+    run = {
+        "t": T,
+        "q_ref": q_ref,
+        "tracking_error": e,
+        "v": rng.normal(size=(len(T), 2)),
+        "tau_applied": rng.normal(size=(len(T), 2)),
+        "saturated": rng.random((len(T), 2)) < 0.1,
+        "fallback_used": rng.random(len(T)) < 0.05,
+        "contact_force": np.abs(rng.normal(size=len(T))),
+        "clearance": np.linspace(0.3, 0.1, len(T)) + 0.01 * np.sin(40 * T),
+        "status": np.array("ok"),
+    }
+    pushes = [SimpleNamespace(type="push", start=s, duration=0.1) for s in (0.5, 1.5)]
+    windows = disturbance_windows(pushes)
+    whole, end = standard_metrics(run, DT, windows, 0.01), reference_end(T, q_ref)
+    monkeypatch.setattr(blocks, "SCAN_BLOCK", block)
+    assert reference_end(T, q_ref) == end
+    parts = standard_metrics(run, DT, windows, 0.01)
+    assert parts.keys() == whole.keys()
+    for name, value in whole.items():
+        if name in ("rms_error", "effort", "mechanical_energy"):
+            assert parts[name] == pytest.approx(value, rel=1e-13), name
+        else:
+            assert parts[name] == value, name
+
+
 @pytest.mark.slow
 def test_ur5_recovery_matches_a_run_whose_reference_does_not_end(tmp_path):
     """The UR5 example: the reference ends moving 1 s after the push. The true recovery

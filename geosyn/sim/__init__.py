@@ -4,7 +4,9 @@ videos.
 `Simulation(robot, controller, ...)` runs torque control of a `Robot` in a MuJoCo model built
 from the same description (`build_scene`: payload bodies welded to links, obstacle geoms),
 under `Disturbance`s (`Push`, `Wrench`, `PayloadChange`, `TorqueNoise`, `SensorNoise`,
-`Latency`), and returns a per-tick `SimResult` (saved to .npz). A `Clip` draws a result
+`Latency`), and returns a per-tick `SimResult` (saved to .npz; a long run's log is
+written to disk in chunks as it runs and mapped back read-only, so memory stays bounded:
+`geosyn.sim.log_spool`, `spool_directory`). A `Clip` draws a result
 headless (EGL unless ``MUJOCO_GL`` names another backend) to frames, a .gif (Pillow) or an
 .mp4 (imageio + ffmpeg); `render_video` is its one-call form. Importing this package sets
 nothing global: the OpenGL context is made when a video is drawn.
@@ -27,6 +29,7 @@ from geosyn.sim.disturbances import (
 )
 from geosyn.sim.errors import RenderError, SimError, UnknownBody
 from geosyn.sim.log import SimResult
+from geosyn.sim.log_spool import SpoolError, spool_directory
 from geosyn.sim.perception import PinholeCamera, TargetEstimate, estimate_ball
 from geosyn.sim.render import Clip, Motion, render_video
 from geosyn.sim.scene import Scene, build_scene
@@ -49,6 +52,7 @@ __all__ = [
     "SimError",
     "SimResult",
     "Simulation",
+    "SpoolError",
     "TargetEstimate",
     "TorqueNoise",
     "UnknownBody",
@@ -57,4 +61,5 @@ __all__ = [
     "estimate_ball",
     "render_rgbd",
     "render_video",
+    "spool_directory",
 ]

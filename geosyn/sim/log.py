@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
+from geosyn.sim.blocks import mapping_of, row_blocks, save_npz
 
 
 class LogField(NamedTuple):
@@ -108,16 +109,49 @@ def finish_rows(rows: Mapping[str, np.ndarray], done: int, control_dt: float) ->
         ``{name: (done, ...) array}`` for every ``"tick"`` and ``"derived"`` field.
     """
     out: dict[str, Any] = {name: (a[:done] if done < len(a) else a) for name, a in rows.items()}
-    tau, v = out["tau_applied"], out["v"]
-    out["tracking_error"] = out["q_ref"] - out["q"]
-    out["power"] = np.einsum("ij,ij->i", tau, v)
-    out["effort"] = np.cumsum(np.einsum("ij,ij->i", tau, tau)) * control_dt
-    return out
+    derived, _ = derive_rows(out, control_dt)
+    return out | derived
+
+
+def derive_rows(
+    rows: Mapping[str, np.ndarray], control_dt: float, effort_sum: float = 0.0
+) -> tuple[dict[str, np.ndarray], float]:
+    """The ``"derived"`` fields of consecutive tick rows (a whole run, or one chunk of it).
+
+    Row by row, so a run derived chunk by chunk (`geosyn.sim.log_spool`) gives the same
+    bits as derived whole: the effort's running sum is carried over from chunk to chunk
+    and accumulated in the same order.
+
+    Args:
+        rows: ``(n, ...)`` ``q``, ``q_ref``, ``v``, ``tau_applied`` of ``n`` ticks.
+        control_dt: control period [s].
+        effort_sum: ``sum ||tau_applied||^2`` of the ticks before these [N^2 m^2].
+
+    Returns:
+        (``{name: (n, ...) array}`` of the derived fields, the running sum after them).
+    """
+    tau, v = rows["tau_applied"], rows["v"]
+    squares = np.einsum("ij,ij->i", tau, tau)
+    if len(squares):
+        squares[0] += effort_sum
+    total = np.cumsum(squares)
+    out = {
+        "tracking_error": rows["q_ref"] - rows["q"],
+        "power": np.einsum("ij,ij->i", tau, v),
+        "effort": total * control_dt,
+    }
+    return out, float(total[-1]) if len(total) else effort_sum
 
 
 @dataclass(frozen=True, eq=False)
 class SimResult:
     """Per-tick log of one run (T ticks; T < planned when the run stopped early).
+
+    A run of more than ``SPOOL_CHUNK`` ticks was written to disk in chunks as it ran
+    (`geosyn.sim.log_spool`): its per-tick arrays are read-only memory maps of that file
+    (`spooled`), whose disk space the system frees when the last of them is garbage
+    collected (the file itself was removed when the run ended). Consumers that scan a
+    whole log do it a block at a time (`geosyn.sim.blocks`), so memory stays bounded.
 
     Attributes:
         t: (T,) time of each control tick [s].
@@ -231,20 +265,37 @@ class SimResult:
     def rms_error(self, t_from: float = 0.0, t_to: float = float("inf")) -> float:
         """RMS tracking error over ticks with ``t_from <= t < t_to`` [rad] (NaN if none).
 
-        The mean is over ticks and joints: ``sqrt(mean(tracking_error**2))``.
+        The mean is over ticks and joints: ``sqrt(mean(tracking_error**2))``; computed
+        a block of ticks at a time (`geosyn.sim.blocks.row_blocks`), O(T).
         """
-        sel = (self.t >= t_from) & (self.t < t_to)
-        if not np.any(sel):
+        t, err = self.t, self.tracking_error
+        total, count = 0.0, 0
+        for rows in row_blocks(len(t), t, err):
+            sel = (t[rows] >= t_from) & (t[rows] < t_to)
+            if np.any(sel):
+                picked = err[rows][sel]
+                total += float(np.sum(picked**2))
+                count += picked.size
+        if not count:
             return float("nan")
-        return float(np.sqrt(np.mean(self.tracking_error[sel] ** 2)))
+        return float(np.sqrt(total / count))
 
     def saturation_count(self) -> int:
-        """Number of (tick, joint) pairs whose torque was clipped."""
-        return int(np.count_nonzero(self.saturated))
+        """Number of (tick, joint) pairs whose torque was clipped (a block at a time)."""
+        sat = self.saturated
+        return sum(int(np.count_nonzero(sat[rows])) for rows in row_blocks(len(sat), sat))
+
+    @property
+    def spooled(self) -> bool:
+        """Whether the per-tick arrays are read-only maps of a spool file on disk
+        (`geosyn.sim.log_spool`: runs longer than ``SPOOL_CHUNK`` ticks), not in memory."""
+        return mapping_of(self.t) is not None
 
     # -- persistence ------------------------------------------------------------------
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the log to a compressed ``.npz`` file (suffix added if missing).
+
+        A spooled log is written a block of ticks at a time (`geosyn.sim.blocks.save_npz`).
 
         Returns:
             The path written.
@@ -253,8 +304,7 @@ class SimResult:
         if path.suffix != ".npz":
             path = path.with_name(path.name + ".npz")
         arrays: dict[str, Any] = {name: np.asarray(getattr(self, name)) for name in ARRAY_FIELDS}
-        np.savez_compressed(path, __meta__=np.array(self.metadata_json()), **arrays)
-        return path
+        return save_npz(path, {"__meta__": np.array(self.metadata_json()), **arrays})
 
     def metadata_json(self) -> str:
         """The non-array attributes as JSON (what `load` needs besides the arrays)."""
@@ -344,6 +394,7 @@ __all__ = [
     "LogField",
     "SimResult",
     "allocate_rows",
+    "derive_rows",
     "finish_rows",
     "saved_runs",
 ]

@@ -26,9 +26,10 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import time
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -37,50 +38,25 @@ from geosyn.core.errors import GeosynError, InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_choice, check_int, check_positive, check_vector
 from geosyn.robots.robot import Robot
+from geosyn.sim.controller_api import (
+    ControllerLike,
+    ReferenceLike,
+    check_parts,
+    controller_notes,
+)
 from geosyn.sim.disturbances import Disturbance, overrides
 from geosyn.sim.divergence import SPEED_FACTOR, DivergenceCheck
 from geosyn.sim.file_scene import build_file_scene
-from geosyn.sim.log import SimResult, allocate_rows, finish_rows
+from geosyn.sim.log import SimResult
+from geosyn.sim.log_spool import LogWriter, row_bytes
 from geosyn.sim.obstacles import obstacle_contact_force
 from geosyn.sim.scene import Scene, build_scene
 from geosyn.world import Payload
 
 MAX_LOG_BYTES = 4 << 30
 """Largest per-tick log of one `Simulation.run` [bytes] (4 GiB): a longer run is refused
-before anything is allocated."""
-
-
-class ControllerLike(Protocol):
-    """What the simulation needs from a controller (`geosyn.controllers.Controller` fits)."""
-
-    def reset(self, q: Vector, v: Vector, t: float = 0.0) -> None: ...
-
-    def compute(self, t: float, q: Vector, v: Vector) -> Vector: ...
-
-
-class ReferenceLike(Protocol):
-    """What the simulation needs from a reference (`geosyn.controllers.Reference` fits)."""
-
-    def sample(self, t: float) -> tuple[Vector, Vector, Vector]: ...
-
-
-def _check_parts(
-    robot: object, controller: object, disturbances: Sequence[object]
-) -> tuple[Disturbance, ...]:
-    """The disturbances as a tuple, once robot, controller and disturbances are checked."""
-    if not isinstance(robot, Robot):
-        raise InvalidArgument(f"robot must be a geosyn.robots.Robot, got {type(robot).__name__}")
-    for hook in ("reset", "compute"):
-        if not callable(getattr(controller, hook, None)):
-            raise InvalidArgument(
-                f"controller must have a {hook}() method (a geosyn Controller), got {type(controller).__name__}"
-            )
-    checked = []
-    for i, d in enumerate(disturbances):
-        if not isinstance(d, Disturbance):
-            raise InvalidArgument(f"disturbances[{i}] must be a geosyn.sim.Disturbance, got {d!r}")
-        checked.append(d)
-    return tuple(checked)
+before anything is allocated. A run of more than ``SPOOL_CHUNK`` ticks holds one chunk in
+memory and the rest in its spool file (`geosyn.sim.log_spool`), so this bounds disk."""
 
 
 class Simulation:
@@ -136,7 +112,7 @@ class Simulation:
         position_limits: bool = True,
         plant: str = "model",
     ) -> None:
-        disturbances = _check_parts(robot, controller, disturbances)
+        disturbances = check_parts(robot, controller, disturbances)
         self.plant = check_choice(plant, ("model", "file"), "plant")
         control_dt = check_positive(control_dt, "control_dt", "s")
         self.substeps = check_int(substeps, "substeps", low=1)
@@ -226,11 +202,15 @@ class Simulation:
         reference: ReferenceLike | None = None,
         *,
         seed: int | None = None,
+        spool_dir: str | os.PathLike[str] | None = None,
     ) -> SimResult:
         """Simulate ``round(duration / control_dt)`` control ticks from ``(q0, v0)``.
 
         Allocates the log arrays once (`geosyn.sim.log.allocate_rows`); the tick loop
-        allocates only small vectors.
+        allocates only small vectors. A run of more than ``SPOOL_CHUNK`` ticks keeps one
+        chunk of rows in memory and writes the others to a spool file as it runs
+        (`geosyn.sim.log_spool`): its result's arrays are read-only maps of that file,
+        which is removed from the directory when the run ends (or raises).
 
         Args:
             q0: (nq,) initial joint positions [rad].
@@ -240,6 +220,8 @@ class Simulation:
                 reference logged at each tick is the controller's ``reference`` attribute
                 when it has one (it may replan), else this one.
             seed: overrides the simulation's seed for this run.
+            spool_dir: directory of a long run's spool file; None: the one set by
+                `geosyn.sim.log_spool.spool_directory`, else the system's temporary one.
 
         Returns:
             The per-tick log; ``status`` says whether the run completed.
@@ -250,14 +232,20 @@ class Simulation:
                 an array of the wrong shape or raised `InvalidArgument`. Other geosyn errors
                 of the controller (a failed solve, no reference) end the run with the status
                 ``"controller failed: ..."``.
+            SpoolError: a long run's spool file cannot be written (e.g. disk full).
         """
         q0, v0, n_ticks, seed = self._check_run(q0, v0, duration, seed)
-        rows = self._allocate_log(n_ticks, duration)
-        self._start(q0, v0, reference, seed)
-        wall0 = time.perf_counter()
-        status, done, status_codes = self._loop(rows, n_ticks, reference)
-        wall = time.perf_counter() - wall0
-        return self._result(rows, done, n_ticks, status, status_codes, wall, seed)
+        log = self._open_log(n_ticks, duration, spool_dir)
+        try:
+            self._start(q0, v0, reference, seed)
+            wall0 = time.perf_counter()
+            status, done, status_codes = self._loop(log, n_ticks, reference)
+            wall = time.perf_counter() - wall0
+            rows = log.finish(done)
+        except BaseException:
+            log.discard()  # a spool file never outlives a run that raised
+            raise
+        return self._result(rows, n_ticks, status, status_codes, wall, seed)
 
     def _check_run(
         self,
@@ -279,10 +267,12 @@ class Simulation:
         seed = check_int(self.seed if seed is None else seed, "seed", low=0)
         return q0, v0, n_ticks, seed
 
-    def _allocate_log(self, n_ticks: int, duration: float) -> dict[str, np.ndarray]:
-        """The per-tick log rows of a run of ``n_ticks``, refused over `MAX_LOG_BYTES`."""
+    def _open_log(
+        self, n_ticks: int, duration: float, spool_dir: str | os.PathLike[str] | None
+    ) -> LogWriter:
+        """The log of a run of ``n_ticks`` (spooled when long), refused over `MAX_LOG_BYTES`."""
         dims = {"nq": self.robot.nq, "nv": self.robot.nv, "P": len(self.scene.payload_body_ids)}
-        log_bytes = n_ticks * sum(a.nbytes for a in allocate_rows(1, dims).values())
+        log_bytes = n_ticks * row_bytes(dims)
         if log_bytes > MAX_LOG_BYTES:  # e.g. duration 2e4 s: refuse, do not allocate
             raise InvalidArgument(
                 f"duration={duration:g} s is {n_ticks} ticks of {self.control_dt:g} s whose log"
@@ -290,12 +280,13 @@ class Simulation:
                 f" {MAX_LOG_BYTES / 2**30:g} GiB; shorten the run or raise"
                 " geosyn.sim.simulation.MAX_LOG_BYTES"
             )
-        return allocate_rows(n_ticks, dims)
+        return LogWriter(n_ticks, dims, self.control_dt, spool_dir)
 
     def _loop(
-        self, rows: dict[str, np.ndarray], n_ticks: int, reference: ReferenceLike | None
+        self, log: LogWriter, n_ticks: int, reference: ReferenceLike | None
     ) -> tuple[str, int, dict[str, int]]:
-        """The control ticks of a `run` (see the module doc), logged into ``rows``.
+        """The control ticks of a `run` (see the module doc), logged into ``log``: tick
+        ``k`` in row ``j`` of its buffers, a full chunk flushed to its spool file.
 
         One function on purpose: the tick is the hot path (tens of microseconds), so its
         steps stay inline on locals bound once here instead of costing a call each.
@@ -309,6 +300,7 @@ class Simulation:
         n_pay = len(pay_ids)
         controller = self.controller
         has_ref_attr = hasattr(type(controller), "reference") or hasattr(controller, "reference")
+        rows, chunk, flush = log.rows, log.chunk, log.flush
         t_log, q_log, v_log = rows["t"], rows["q"], rows["v"]
         qm_log, vm_log = rows["q_meas"], rows["v_meas"]
         tau_log, taua_log, sat_log = rows["tau"], rows["tau_applied"], rows["saturated"]
@@ -340,7 +332,7 @@ class Simulation:
         mv = np.zeros(m.nv)
         ref = reference
         status = "ok"
-        done = 0
+        done = j = 0
 
         for k in range(n_ticks + 1):
             t = k * dt
@@ -387,13 +379,13 @@ class Simulation:
             if clip:  # the log's tau is the clipped command, tau_applied what the motors got
                 tau_c = np.minimum(np.maximum(tau_cmd, lo), hi)
                 tau_a = np.minimum(np.maximum(tau_out, lo), hi) if tau_hooks else tau_c
-                sat_log[k] = tau_a != tau_out
+                sat_log[j] = tau_a != tau_out
             else:
                 tau_c, tau_a = tau_cmd, tau_out
             ctrl_sat = getattr(getattr(controller, "diagnostics", None), "saturated", None)
             if ctrl_sat is not None and np.shape(ctrl_sat) == (nv,):
-                sat_log[k] |= ctrl_sat  # the controller clipped its own command at the limits
-            tau_log[k] = tau_c
+                sat_log[j] |= ctrl_sat  # the controller clipped its own command at the limits
+            tau_log[j] = tau_c
 
             if zero_xfrc:
                 d.xfrc_applied[:] = 0.0
@@ -405,37 +397,37 @@ class Simulation:
                 d.ctrl[:] = tau_a
 
             # -- log row k (kinematics and mass matrix are those of the tick's state)
-            t_log[k] = t
-            q_log[k] = q
-            v_log[k] = v
-            qm_log[k] = qm
-            vm_log[k] = vm
-            taua_log[k] = tau_a
+            t_log[j] = t
+            q_log[j] = q
+            v_log[j] = v
+            qm_log[j] = qm
+            vm_log[j] = vm
+            taua_log[j] = tau_a
             if has_ref_attr:
                 ref = controller.reference  # type: ignore[attr-defined]
             if ref is not None:
                 q_r, v_r, _ = ref.sample(t)
-                qref_log[k] = q_r
-                vref_log[k] = v_r
+                qref_log[j] = q_r
+                vref_log[j] = v_r
             mujoco.mj_mulM(m, d, mv, d.qvel)
-            ke_log[k] = 0.5 * float(d.qvel @ mv)
+            ke_log[j] = 0.5 * float(d.qvel @ mv)
             if clearance is not None:
-                clear_log[k] = clearance(d.xpos, d.xmat)
+                clear_log[j] = clearance(d.xpos, d.xmat)
             if contact_geoms and rk4:  # mj_forward solved this tick's contact forces
-                contact_log[k] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
+                contact_log[j] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
             if n_pay:
-                pay_log[k] = m.body_mass[pay_ids]
-            ctime_log[k] = c1 - c0
+                pay_log[j] = m.body_mass[pay_ids]
+            ctime_log[j] = c1 - c0
             diag = getattr(controller, "diagnostics", None)
             if diag is not None:
                 it = getattr(diag, "iterations", None)
                 if it is not None:
-                    iter_log[k] = it
-                fb_log[k] = getattr(diag, "fallback_used", False)
+                    iter_log[j] = it
+                fb_log[j] = getattr(diag, "fallback_used", False)
                 st = getattr(diag, "solver_status", None)
                 if st is not None:
                     key = str(getattr(st, "name", st))
-                    st_log[k] = status_codes.setdefault(key, len(status_codes))
+                    st_log[j] = status_codes.setdefault(key, len(status_codes))
             done = k + 1
 
             # -- physics over the tick
@@ -444,9 +436,13 @@ class Simulation:
                 # the constraint forces of the contacts mj_step1 found are solved only now
                 # (before mj_step2, efc_force is the previous step's, or unset at t=0)
                 if contact_geoms:
-                    contact_log[k] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
+                    contact_log[j] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
             for _ in extra_steps:
                 mujoco.mj_step(m, d)
+            j += 1
+            if j == chunk:  # a long run's full chunk: to disk, the buffers reused
+                flush(j)
+                j = 0
 
         return status, done, status_codes
 
@@ -463,17 +459,16 @@ class Simulation:
     def _result(
         self,
         rows: dict[str, np.ndarray],
-        done: int,
         n_ticks: int,
         status: str,
         status_codes: dict[str, int],
         wall: float,
         seed: int,
     ) -> SimResult:
-        """The `SimResult` of a run: the first ``done`` rows and the run's metadata."""
+        """The `SimResult` of a run: its finished ``rows`` and the run's metadata."""
         d, sc, dt = self.data, self.scene, self.control_dt
         return SimResult(
-            **finish_rows(rows, done, dt),
+            **rows,
             q_final=d.qpos[sc.qpos_adr].copy(),
             v_final=d.qvel[sc.dof_adr].copy(),
             solver_status_names=tuple(status_codes),
@@ -486,18 +481,8 @@ class Simulation:
             status=status,
             wall_time=wall,
             seed=seed,
-            controller_notes=_controller_notes(self.controller),
+            controller_notes=controller_notes(self.controller),
         )
-
-
-def _controller_notes(controller: object) -> tuple[str, ...]:
-    """``"name: text"`` for each note in the controller's ``diagnostics.notes`` at the end
-    of a run (settings it changed when built, what it modelled, what a guard did); ()
-    for a controller without diagnostics."""
-    notes = getattr(getattr(controller, "diagnostics", None), "notes", None)
-    if not isinstance(notes, dict):
-        return ()
-    return tuple(f"{name}: {text}" for name, text in notes.items())
 
 
 __all__ = ["SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]

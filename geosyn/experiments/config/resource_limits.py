@@ -185,9 +185,13 @@ def check_structure(data: Any, file: str) -> None:
 #: Default resource limits of one run; each can be raised with the environment variable
 #: ``GEOSYN_MAX_<NAME>`` (e.g. ``GEOSYN_MAX_TICKS=5000000``), checked before anything runs.
 LIMITS: dict[str, int] = {
-    # control ticks of one simulated run (any ``duration`` / ``simulation.control_dt``);
-    # at this limit a 7-DoF arm's run holds 0.58 GB of log in memory and writes at most
-    # 1.2 GB of CSV (`geosyn.experiments.results.data.log_size`, measured figures there)
+    # control ticks of one simulated run (any ``duration`` / ``simulation.control_dt``).
+    # A bound on disk and time, not on memory: a run longer than 8,192 ticks spools its
+    # log to disk (`geosyn.sim.log_spool`) and holds one chunk of it in memory (4.8 MB for
+    # a 7-DoF arm; a 600 s planar2 run peaks at the same RSS as a 60 s one). At this limit
+    # a 7-DoF arm's run takes 0.58 GB of spool (584 B per tick, freed when the run's
+    # results are) and writes at most 1.2 GB of CSV (`geosyn.experiments.results.data.
+    # log_size`, measured figures there); simulating it takes minutes.
     "ticks": 1_000_000,
 }
 

@@ -21,16 +21,18 @@ tick and joint, with the run and controller as columns.
 from __future__ import annotations
 
 import json
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from geosyn.experiments.config.loader import load_config
 from geosyn.experiments.errors import ExperimentError
-from geosyn.sim.log import LOG_FIELDS, RUN_META, SimResult, saved_runs
+from geosyn.sim import log_spool
+from geosyn.sim.blocks import row_blocks
+from geosyn.sim.log import RUN_META, SimResult, saved_runs
+from geosyn.sim.log_spool import row_bytes
 
 if TYPE_CHECKING:
     import pandas
@@ -60,16 +62,36 @@ TICK_COLUMNS = (
 CSV_BYTES_PER_VALUE = 25
 
 
-def log_size(nq: int, nv: int, payloads: int, ticks: int) -> tuple[int, int]:
+class LogSize(NamedTuple):
+    """What one closed-loop run's per-tick log takes [bytes] (`log_size`).
+
+    Attributes:
+        memory: the log rows the simulation holds in memory: the whole run up to
+            ``SPOOL_CHUNK`` ticks, one chunk of them for a longer run.
+        spool: the spool file of a longer run on disk (0 for a short one), held while the
+            run's results are (the file is unlinked when the run ends).
+        csv: ``data/<run>.csv``, at most `CSV_BYTES_PER_VALUE` per value.
+    """
+
+    memory: int
+    spool: int
+    csv: int
+
+
+def log_size(nq: int, nv: int, payloads: int, ticks: int) -> LogSize:
     """The size of one closed-loop run's per-tick log [bytes]: in memory, and on disk.
 
-    In memory: the simulation's rows (`geosyn.sim.log.LOG_FIELDS`, ``"tick"`` and
-    ``"derived"`` fields): 219 B per tick on planar2, 584 B on a 7-DoF arm. Measured (issue
-    23, planar2, computed torque, 600 s at 1 kHz): 229 B per tick of resident memory, the
-    run's peak 394 MB against 247 MB before it simulates; the CSV is written in blocks and
-    adds nothing that grows with the run. On disk: ``data/<run>.csv``, at most
-    `CSV_BYTES_PER_VALUE` per value (measured 324 B per tick for planar2's 19 columns,
-    17 B per value); ``results.npz`` is compressed and far smaller (3 B per tick there).
+    The rows are the tick and derived fields of `geosyn.sim.log.LOG_FIELDS`
+    (`geosyn.sim.log_spool.row_bytes`): 219 B per tick on planar2, 584 B on a 7-DoF arm. A
+    run of at most ``SPOOL_CHUNK`` (8,192) ticks holds them in memory; a longer one holds
+    one chunk (1.8 MB on planar2, 4.8 MB on a 7-DoF arm) and spools the rest to disk at the
+    same bytes per tick, and every writer of its outputs reads it a block at a time.
+    Measured (issue 23, ``geosyn run``, planar2, computed torque at 1 kHz; kernel peak
+    RSS): 259 MB for 60 s and 259 MB for 600 s (before spooling: 270 and 394 MB, 229 B per
+    tick of resident memory), so memory no longer grows with the run; the spool takes
+    219 B per tick of disk while the run's results are held. The CSV: measured 324 B per
+    tick for planar2's 19 columns (17 B per value); ``results.npz`` is compressed and far
+    smaller (3 B per tick there).
 
     Args:
         nq: joint positions of the robot.
@@ -78,19 +100,24 @@ def log_size(nq: int, nv: int, payloads: int, ticks: int) -> tuple[int, int]:
         ticks: control ticks of the run.
 
     Returns:
-        ``(memory, disk)`` upper estimates [bytes].
+        ``(memory, spool, csv)`` upper estimates [bytes].
     """
-    dims = {"nq": nq, "nv": nv, "P": payloads}
-    per_tick = 0
-    for f in LOG_FIELDS:
-        if f.source in ("tick", "derived"):
-            n = math.prod(dims[d] for d in f.shape if d != "T")
-            per_tick += n * np.dtype(f.dtype).itemsize
+    per_tick = row_bytes({"nq": nq, "nv": nv, "P": payloads})
     columns = 1 + len(JOINT_COLUMNS) * nv + len(TICK_COLUMNS) + payloads
-    return per_tick * ticks, columns * CSV_BYTES_PER_VALUE * ticks
+    spooled = ticks > log_spool.SPOOL_CHUNK
+    return LogSize(
+        memory=per_tick * min(ticks, log_spool.SPOOL_CHUNK),
+        spool=per_tick * ticks if spooled else 0,
+        csv=columns * CSV_BYTES_PER_VALUE * ticks,
+    )
 
 
-def _results_file(run_dir: str | Path) -> Path:
+def results_file(run_dir: str | Path) -> Path:
+    """The ``results.npz`` of a run directory (or the file itself).
+
+    Raises:
+        ExperimentError: there is none.
+    """
     path = Path(run_dir)
     path = path / "results.npz" if path.is_dir() else path
     if not path.is_file():
@@ -106,7 +133,7 @@ def load_runs(run_dir: str | Path) -> dict[str, SimResult]:
     Raises:
         ExperimentError: no results.npz there.
     """
-    path = _results_file(run_dir)
+    path = results_file(run_dir)
     return {run: SimResult.load(path, run) for run in saved_runs(path)}
 
 
@@ -153,7 +180,9 @@ def write_csv(
     """Write ``data/<run>.csv`` for every closed-loop run of ``out_dir/results.npz``.
 
     One run at a time, `CSV_BLOCK` rows at a time: the memory it takes does not grow
-    with the length of the runs (beyond one run's arrays when read from the file).
+    with the length of the runs (beyond one run's arrays when read from the file; a
+    spooled run's arrays held by the caller are read a block at a time, their pages
+    released after each, `geosyn.sim.blocks.row_blocks`).
 
     Args:
         out_dir: the run directory (holding results.npz).
@@ -165,23 +194,30 @@ def write_csv(
         The files written (none when the experiment has no closed-loop run).
     """
     if results is None:
-        with np.load(_results_file(out_dir), allow_pickle=False) as data:
+        with np.load(results_file(out_dir), allow_pickle=False) as data:
             return _write_runs(out_dir, labels, data)
     return _write_runs(out_dir, labels, results)
 
 
-def _write_runs(out_dir: Path, labels: list[str], data: Mapping[str, Any]) -> list[Path]:
+def stored_run_columns(
+    data: Mapping[str, Any],
+) -> Iterator[tuple[str, dict[str, Any], dict[str, np.ndarray], list[Any]]]:
+    """Each closed-loop run stored in ``data`` (the arrays of a ``results.npz``): its
+    prefix, metadata (`geosyn.sim.SimResult.metadata_json`), named columns (views, see
+    the module doc) and the arrays they view (to `geosyn.sim.blocks.release`)."""
     runs = [k[: -len(RUN_META)] for k in data if k.endswith(RUN_META) and k != "__meta__"]
-    if not runs:
-        return []
-    folder = out_dir / "data"
-    folder.mkdir(exist_ok=True)
-    written = []
     for run in runs:
         meta = json.loads(str(data[f"{run}{RUN_META}"]))
         keys = {name: f"{run}__{name}" for name in _CSV_FIELDS}
         arrays = {name: data[key] for name, key in keys.items() if key in data}  # one run
-        cols = _columns(arrays, meta["joint_names"])
+        yield run, meta, _columns(arrays, meta["joint_names"]), list(arrays.values())
+
+
+def _write_runs(out_dir: Path, labels: list[str], data: Mapping[str, Any]) -> list[Path]:
+    written = []
+    for run, meta, cols, arrays in stored_run_columns(data):
+        folder = out_dir / "data"
+        folder.mkdir(exist_ok=True)
         header = [
             f"# run: {run}",
             f"# controller: {controller_of(run, labels)}",
@@ -191,13 +227,11 @@ def _write_runs(out_dir: Path, labels: list[str], data: Mapping[str, Any]) -> li
             ",".join(cols),
         ]
         path = folder / f"{run}.csv"
-        n = len(cols["t"])
         with path.open("w", encoding="utf-8") as f:
             f.write("\n".join(header) + "\n")
-            for start in range(0, n, CSV_BLOCK):
-                block = [
-                    np.asarray(c[start : start + CSV_BLOCK], np.float64) for c in cols.values()
-                ]
+            # a spooled log's pages are released after each block (geosyn.sim.blocks)
+            for rows in row_blocks(len(cols["t"]), *arrays, size=CSV_BLOCK):
+                block = [np.asarray(c[rows], np.float64) for c in cols.values()]
                 np.savetxt(f, np.column_stack(block), delimiter=",", fmt="%.17g")  # round-trips
         written.append(path)
     return written
@@ -249,11 +283,14 @@ __all__ = [
     "CSV_BLOCK",
     "CSV_BYTES_PER_VALUE",
     "JOINT_COLUMNS",
+    "LogSize",
     "TICK_COLUMNS",
     "controller_of",
     "load_runs",
     "load_table",
     "log_size",
+    "results_file",
     "run_columns",
+    "stored_run_columns",
     "write_csv",
 ]

@@ -56,6 +56,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from geosyn.sim.blocks import row_blocks
+
 #: Default error threshold of the recovery time [rad] (a procedure's ``threshold`` wins).
 DEFAULT_THRESHOLD = 1e-2
 #: Per-tick change of the reference below which it counts as held [rad] (the spline's
@@ -130,16 +132,28 @@ def reference_end(t: np.ndarray, q_ref: np.ndarray) -> tuple[float, float]:
         speed ``||q_ref[k] - q_ref[k-1]|| / dt`` just before it; ``(inf, 0)`` when the
         reference still moves on the last tick or there is none.
     """
-    if len(t) < 2 or not np.all(np.isfinite(q_ref)):
+    n = len(t)
+    if n < 2:
         return float("inf"), 0.0
-    step = np.linalg.norm(np.diff(q_ref, axis=0), axis=1)
-    moving = np.nonzero(step > STILL)[0]
-    if moving.size == 0:
+    last, last_step = -1, 0.0  # the last step q_ref[i + 1] - q_ref[i] longer than STILL
+    prev = None
+    for rows in row_blocks(n, q_ref):  # a spooled log a block at a time
+        block = np.asarray(q_ref[rows])
+        if not np.all(np.isfinite(block)):
+            return float("inf"), 0.0
+        joined = block if prev is None else np.concatenate([prev, block])
+        step = np.linalg.norm(np.diff(joined, axis=0), axis=1)
+        moving = np.nonzero(step > STILL)[0]
+        if moving.size:
+            i = int(moving[-1])
+            last, last_step = rows.start - (prev is not None) + i, float(step[i])
+        prev = block[-1:]
+    if last < 0:
         return float(t[0]), 0.0
-    k = int(moving[-1]) + 1  # the first tick of the held goal
-    if k >= len(t) - 1:
+    k = last + 1  # the first tick of the held goal
+    if k >= n - 1:
         return float("inf"), 0.0
-    return float(t[k]), float(step[k - 1] / (t[k] - t[k - 1]))
+    return float(t[k]), float(last_step / (t[k] - t[k - 1]))
 
 
 def recovery_times(
@@ -210,14 +224,21 @@ def standard_metrics(
     tau = _array(run, "tau_applied")
     v = _array(run, "v")
     status = _array(run, "status")
+    sat = _array(run, "saturated")
+    fb = _array(run, "fallback_used")
+    contact = _array(run, "contact_force")
+    clearance = _array(run, "clearance")
     out: dict[str, float] = {}
     if status is not None:
         out["ok"] = float(str(status) == "ok")
-    if e is not None and len(t) and np.all(np.isfinite(e)):
-        norm = np.linalg.norm(e, axis=1)
-        out["rms_error"] = float(np.sqrt(np.mean(e**2)))
-        out["max_error"] = float(norm.max())
+    sums = _block_sums(len(t), e, tau, v, sat, fb, contact, clearance)
+    if e is not None and len(t) and sums["e_finite"]:
+        out["rms_error"] = float(np.sqrt(sums["e_squares"] / e.size))
+        out["max_error"] = sums["e_max_norm"]
         if windows:
+            norm = np.empty(len(t))
+            for rows in row_blocks(len(t), e):
+                norm[rows] = np.linalg.norm(e[rows], axis=1)
             q_ref = _array(run, "q_ref")
             stop, speed = reference_end(t, q_ref) if q_ref is not None else (float("inf"), 0.0)
             reference_stop = stop if speed > REST_SPEED else float("inf")
@@ -227,24 +248,18 @@ def standard_metrics(
             for w, rt in zip(windows, times, strict=True):
                 out[f"recovery_time_d{w.disturbance}"] = rt
     if tau is not None:
-        out["effort"] = float(np.sum(tau**2) * control_dt)
+        out["effort"] = float(sums["tau_squares"] * control_dt)
         if v is not None:
-            out["mechanical_energy"] = float(
-                np.sum(np.abs(np.einsum("ij,ij->i", tau, v))) * control_dt
-            )
-    sat = _array(run, "saturated")
+            out["mechanical_energy"] = float(sums["abs_power"] * control_dt)
     if sat is not None:
-        out["saturations"] = float(np.count_nonzero(sat))
-        out["saturated_fraction"] = float(np.count_nonzero(sat) / sat.size) if sat.size else 0.0
-    fb = _array(run, "fallback_used")
+        out["saturations"] = float(sums["saturations"])
+        out["saturated_fraction"] = float(sums["saturations"] / sat.size) if sat.size else 0.0
     if fb is not None:
-        out["fallbacks"] = float(np.count_nonzero(fb))
-    contact = _array(run, "contact_force")
-    if contact is not None and contact.size and np.all(np.isfinite(contact)):
-        out["max_contact_force"] = float(np.max(contact))
-    clearance = _array(run, "clearance")
+        out["fallbacks"] = float(sums["fallbacks"])
+    if contact is not None and contact.size and sums["contact_finite"]:
+        out["max_contact_force"] = sums["max_contact"]
     if clearance is not None and clearance.size:
-        out["min_clearance"] = float(np.min(clearance))
+        out["min_clearance"] = sums["min_clearance"]
     for name in ("feet_slip", "feet_sink", "min_base_height"):  # floating robots only
         value = _array(run, name)
         if value is not None:
@@ -254,6 +269,43 @@ def standard_metrics(
         out["wall_time"] = float(wall)
     if status is not None and str(status) != "ok":
         return _not_measured(out, e is not None, windows)
+    return out
+
+
+def _block_sums(n: int, *arrays: np.ndarray | None) -> dict[str, Any]:
+    """The sums, extremes and counts `standard_metrics` reports, over the ``n`` ticks of
+    ``(tracking_error, tau_applied, v, saturated, fallback_used, contact_force,
+    clearance)`` (each may be None), a block of ticks at a time: a spooled log's pages
+    are released after each block (`geosyn.sim.blocks.row_blocks`). A run of at most one
+    block is reduced as a whole, so its numbers are numpy's own of the whole arrays."""
+    e, tau, v, sat, fb, contact, clearance = arrays
+    out: dict[str, Any] = {"e_finite": True, "e_squares": 0.0, "e_max_norm": 0.0}
+    out |= {"tau_squares": 0.0, "abs_power": 0.0, "saturations": 0, "fallbacks": 0}
+    out |= {"contact_finite": True, "max_contact": -np.inf, "min_clearance": np.inf}
+    present = [a for a in arrays if a is not None]
+    for rows in row_blocks(n, *present):
+        if e is not None and out["e_finite"]:
+            eb = e[rows]
+            out["e_finite"] = bool(np.all(np.isfinite(eb)))
+            out["e_squares"] += np.sum(eb**2)
+            if len(eb):
+                out["e_max_norm"] = max(out["e_max_norm"], float(np.linalg.norm(eb, axis=1).max()))
+        if tau is not None:
+            tb = tau[rows]
+            out["tau_squares"] += np.sum(tb**2)
+            if v is not None:
+                out["abs_power"] += np.sum(np.abs(np.einsum("ij,ij->i", tb, v[rows])))
+        if sat is not None:
+            out["saturations"] += int(np.count_nonzero(sat[rows]))
+        if fb is not None:
+            out["fallbacks"] += int(np.count_nonzero(fb[rows]))
+        if contact is not None and len(contact[rows]):
+            cb = contact[rows]
+            out["contact_finite"] &= bool(np.all(np.isfinite(cb)))
+            out["max_contact"] = max(out["max_contact"], float(np.max(cb)))
+        if clearance is not None and len(clearance[rows]):
+            low = np.min(clearance[rows])  # np.min: a NaN clearance stays NaN
+            out["min_clearance"] = float(np.min((out["min_clearance"], low)))
     return out
 
 

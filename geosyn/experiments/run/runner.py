@@ -44,7 +44,9 @@ from geosyn.experiments.run.progress import progress_bars
 from geosyn.experiments.run.runlog import RunLog, geosyn_version, git_commit
 from geosyn.experiments.run.scene import build_run_scene
 from geosyn.experiments.schema import ExperimentConfig
+from geosyn.sim.blocks import save_npz
 from geosyn.sim.log import RUN_META
+from geosyn.sim.log_spool import spool_directory
 
 
 class RunOutcome(NamedTuple):
@@ -166,7 +168,7 @@ def _run_into(
         log = _start_log(cfg, proc, tmp, out)
         with progress_bars(progress) as factory:
             ctx = RunContext(cfg, params, build_run_scene(cfg), tmp, cfg.outputs.video, factory)
-            with log.warnings():
+            with log.warnings(), spool_directory(tmp):  # long runs' logs: in the run dir
                 results = proc.run(ctx)
         summary, videos = _write_results(ctx, proc, results, log)
         wall = time.perf_counter() - t0
@@ -208,8 +210,8 @@ def _write_results(
         (the clean summary, the video record or None without videos).
     """
     cfg, params, tmp = ctx.config, ctx.params, ctx.out_dir
-    arrays: dict[str, Any] = results  # numpy stubs match **kwds against allow_pickle: bool
-    np.savez_compressed(tmp / "results.npz", **arrays)
+    arrays: dict[str, Any] = results
+    save_npz(tmp / "results.npz", arrays)  # a spooled log a block at a time
     for name, status in _run_statuses(results).items():
         log.write(f"closed-loop run {name}: {status}")
         for note in _controller_notes(results, name):
@@ -218,7 +220,7 @@ def _write_results(
         for path in write_csv(tmp, cfg.controller_labels(), arrays):
             log.write(f"wrote {path.relative_to(tmp)}")
     if cfg.outputs.parquet:
-        for path in write_parquet(tmp, cfg.controller_labels()):
+        for path in write_parquet(tmp, cfg.controller_labels(), arrays):
             log.write(f"wrote {path.relative_to(tmp)}")
     summary = clean_summary(proc.full_summary(cfg, params, results))
     if cfg.outputs.plots:
