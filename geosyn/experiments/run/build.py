@@ -254,7 +254,11 @@ SIM_FIELDS = tuple(f for f in ARRAY_FIELDS if f not in _NOT_SAVED)
 
 def sim_arrays(prefix: str, res: SimResult) -> dict[str, np.ndarray]:
     """The per-tick log of a run as ``{prefix}__{field}`` arrays, plus its status and its
-    metadata (``{prefix}__meta``: joint names, control period, ...)."""
+    metadata (``{prefix}__meta``: joint names, control period, ...).
+
+    The arrays are the result's own, not copies: a spooled run's stay read-only maps of
+    its spool file (`geosyn.sim.log_spool`), written out a block at a time by the runner
+    (`geosyn.sim.blocks.save_npz`, `geosyn.experiments.results.data.write_csv`)."""
     out = {f"{prefix}__{f}": np.asarray(getattr(res, f)) for f in SIM_FIELDS}
     out[f"{prefix}__status"] = np.array(res.status)
     out[f"{prefix}__wall_time"] = np.array(res.wall_time)
