@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from geosyn.experiments.results import plots
 from geosyn.experiments.results.plots import (
     bar_plot,
+    envelope,
     log_floor,
     reference_end,
     torque_limits,
@@ -43,6 +45,37 @@ def test_reference_end_is_the_first_held_sample():
 def test_torque_limits_are_the_clipped_values():
     lim = torque_limits(_run(limit=5.0))
     assert lim[0] == 5.0 and np.isnan(lim[1])
+
+
+@pytest.mark.parametrize("block", [7, 64])
+def test_reference_end_and_limits_a_block_at_a_time(block, monkeypatch):
+    """A long run's log is read a block of ticks at a time: the same end and limits."""
+    from geosyn.sim import blocks
+
+    runs = [_run(1.5), _run(5.0), _run(limit=2.0)]
+    whole = [(reference_end(r), torque_limits(r)) for r in runs]
+    monkeypatch.setattr(blocks, "SCAN_BLOCK", block)
+    for r, (end, lim) in zip(runs, whole, strict=True):
+        assert reference_end(r) == end
+        np.testing.assert_array_equal(torque_limits(r), lim)
+
+
+def test_a_long_series_is_drawn_as_its_envelope(monkeypatch):
+    """Up to PLOT_POINTS ticks the series itself; beyond, min and max per bucket: the
+    extremes and a one-tick spike survive, in at most PLOT_POINTS points."""
+    t = np.arange(100_000) * 1e-3
+    y = np.stack([np.sin(t), np.cos(3 * t)], axis=1)
+    y[54_321, 1] = 9.0  # a one-tick spike
+    short_t, short_y = envelope(t[:500], y[:500])
+    assert np.array_equal(short_t, t[:500]) and np.array_equal(short_y, y[:500])
+    monkeypatch.setattr(plots.blocks, "SCAN_BLOCK", 1000)  # buckets across blocks
+    te, ye = envelope(t, y)
+    assert len(te) <= plots.PLOT_POINTS and ye.shape == (len(te), 2)
+    assert np.all(np.diff(te) >= 0) and te[0] == 0.0
+    np.testing.assert_array_equal(ye.max(axis=0), [y[:, 0].max(), 9.0])
+    np.testing.assert_array_equal(ye.min(axis=0), y.min(axis=0))
+    tn, norm = envelope(t, y, lambda a: np.linalg.norm(a, axis=1), points=1000)
+    assert len(tn) <= 1000 and norm.max() == np.linalg.norm(y[54_321])
 
 
 def test_log_floor_keeps_every_series_visible():

@@ -3,17 +3,25 @@
 Figures are `matplotlib.figure.Figure` objects drawn on their own Agg canvas, never
 pyplot's: plotting needs no global backend and leaves no open figure behind, so
 importing or calling this module changes nothing in matplotlib's global state.
+
+A time series longer than `PLOT_POINTS` ticks (a long run, whose log may be a map of its
+spool file, `geosyn.sim.log_spool`) is drawn as its min/max envelope over buckets of
+consecutive ticks (`envelope`), read a block at a time: the pixels show the same band
+(a spike stays visible) and memory does not grow with the run.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+
+from geosyn.sim import blocks
+from geosyn.sim.blocks import row_blocks
 
 COLORS = ("#1f5fbf", "#d9541e", "#2a9d3a", "#8e44ad", "#c0392b", "#7f8c8d")
 
@@ -50,6 +58,49 @@ def save(fig: Figure, path: Path) -> Path:
 #: Smallest value a log axis shows [same unit as the data]: zeros are drawn there.
 LOG_FLOOR = 1e-12
 
+#: Most points of a plotted time series; a longer one is drawn as its envelope (20,000: a
+#: 20 s run at 1 kHz is drawn tick by tick; a figure is ~900 pixels wide).
+PLOT_POINTS = 20_000
+
+
+def envelope(
+    t: np.ndarray,
+    y: np.ndarray,
+    transform: Callable[[np.ndarray], np.ndarray] | None = None,
+    points: int | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The points to draw of a time series: itself up to ``points`` ticks, else the min and
+    the max of each bucket of consecutive ticks, both at the bucket's first time.
+
+    Read a block of ticks at a time (`geosyn.sim.blocks.row_blocks`): O(T) time, memory
+    O(points) beyond a block.
+
+    Args:
+        t: (T,) times [s].
+        y: (T,) or (T, k) values (any unit).
+        transform: applied to each block of ``y`` rows before the envelope (e.g. a row
+            norm); None: the values themselves.
+        points: most points drawn; None: `PLOT_POINTS`.
+
+    Returns:
+        ``(t', y')``: ``(T,)`` and ``transform(y)`` for a short series, else ``(2B,)`` and
+        ``(2B, ...)`` for ``B`` buckets (min, max, min, max, ...).
+    """
+    limit = PLOT_POINTS if points is None else points
+    f = (lambda a: a) if transform is None else transform
+    n = len(t)
+    if n <= limit:
+        return np.asarray(t), f(np.asarray(y))
+    bucket = -(-n // max(1, limit // 2))
+    per_block = bucket * max(1, blocks.SCAN_BLOCK // bucket)
+    times, values = [], []
+    for rows in row_blocks(n, t, y, size=per_block):
+        yb, starts = f(np.asarray(y[rows])), np.arange(0, rows.stop - rows.start, bucket)
+        lo, hi = np.minimum.reduceat(yb, starts, axis=0), np.maximum.reduceat(yb, starts, axis=0)
+        times.append(np.repeat(np.asarray(t[rows])[starts], 2))
+        values.append(np.stack([lo, hi], axis=1).reshape(-1, *yb.shape[1:]))
+    return np.concatenate(times), np.concatenate(values)
+
 
 def reference_end(run: dict[str, np.ndarray], rtol: float = 1e-12) -> float | None:
     """Time [s] at which a run's reference stops moving, if that is before the run ends.
@@ -67,11 +118,23 @@ def reference_end(run: dict[str, np.ndarray], rtol: float = 1e-12) -> float | No
     q_ref, t = run.get("q_ref"), run.get("t")
     if q_ref is None or t is None or len(t) < 3 or not np.all(np.isfinite(q_ref[-1])):
         return None
-    scale = max(float(np.nanmax(np.abs(q_ref - q_ref[0]))), 1.0)
-    moving = np.nonzero(np.any(np.abs(q_ref - q_ref[-1]) > rtol * scale, axis=1))[0]
-    if moving.size == 0 or moving[-1] >= len(t) - 2:
+    first, last, n = np.asarray(q_ref[0]), np.asarray(q_ref[-1]), len(t)
+    spread = 0.0
+    for rows in row_blocks(n, q_ref):  # a long run's log a block at a time
+        block = np.abs(np.asarray(q_ref[rows]) - first)
+        if np.any(~np.isnan(block)):
+            spread = max(spread, float(np.nanmax(block)))
+    scale = max(spread, 1.0)
+    final = -1  # the last row that differs from the held configuration
+    for rows in row_blocks(n, q_ref):
+        moving = np.nonzero(np.any(np.abs(np.asarray(q_ref[rows]) - last) > rtol * scale, axis=1))[
+            0
+        ]
+        if moving.size:
+            final = rows.start + int(moving[-1])
+    if final < 0 or final >= n - 2:
         return None
-    return float(t[moving[-1] + 1])
+    return float(t[final + 1])
 
 
 def log_floor(values: Sequence[np.ndarray]) -> float:
@@ -111,7 +174,8 @@ def tracking_error_plot(
     windows: Sequence[tuple[float, float, str]] = (),
     t_ref_end: float | None = None,
 ) -> Path:
-    """Tracking error norm ``||q_ref - q||`` [rad] against time, one line per run (log axis).
+    """Tracking error norm ``||q_ref - q||`` [rad] against time, one line per run (log axis;
+    a run longer than `PLOT_POINTS` ticks as its `envelope`).
 
     The axis bottom sits just below the smallest positive error, so no series is hidden
     below it (exact zeros are drawn at the bottom). Where the reference ends before the
@@ -127,10 +191,14 @@ def tracking_error_plot(
         t_ref_end: time the reference ends [s]; None: found from the runs.
     """
     fig, ax = figure((8, 4))
-    norms = {label: np.linalg.norm(r["tracking_error"], axis=1) for label, r in runs.items()}
-    floor = log_floor(list(norms.values()))
-    for (label, r), c in zip(runs.items(), COLORS * 4, strict=False):
-        ax.semilogy(r["t"], np.maximum(norms[label], floor), color=c, lw=1.4, label=label)
+    norms = {
+        label: envelope(r["t"], r["tracking_error"], lambda e: np.linalg.norm(e, axis=1))
+        for label, r in runs.items()
+    }
+    floor = log_floor([norm for _, norm in norms.values()])
+    for label, c in zip(runs, COLORS * 4, strict=False):
+        t, norm = norms[label]
+        ax.semilogy(t, np.maximum(norm, floor), color=c, lw=1.4, label=label)
     ax.set_ylim(bottom=floor)
     shade_windows(ax, windows)
     if t_ref_end is None:
@@ -149,11 +217,18 @@ def tracking_error_plot(
 def torque_limits(run: dict[str, np.ndarray]) -> np.ndarray:
     """(nv,) torque limits [N m] seen in a run: ``|tau_applied|`` where it was clipped
     (``saturated``), NaN for joints never clipped."""
-    tau, sat = np.abs(run["tau_applied"]), np.asarray(run.get("saturated", False), dtype=bool)
-    sat = np.broadcast_to(sat, tau.shape)
-    return np.array(
-        [tau[sat[:, j], j].max() if sat[:, j].any() else np.nan for j in range(tau.shape[1])]
-    )
+    tau = run["tau_applied"]
+    flags: Any = run.get("saturated", False)
+    per_tick = np.ndim(flags) > 0
+    out = np.full(tau.shape[1], np.nan)
+    for rows in row_blocks(len(tau), tau, flags):  # a long run's log a block at a time
+        block = np.abs(np.asarray(tau[rows]))
+        sat = np.asarray(flags[rows] if per_tick else flags, dtype=bool)
+        sat = np.broadcast_to(sat, block.shape)
+        for j in range(block.shape[1]):
+            if sat[:, j].any():
+                out[j] = np.fmax(out[j], block[sat[:, j], j].max())
+    return out
 
 
 def torque_plot(
@@ -164,7 +239,8 @@ def torque_plot(
     joint_names: Sequence[str] | None = None,
 ) -> Path:
     """Applied joint torques ``tau_applied`` (T, nv) [N m] against ``t`` (T,) [s], one panel
-    per run, with each joint's torque limit as a dashed line of its colour.
+    per run (a run longer than `PLOT_POINTS` ticks as its `envelope`), with each joint's
+    torque limit as a dashed line of its colour.
 
     Args:
         path: PNG to write.
@@ -176,12 +252,12 @@ def torque_plot(
     """
     fig, axes = figure((9, 2.4 * len(runs) + 0.6), len(runs), 1, sharex=True, squeeze=False)
     for ax, (label, r) in zip(axes[:, 0], runs.items(), strict=True):
-        tau = r["tau_applied"]
+        t, tau = envelope(r["t"], r["tau_applied"])
         lim = torque_limits(r) if limits is None else np.asarray(limits, dtype=np.float64)
         colors = []
         for j in range(tau.shape[1]):
             name = joint_names[j] if joint_names is not None else f"joint {j + 1}"
-            (line,) = ax.plot(r["t"], tau[:, j], lw=0.9, label=name)
+            (line,) = ax.plot(t, tau[:, j], lw=0.9, label=name)
             colors.append(line.get_color())
         for value in np.unique(lim[np.isfinite(lim)]):  # one line per distinct limit
             joints = [j for j in range(len(lim)) if lim[j] == value]
@@ -262,8 +338,10 @@ def bar_plot(
 __all__ = [
     "COLORS",
     "LOG_FLOOR",
+    "PLOT_POINTS",
     "RESIDUAL_LABEL",
     "bar_plot",
+    "envelope",
     "figure",
     "log_floor",
     "mark_reference_end",
