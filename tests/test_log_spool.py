@@ -20,10 +20,19 @@ from geosyn.experiments.config.loader import validate_config
 from geosyn.experiments.results.data import write_csv
 from geosyn.experiments.run.build import sim_arrays
 from geosyn.experiments.run.run_metrics import disturbance_windows, standard_metrics
-from geosyn.sim import SensorNoise, SimResult, Simulation, TorqueNoise, log_spool, spool_directory
+from geosyn.sim import (
+    PayloadChange,
+    SensorNoise,
+    SimResult,
+    Simulation,
+    TorqueNoise,
+    log_spool,
+    spool_directory,
+)
 from geosyn.sim.blocks import mapping_of
 from geosyn.sim.log import ARRAY_FIELDS
 from geosyn.synergies.synergy import GeodesicSynergy
+from geosyn.world import Payload, Sphere
 
 #: Every array but the controller's wall time, which no two runs share.
 _SAME = tuple(f for f in ARRAY_FIELDS if f != "compute_time")
@@ -36,7 +45,12 @@ def _sim(name: str) -> tuple[Simulation, np.ndarray]:
     ref = GeodesicReference(GeodesicSynergy(get_metric(name), q0, direction))
     ct = ComputedTorque(robot, 400.0, 40.0, reference=ref)
     noise = [SensorNoise(q_std=1e-4, v_std=1e-3), TorqueNoise(std=0.5)]
-    return Simulation(robot, ct, control_dt=1e-3, disturbances=noise, seed=3), q0
+    if name != "planar2":
+        return Simulation(robot, ct, control_dt=1e-3, disturbances=noise, seed=3), q0
+    # planar2 also logs a payload (its mass changing) and a clearance
+    world = {"payloads": [Payload("tip", 0.3)], "obstacles": [Sphere((1.5, 1.5, 0.0), 0.1)]}
+    noise.append(PayloadChange(0.05, 0.6))
+    return Simulation(robot, ct, control_dt=1e-3, disturbances=noise, seed=3, **world), q0
 
 
 def _assert_same(a: SimResult, b: SimResult) -> None:
@@ -56,6 +70,9 @@ def test_spooled_run_is_bit_identical_and_writes_the_same_files(name, tmp_path, 
     spooled = sim.run(q0, None, 0.1, spool_dir=tmp_path)
     assert memory.ok and spooled.ok and spooled.n_ticks == 100
     assert not memory.spooled and spooled.spooled
+    if name == "planar2":  # the payload's region of the spool file, and a finite clearance
+        assert set(spooled.payload_mass[:, 0]) == {0.3, 0.6}
+        assert np.isfinite(spooled.clearance).all()
     assert not spooled.q.flags.writeable and mapping_of(spooled.tracking_error) is not None
     _assert_same(memory, spooled)
     assert spooled.rms_error() == memory.rms_error()
@@ -179,11 +196,14 @@ def test_a_run_that_raises_mid_run_leaves_no_spool_file(error, tmp_path, monkeyp
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_failed_run_keeps_its_ticks_and_leaves_no_spool_file(tmp_path, monkeypatch):
-    """A controller failure ends the run (status kept): 29 ticks, 4 chunks written."""
+@pytest.mark.parametrize("at", [5, 30])
+def test_a_failed_run_keeps_its_ticks_and_leaves_no_spool_file(at, tmp_path, monkeypatch):
+    """A controller failure ends the run (status kept): 29 ticks (4 chunks written, then
+    mapped), or 4 (within the first chunk: nothing written, the rows stay in memory)."""
     monkeypatch.setattr(log_spool, "SPOOL_CHUNK", 7)
     sim, ctrl, q0 = _stopping(tmp_path, GeosynError("solver gave up"))
+    ctrl.at = at
     res = sim.run(q0, None, 0.1, spool_dir=tmp_path)
-    assert res.status.startswith("controller failed") and res.n_ticks == 29 and res.spooled
-    assert list(tmp_path.iterdir()) == []
-    np.testing.assert_array_equal(res.t, np.arange(29) * 1e-3)
+    assert res.status.startswith("controller failed") and res.n_ticks == at - 1
+    assert res.spooled == (at > 7) and list(tmp_path.iterdir()) == []
+    np.testing.assert_array_equal(res.t, np.arange(at - 1) * 1e-3)
