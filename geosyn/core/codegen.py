@@ -47,6 +47,7 @@ __all__ = [
     "compile_function",
     "compile_library",
     "compile_recipe",
+    "compile_shared",
     "compile_source",
     "default_cache_dir",
     "find_compiler",
@@ -237,17 +238,68 @@ def _build_cached(
     The library carries its key and ``recipe_key`` (`library_digest.tagged_source`); a
     cached one is loaded only if its digest and both keys match.
     """
+    library, checked = _cached_library(name, source, cache_dir, flags, compiler, recipe_key)
+    if checked:
+        try:
+            return {n: _load(n, library) for n in load}
+        except CodegenError as err:  # verified bytes that dlopen refuses: build anew
+            _warn_rebuild(library.name, str(err))
+            library, _ = _cached_library(name, source, cache_dir, flags, compiler,
+                                         recipe_key, rebuild=True)  # fmt: skip
+    return {n: _load(n, library) for n in load}
+
+
+def compile_shared(
+    name: str,
+    source: str,
+    *,
+    flags: Sequence[str] = DEFAULT_FLAGS,
+    cache_dir: str | os.PathLike[str] | None = None,
+    compiler: str | None = None,
+) -> Path:
+    """Compile a plain C ``source`` (no CasADi interface: e.g. a library called through
+    ``ctypes``) into a shared library through the disk cache; the path of the verified
+    library (its digest and compiled-in key checked, a damaged or swapped one rebuilt
+    with a warning).
+
+    Args:
+        name: library name, a C identifier (the cache file starts with it).
+        source: the whole C file.
+        flags: compiler flags besides ``-shared -fPIC`` (part of the cache key).
+        cache_dir: folder of the compiled libraries; default :func:`default_cache_dir`.
+        compiler: C compiler executable; default :func:`find_compiler`.
+
+    Raises:
+        InvalidArgument: ``name`` is not a C identifier.
+        CodegenError: no compiler, or compilation failed.
+    """
+    if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
+        raise InvalidArgument(f"name: {name!r} is not a C identifier")
+    library, _ = _cached_library(
+        name, source, _resolve_cache_dir(cache_dir), tuple(flags), compiler, None
+    )
+    return library
+
+
+def _cached_library(
+    name: str,
+    source: str,
+    cache_dir: Path,
+    flags: tuple[str, ...],
+    compiler: str | None,
+    recipe_key: str | None,
+    rebuild: bool = False,
+) -> tuple[Path, bool]:
+    """(``<name>_<key>.so``, whether it was a verified cache hit): compiled unless a
+    cached library passes its digest and key checks (``rebuild``: compiled anyway)."""
     cc = _require_compiler(compiler)
     key = _library_key(source, cc, flags, recipe_key)
     stem = f"{name}_{key[:24]}"
     library = cache_dir / f"{stem}.so"
-    if library.is_file():
+    if library.is_file() and not rebuild:
         damage = library_digest.damage(library, key, recipe_key)
         if damage is None:
-            try:
-                return {n: _load(n, library) for n in load}
-            except CodegenError as err:
-                damage = str(err)
+            return library, True
         # A damaged or foreign file (a full disk, a killed copy, a bit flip, a copy under
         # another name): never dlopen it, build anew.
         _warn_rebuild(library.name, damage)
@@ -270,7 +322,7 @@ def _build_cached(
         os.replace(built, library)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return {n: _load(n, library) for n in load}
+    return library, False
 
 
 def compile_source(

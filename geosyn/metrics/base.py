@@ -154,6 +154,19 @@ class Metric(ABC):
         q = self._check(q, "q")
         return self.functions.evaluate("dG", q).reshape(self.n, self.n, self.n)
 
+    def quadratic_gradient(self, q: Vector, d: Vector) -> Vector:
+        """Gradient in ``q`` of the quadratic form ``d^T G(q) d``.
+
+        Args:
+            q: (n,) joint positions [rad].
+            d: (n,) a tangent vector (e.g. a path segment) [rad].
+
+        Returns:
+            (n,) ``[k] = d^T (d G / d q_k) d`` (for the kinetic-energy metric [kg m^2]).
+        """
+        d = self._check(d, "d")
+        return np.einsum("i,ijk,j->k", d, self.dG(q), d)
+
     def christoffel(self, q: Vector) -> np.ndarray:
         """Christoffel symbols of the first kind.
 

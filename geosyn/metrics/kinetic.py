@@ -133,6 +133,23 @@ class KineticEnergyMetric(Metric):
             _raise_non_finite("coriolis", c, v)
         return c
 
+    def quadratic_gradient(self, q: Vector, d: Vector) -> Vector:
+        """Gradient in ``q`` of ``d^T M(q) d`` [kg m^2], ``2 C(q, d)^T d`` with
+        Pinocchio's Coriolis matrix (``M' = C + C^T`` and ``C(q, d) d`` the Coriolis
+        torque give ``d/dq (1/2 d^T M d) = C^T d``; the armature is constant).
+
+        Args:
+            q: (n,) joint positions [rad].
+            d: (n,) a tangent vector [rad].
+        """
+        q = self._check(q, "q")
+        d = self._check(d, "d")
+        C = pin.computeCoriolisMatrix(self._model, self._data, q, d)
+        g = 2.0 * (C.T @ d)
+        if not math.isfinite(g.dot(g)):
+            _raise_non_finite("quadratic_gradient", g, d)
+        return g
+
     def geodesic_acceleration(self, q: Vector, v: Vector) -> Vector:
         """``-M(q)^-1 C(q, v) v`` [rad/s^2], by ``pin.aba`` with zero gravity and torque.
 

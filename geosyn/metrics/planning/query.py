@@ -1,12 +1,13 @@
 """`Query`: one planning query of a `Planner`, from a checked start and goal to a `Plan`.
 
 Anytime: a query first makes a plan without an NLP (`Query.sampled`): RRT-Connect on
-the planner's spheres (within `SAMPLED_SEARCH`; the straight line when it is free on
-them), shortened in the metric (`geosyn.metrics.planning.smoothing`, at most
-`SAMPLED_SHORTCUT` of the budget) and verified like every plan (the exact check
+the planner's spheres (in C, `geosyn.metrics.planning.sphere_native`, within
+`SAMPLED_SEARCH`; the straight line when it is free on them), pulled taut in the metric
+(`Query.taut`: string pulling, partial shortcuts, then `geosyn.metrics.planning.relax`
+within `SAMPLED_RELAX` of the budget) and verified like every plan (the exact check
 decides, self-collision included); the collocation stages then get the time left (none when less than
-`MIN_COLLOCATION` is left: the sampled path, if any, is then shortened further, and
-other RRT-Connect paths are tried and shortened, each verified: `Query.polish`), and the
+`MIN_COLLOCATION` is left: the sampled path, if any, is then relaxed further, and
+other RRT-Connect paths are tried and pulled taut, each verified: `Query.polish`), and the
 kept plan is the best verified one by the homotopy rule below (the
 sampled plan is one of the "other seeds": never kept when longer than the straight
 line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
@@ -37,8 +38,9 @@ from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.rrt import rrt_connect, shortcut
-from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut, metric_smooth
+from geosyn.metrics.planning.relax import metric_relax
+from geosyn.metrics.planning.rrt import shortcut, string_pull
+from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut
 from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check, feasible_result
 
 if TYPE_CHECKING:
@@ -49,12 +51,14 @@ __all__ = [
     "ANYTIME_SLACK",
     "COARSE_TO_FINE",
     "MIN_COLLOCATION",
-    "POLISH_TRIES",
     "REFINEMENTS",
     "SAME",
+    "SAMPLED_CHECK_SHARE",
+    "SAMPLED_RELAX",
+    "SAMPLED_RELAX_MAX",
     "SAMPLED_SEARCH",
-    "SAMPLED_SHORTCUT",
     "SAMPLED_SMALL",
+    "SAMPLED_TRIES",
     "Query",
     "metric_length",
 ]
@@ -76,9 +80,21 @@ SAMPLED_SEARCH = (0.7, 0.3, 0.1)
 sooner when the trees connect, within 0.01-0.5 s on the Panda benchmark scenes: at small
 budgets it may take most of the time, at large ones it leaves most to collocation)."""
 
-POLISH_TRIES = 150
-"""Shortcuts tried on each path when the time left goes to shortening (`Query.polish`):
-most of the gain of 1,000 on the Panda benchmark scenes (measured: ~0.85 ms a try)."""
+SAMPLED_TRIES = 30
+"""Partial shortcuts in the metric of a sampled path before it is relaxed (`Query.taut`):
+they straighten RRT-Connect's detours, which the relaxation (a local method) keeps."""
+
+SAMPLED_RELAX = 0.3
+"""Share of the budget (at most `SAMPLED_RELAX_MAX`) for pulling the sampled plan taut."""
+
+SAMPLED_CHECK_SHARE = 0.5
+"""Largest share of the time left after RRT-Connect that pulling the sampled plan taut
+may take (all of it when the budget is too small for collocation): the rest is for its
+exact check (10-60 ms on the Panda scenes)."""
+
+SAMPLED_RELAX_MAX = 0.3
+"""Longest relaxation of the sampled plan [s] (it converges in 0.03-0.3 s on the Panda
+benchmark scenes, `benchmarks/RESULTS.md`)."""
 
 SAMPLED_SMALL = 0.8
 """Share of a budget too small for collocation (less than `MIN_COLLOCATION` would be
@@ -89,12 +105,6 @@ MIN_COLLOCATION = 0.4
 the time goes to shortening it (`Query.polish`). A Panda collocation among obstacles
 takes 0.3-2 s (median 0.8 s, `benchmarks/RESULTS.md`): stopped sooner, IPOPT mostly
 returns nothing better."""
-
-SAMPLED_SHORTCUT = 0.15
-"""Share of the budget (at most `SAMPLED_SHORTCUT_MAX`) for shortening it in the metric."""
-
-SAMPLED_SHORTCUT_MAX = 0.2
-"""Longest metric shortcutting of the sampled plan [s]."""
 
 COARSE_TO_FINE = 0.8
 """Share of the budget left after the sampled plan that the coarse-to-fine collocation
@@ -129,6 +139,7 @@ class Query:
         self.first = math.nan  # when the first plan passed every check [s]
         self.sampled_path: np.ndarray | None = None  # the sampled plan's path
         self.check_time = 0.0  # the last sampled plan's checks took [s]
+        self.exact_failed = False  # the last sampled plan crossed the exact geometry
 
     def left(self) -> float:
         """Time left of the budget [s] (negative once spent)."""
@@ -144,7 +155,8 @@ class Query:
         for level, (_, sub) in enumerate(((1, 1), *REFINEMENTS)):
             coarse, fine = p.check(res.q)
             check, what = min(coarse, fine), "the fine check"
-            exact = exact_check(p.exact, res.q, p.term.obstacles, p.exact_resolution)
+            exact = exact_check(p.exact, res.q, p.term.obstacles, p.exact_resolution,
+                                bounds=p.exact_bounds)
             if p.exact is not None:  # the robot's own geometry decides
                 check, what = exact.clearance, f"the exact check ({exact.link})"
             own = p.self_check(res.q) if check >= 0.0 else math.nan
@@ -189,54 +201,73 @@ class Query:
         # the sampling box: the limits, or within pi of start and goal where infinite
         lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
         hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
-        return rrt_connect(p.valid, q0, q1, lo, hi, budget=budget, seed=self.seed + index)
+        return p.connect(q0, q1, lo, hi, budget, self.seed + index)
 
     def sampled(self) -> Plan | None:
         """The first plan without an NLP (module docstring), or None; its path (when
         RRT-Connect found one round the obstacles) is kept as the seed of
         `from_rrt` (0)."""
-        p = self.p
         a, b, c = SAMPLED_SEARCH
         search = min(a * self.budget, b + c * self.budget)
-        if self.budget - search < MIN_COLLOCATION:  # no collocation after it anyway
+        small = self.budget - search < MIN_COLLOCATION  # no collocation after it anyway
+        if small:
             search = SAMPLED_SMALL * self.budget
         path, grown = self._rrt(0, search)
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
             return None
-        if len(path) == 2:
-            self.sampled_path = path  # `polish` may bend it towards the geodesic
-            return self.verified(path, "the straight line")
-        cap = min(SAMPLED_SHORTCUT * self.budget, SAMPLED_SHORTCUT_MAX, max(self.left(), 0.0))
-        self.sampled_path = metric_shortcut(p.valid, p.metric, path, budget=cap, seed=self.seed)
-        return self.verified(self.sampled_path,
-                             f"RRT-Connect's path ({grown} nodes) shortened in the metric")  # fmt: skip
+        how = "the straight line" if len(path) == 2 else f"RRT-Connect's path ({grown} nodes)"
+        left = max(self.left(), 0.0)  # the exact check needs its share of it
+        budget = SAMPLED_CHECK_SHARE * left if small else min(
+            SAMPLED_RELAX * self.budget, SAMPLED_RELAX_MAX, SAMPLED_CHECK_SHARE * left)  # fmt: skip
+        self.sampled_path, rough = self.taut(path, budget)
+        plan = self.verified(self.sampled_path, f"{how} pulled taut in the metric")
+        if plan is None and self.exact_failed:  # it cut a corner of the exact geometry
+            self.sampled_path = rough
+            plan = self.verified(rough, f"{how} shortened in the metric")
+        return plan
+
+    def taut(self, path: np.ndarray, budget: float) -> tuple[np.ndarray, np.ndarray]:
+        """(taut, rough): ``path`` (T, n) [rad] with its vertices skipped (`string_pull`),
+        shortened by `SAMPLED_TRIES` partial shortcuts in the metric (rough), then
+        relaxed (`metric_relax` on ``nodes + 1`` samples even in the metric) within
+        ``budget`` [s] in all."""
+        p, end = self.p, time.perf_counter() + budget
+        rough = string_pull(p.segment_valid, path)
+        rough = metric_shortcut(p.valid, p.metric, rough, budget=0.3 * budget,
+                                tries=SAMPLED_TRIES, seed=self.seed, segment=p.segment_valid)  # fmt: skip
+        p.sphere_check.set_obstacles(p.term.obstacles)
+        taut = metric_relax(p.segment_valid, p.sphere_check.clearances, p.metric,
+                            even_in_metric(p.metric, rough, p.nodes + 1),
+                            budget=max(end - time.perf_counter(), 0.0))  # fmt: skip
+        return taut, rough
 
     def polish(self, plan: Plan) -> Plan:
-        """``plan`` (sampled) improved in the time left but twice its exact check's time:
-        its path shortened further (`POLISH_TRIES` shortcuts, then `metric_smooth` for
-        half the time left), then new RRT-Connect paths
-        (seeds ``seed + 1, 2, ...``, each sampled in at most half the time left) shortened
-        alike, each verified; the shortest verified plan in the metric."""
-        p, path, best = self.p, self.sampled_path, plan
+        """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
+        the last one's): its path relaxed further, then new RRT-Connect paths (seeds
+        ``seed + 1, 2, ...``, each sampled in at most a third of the time left) pulled
+        taut alike (`taut`; valid on the spheres); the shortest in the metric is then
+        verified once, and kept if it passes and is shorter than ``plan``."""
+        p, path = self.p, self.sampled_path
         length = metric_length(p.metric, plan.q)
+        shortest, how = None, ""
+        reserve = 1.5 * self.check_time + 0.005
         for restart in range(1, 10**6):
-            reserve = 2.0 * self.check_time + 0.005
-            if path is None or self.left() <= reserve:
-                break
-            path = metric_shortcut(p.valid, p.metric, path, budget=self.left() - reserve,
-                                   tries=POLISH_TRIES, seed=self.seed + restart)  # fmt: skip
-            path = metric_smooth(p.valid, p.metric, even_in_metric(p.metric, path, p.nodes + 1),
-                                 budget=0.5 * (self.left() - reserve))  # fmt: skip
-            how = f"RRT-Connect path #{restart - 1} shortened and smoothed in the metric"
-            if (better := self.verified(path, how)) is not None and (
-                    new := metric_length(p.metric, better.q)) < length:  # fmt: skip
-                best, length, self.sampled_path = better, new, path
-            if self.left() <= 2.0 * reserve:
-                break
-            path, _ = self._rrt(restart, 0.5 * (self.left() - reserve))
-        return best
+            if path is not None:
+                if self.left() <= reserve:
+                    break
+                taut, _ = self.taut(path, 0.5 * (self.left() - reserve))
+                if (new := metric_length(p.metric, taut)) < length:
+                    shortest, length = taut, new
+                    how = f"RRT-Connect path #{restart - 1} pulled taut in the metric"
+            if self.left() <= 2.0 * reserve or (path is not None and len(path) == 2):
+                break  # no time left, or the straight line is free: no other way round
+            path, _ = self._rrt(restart, (self.left() - reserve) / 3.0)
+        if shortest is not None and (better := self.verified(shortest, how)) is not None:
+            self.sampled_path = shortest
+            return better
+        return plan
 
     def verified(self, path: np.ndarray, how: str) -> Plan | None:
         """The sampled plan of ``path`` (T, n) [rad] if it passes the checks (the exact
@@ -245,8 +276,9 @@ class Query:
         path = even_in_metric(p.metric, path, p.nodes + 1)
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
-                            self.t0 + ANYTIME_SLACK * self.budget)  # fmt: skip
+                            self.t0 + ANYTIME_SLACK * self.budget, p.exact_bounds)  # fmt: skip
         ok = exact.clearance >= 0.0 if p.exact is not None else min(coarse, fine) >= 0.0
+        self.exact_failed = bool(exact.clearance < 0.0)  # not NaN: decided, and crossed
         own = p.self_check(path, self.t0 + ANYTIME_SLACK * self.budget) if ok else math.nan
         self.check_time = time.perf_counter() - t
         if not ok or not p.self_ok(own):
@@ -278,7 +310,13 @@ class Query:
             if len(found) == 2:  # the straight line is free: collocation already had it
                 self.attempts.append(f"{name}: the straight line is collision-free")
                 return None
-            path = shortcut(p.valid, found, budget=0.05 * self.left(), seed=self.seed + index)
+            path = shortcut(
+                p.valid,
+                found,
+                budget=0.05 * self.left(),
+                seed=self.seed + index,
+                segment=p.segment_valid,
+            )
             self.attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
         if (remaining := self.left()) <= 0:
             return None

@@ -15,13 +15,22 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["rrt_connect", "shortcut"]
+__all__ = ["SegmentValidity", "Validity", "rrt_connect", "shortcut", "string_pull"]
 
 Validity = Callable[[np.ndarray], np.ndarray]
 """``valid(Q (K, n)) -> (K,) bool``: which configurations are collision-free."""
 
+SegmentValidity = Callable[[np.ndarray, np.ndarray, float], bool]
+"""``segment(a (n,), b (n,), resolution) -> bool``: whether the joint segment from ``a``
+to ``b`` is collision-free every ``resolution`` [rad] (``a`` itself not checked), e.g.
+`geosyn.metrics.planning.planner.Planner.segment_valid` (in C, stopping at the first
+collision)."""
 
-def _edge_valid(valid: Validity, a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
+
+def _edge_valid(valid: Validity, a: np.ndarray, b: np.ndarray, resolution: float,
+                segment: SegmentValidity | None = None) -> bool:  # fmt: skip
+    if segment is not None:
+        return segment(a, b, resolution)
     k = max(1, int(np.ceil(np.linalg.norm(b - a) / resolution)))
     s = np.arange(1, k + 1)[:, None] / k
     return bool(np.all(valid(a + s * (b - a))))
@@ -125,8 +134,10 @@ def shortcut(
     tries: int = 100,
     budget: float = 0.2,
     seed: int = 0,
+    segment: SegmentValidity | None = None,
 ) -> np.ndarray:
-    """Shorten a valid path (T, n) by random shortcuts between its vertices (seeded)."""
+    """Shorten a valid path (T, n) by random shortcuts between its vertices (seeded;
+    ``segment``: checks a shortcut instead of ``valid``)."""
     rng = np.random.default_rng(seed)
     path = np.asarray(path, dtype=float)
     t_end = time.perf_counter() + budget
@@ -136,6 +147,24 @@ def shortcut(
         i, j = sorted(rng.choice(len(path), size=2, replace=False))
         if j - i < 2:
             continue
-        if _edge_valid(valid, path[i], path[j], resolution):
+        if _edge_valid(valid, path[i], path[j], resolution, segment):
             path = np.vstack([path[: i + 1], path[j:]])
     return path
+
+
+def string_pull(
+    segment: SegmentValidity, path: np.ndarray, *, resolution: float = 0.05
+) -> np.ndarray:
+    """``path`` (T, n) [rad] with its vertices skipped greedily: from each kept vertex,
+    the straight segment to the farthest later vertex that ``segment`` accepts (the next
+    vertex's is valid already). Deterministic; O(T^2) segment checks at most, in
+    practice about T; the same ends, never longer in joint space."""
+    path = np.asarray(path, dtype=float)
+    kept, i = [path[0]], 0
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not segment(path[i], path[j], resolution):
+            j -= 1
+        kept.append(path[j])
+        i = j
+    return np.array(kept)

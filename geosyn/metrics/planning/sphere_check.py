@@ -128,6 +128,28 @@ class SphereCheck:
             return np.ones(len(np.asarray(Q).reshape(-1, self.robot.model.nq)), dtype=bool)
         return np.asarray(np.all(self.self_clearances(Q, frames) >= self._self_floor, axis=1))
 
+    def valid(self, Q: np.ndarray, margin: float) -> np.ndarray:
+        """(K,) True where the configurations ``Q`` (K, n) [rad] keep clearance >=
+        ``margin`` [m] to the obstacles and no self pair is below its floor
+        (`self_valid`)."""
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
+        R, p = self.frames(Q)
+        ok = self.clearances(Q, (R, p)) >= margin
+        if self.self_pairs and ok.any():
+            ok[ok] = self.self_valid(Q[ok], (R[ok], p[ok]))
+        return ok
+
+    def all_valid(self, Q: np.ndarray, margin: float) -> bool:
+        """Whether every configuration of ``Q`` (K, n) [rad] is valid (`valid`)."""
+        return bool(np.all(self.valid(Q, margin)))
+
+    def segment_valid(self, a: np.ndarray, b: np.ndarray, resolution: float,
+                      margin: float) -> bool:  # fmt: skip
+        """Whether the segment ``a`` -> ``b`` (n,) [rad] is valid at the points
+        ``a + (i / k) (b - a)``, i = 1 .. k, ``k = max(1, ceil(|b - a| / resolution))``."""
+        k = max(1, math.ceil(float(np.linalg.norm(b - a)) / resolution))
+        return self.all_valid(a + (np.arange(1, k + 1) / k)[:, None] * (b - a), margin)
+
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Replace the obstacles (shapes of `geosyn.world`, already checked)."""
         self.obstacles = tuple(obstacles)

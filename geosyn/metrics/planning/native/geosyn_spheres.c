@@ -1,0 +1,523 @@
+/* Collision spheres of a serial or branched robot against obstacles, in C.
+ *
+ * The planner's sampling check (`geosyn.metrics.planning.sphere_native`): forward
+ * kinematics of the robot's revolute and prismatic joints (the tree of Pinocchio's model:
+ * parent, placement in the parent, axis, configuration index), the world centres of two
+ * sets of spheres (the obstacle set and the self-collision set, each on a joint or on the
+ * world), and
+ *   - the smallest signed distance sphere - obstacle (exact formulas of
+ *     `geosyn.world.distance` for spheres, boxes, capsules, cylinders and half-spaces);
+ *   - per self-collision link pair, the smallest distance between its spheres;
+ *   - validity: clearance >= margin and every pair at or above its floor.
+ * Robot-independent: one library for every robot (the robot is data, set at creation).
+ * No allocation after the set-up calls; not thread-safe per handle (one work area).
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define GS_API __attribute__((visibility("default")))
+#define GS_OBSTACLE 16 /* numbers per obstacle (layout in geosyn_spheres_set_obstacles) */
+
+typedef struct {
+    int n, *joint;
+    double *centre, *radius, *world; /* world: (n, 3) work */
+    /* the spheres grouped by joint: members order[start[g] .. start[g + 1] - 1] of group
+     * g, bounded by the ball (bound[4 g .. 4 g + 2] in the joint's frame, radius
+     * bound[4 g + 3]); group[i] is sphere i's group; gworld: (groups, 3) work */
+    int groups, *gjoint, *order, *gstart, *group;
+    double *bound, *gworld;
+} gs_spheres;
+
+typedef struct {
+    int nq, nj;
+    int *parent, *kind, *iq;
+    double *axis, *place; /* (nj, 3); (nj, 12): R row-major, then p */
+    double *R, *p;        /* work: (nj, 9), (nj, 3) world placements */
+    gs_spheres obs, own;
+    int n_sphere_pairs, n_pairs;
+    int *first, *second, *start; /* sphere pairs; (n_pairs + 1) starts */
+    double *floor;
+    int n_obstacles, *okind;
+    double *opar;
+} gs_model;
+
+static void *copy(const void *src, size_t bytes) {
+    void *dst = malloc(bytes ? bytes : 1);
+    if (dst && bytes) memcpy(dst, src, bytes);
+    return dst;
+}
+
+GS_API void *geosyn_spheres_create(int nq, int nj, const int *parent, const int *kind,
+                                   const int *iq, const double *axis, const double *place) {
+    gs_model *m = calloc(1, sizeof(gs_model));
+    if (!m) return NULL;
+    m->nq = nq;
+    m->nj = nj;
+    m->parent = copy(parent, sizeof(int) * nj);
+    m->kind = copy(kind, sizeof(int) * nj);
+    m->iq = copy(iq, sizeof(int) * nj);
+    m->axis = copy(axis, sizeof(double) * 3 * nj);
+    m->place = copy(place, sizeof(double) * 12 * nj);
+    m->R = malloc(sizeof(double) * 9 * (nj ? nj : 1));
+    m->p = malloc(sizeof(double) * 3 * (nj ? nj : 1));
+    return m;
+}
+
+static void free_spheres(gs_spheres *s) {
+    free(s->joint);
+    free(s->centre);
+    free(s->radius);
+    free(s->world);
+    free(s->gjoint); free(s->order); free(s->gstart); free(s->group);
+    free(s->bound); free(s->gworld);
+    memset(s, 0, sizeof(*s));
+}
+
+GS_API void geosyn_spheres_free(void *handle) {
+    gs_model *m = handle;
+    if (!m) return;
+    free(m->parent); free(m->kind); free(m->iq); free(m->axis); free(m->place);
+    free(m->R); free(m->p);
+    free_spheres(&m->obs);
+    free_spheres(&m->own);
+    free(m->first); free(m->second); free(m->start); free(m->floor);
+    free(m->okind); free(m->opar);
+    free(m);
+}
+
+/* which = 0: the obstacle set; 1: the self-collision set. joint -1: the world. */
+GS_API int geosyn_spheres_set_spheres(void *handle, int which, int n, const int *joint,
+                                      const double *centre, const double *radius) {
+    gs_model *m = handle;
+    gs_spheres *s = which ? &m->own : &m->obs;
+    free_spheres(s);
+    s->n = n;
+    s->joint = copy(joint, sizeof(int) * n);
+    s->centre = copy(centre, sizeof(double) * 3 * n);
+    s->radius = copy(radius, sizeof(double) * n);
+    s->world = malloc(sizeof(double) * 3 * (n ? n : 1));
+    size_t m1 = (size_t)(n ? n : 1);
+    s->gjoint = malloc(sizeof(int) * m1);
+    s->order = malloc(sizeof(int) * m1);
+    s->gstart = malloc(sizeof(int) * (m1 + 1));
+    s->group = malloc(sizeof(int) * m1);
+    s->bound = calloc(4 * m1, sizeof(double));
+    s->gworld = malloc(sizeof(double) * 3 * m1);
+    if (!(s->joint && s->centre && s->radius && s->world && s->gjoint && s->order &&
+          s->gstart && s->group && s->bound && s->gworld))
+        return -1;
+    s->groups = 0;
+    for (int i = 0; i < n; ++i) { /* groups in order of first appearance */
+        int g = 0;
+        while (g < s->groups && s->gjoint[g] != joint[i]) ++g;
+        if (g == s->groups) s->gjoint[s->groups++] = joint[i];
+        s->group[i] = g;
+    }
+    int at = 0;
+    for (int g = 0; g < s->groups; ++g) {
+        s->gstart[g] = at;
+        double *b = s->bound + 4 * g, count = 0.0;
+        for (int i = 0; i < n; ++i)
+            if (s->group[i] == g) {
+                s->order[at++] = i;
+                for (int a = 0; a < 3; ++a) b[a] += centre[3 * i + a];
+                count += 1.0;
+            }
+        for (int a = 0; a < 3; ++a) b[a] /= count;
+        for (int i = 0; i < n; ++i)
+            if (s->group[i] == g) {
+                const double *c = centre + 3 * i;
+                double dx = c[0] - b[0], dy = c[1] - b[1], dz = c[2] - b[2];
+                double r = sqrt(dx * dx + dy * dy + dz * dz) + radius[i];
+                if (r > b[3]) b[3] = r;
+            }
+        b[3] *= 1.0 + 1e-12; /* round-off: the ball holds its spheres */
+    }
+    s->gstart[s->groups] = at;
+    return 0;
+}
+
+/* Sphere pairs (first[k], second[k]) of the self set; pair i owns sphere pairs
+ * start[i] .. start[i + 1] - 1; floor: (n_pairs,) lowest accepted distance [m]. */
+GS_API int geosyn_spheres_set_pairs(void *handle, int n_sphere_pairs, const int *first,
+                                    const int *second, int n_pairs, const int *start,
+                                    const double *floor) {
+    gs_model *m = handle;
+    free(m->first); free(m->second); free(m->start); free(m->floor);
+    m->n_sphere_pairs = n_sphere_pairs;
+    m->n_pairs = n_pairs;
+    m->first = copy(first, sizeof(int) * n_sphere_pairs);
+    m->second = copy(second, sizeof(int) * n_sphere_pairs);
+    m->start = copy(start, sizeof(int) * (n_pairs + 1));
+    m->floor = copy(floor, sizeof(double) * n_pairs);
+    return (m->first && m->second && m->start && m->floor) ? 0 : -1;
+}
+
+GS_API void geosyn_spheres_set_floor(void *handle, const double *floor) {
+    gs_model *m = handle;
+    memcpy(m->floor, floor, sizeof(double) * m->n_pairs);
+}
+
+/* Obstacles, GS_OBSTACLE numbers each, by kind:
+ *   0 sphere:    centre (3), ..., radius at [15]
+ *   1 box:       centre (3), R (9, row-major, world from box), half extents (3)
+ *   2 capsule:   p0 (3), p1 (3), ..., radius at [15]
+ *   3 cylinder:  centre (3), R (9), radius [12], half length [13] (along local z)
+ *   4 halfspace: normal (3), offset [3] (the obstacle is normal . x <= offset) */
+GS_API int geosyn_spheres_set_obstacles(void *handle, int n, const int *kind, const double *par) {
+    gs_model *m = handle;
+    free(m->okind); free(m->opar);
+    m->n_obstacles = n;
+    m->okind = copy(kind, sizeof(int) * n);
+    m->opar = copy(par, sizeof(double) * GS_OBSTACLE * n);
+    return (m->okind && m->opar) ? 0 : -1;
+}
+
+static void kinematics(gs_model *m, const double *q) {
+    for (int j = 0; j < m->nj; ++j) {
+        const double *P = m->place + 12 * j, *u = m->axis + 3 * j;
+        double L[9], lp[3]; /* placement times the joint's own motion, in the parent */
+        double x = q[m->iq[j]];
+        if (m->kind[j] == 0) { /* revolute: Rodrigues */
+            double c = cos(x), s = sin(x), t = 1.0 - c;
+            double J[9] = {t * u[0] * u[0] + c,        t * u[0] * u[1] - s * u[2], t * u[0] * u[2] + s * u[1],
+                           t * u[0] * u[1] + s * u[2], t * u[1] * u[1] + c,        t * u[1] * u[2] - s * u[0],
+                           t * u[0] * u[2] - s * u[1], t * u[1] * u[2] + s * u[0], t * u[2] * u[2] + c};
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b)
+                    L[3 * a + b] = P[3 * a] * J[b] + P[3 * a + 1] * J[3 + b] + P[3 * a + 2] * J[6 + b];
+            lp[0] = P[9]; lp[1] = P[10]; lp[2] = P[11];
+        } else { /* prismatic */
+            memcpy(L, P, sizeof(double) * 9);
+            for (int a = 0; a < 3; ++a)
+                lp[a] = P[9 + a] + x * (P[3 * a] * u[0] + P[3 * a + 1] * u[1] + P[3 * a + 2] * u[2]);
+        }
+        double *R = m->R + 9 * j, *p = m->p + 3 * j;
+        int par = m->parent[j];
+        if (par < 0) {
+            memcpy(R, L, sizeof(double) * 9);
+            memcpy(p, lp, sizeof(double) * 3);
+        } else {
+            const double *A = m->R + 9 * par, *ap = m->p + 3 * par;
+            for (int a = 0; a < 3; ++a) {
+                for (int b = 0; b < 3; ++b)
+                    R[3 * a + b] = A[3 * a] * L[b] + A[3 * a + 1] * L[3 + b] + A[3 * a + 2] * L[6 + b];
+                p[a] = ap[a] + A[3 * a] * lp[0] + A[3 * a + 1] * lp[1] + A[3 * a + 2] * lp[2];
+            }
+        }
+    }
+}
+
+static void place_spheres(const gs_model *m, gs_spheres *s) {
+    for (int i = 0; i < s->n; ++i) {
+        const double *c = s->centre + 3 * i;
+        double *w = s->world + 3 * i;
+        int j = s->joint[i];
+        if (j < 0) {
+            w[0] = c[0]; w[1] = c[1]; w[2] = c[2];
+            continue;
+        }
+        const double *R = m->R + 9 * j, *p = m->p + 3 * j;
+        for (int a = 0; a < 3; ++a) w[a] = p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2];
+    }
+}
+
+static void place_bounds(const gs_model *m, gs_spheres *s) {
+    for (int g = 0; g < s->groups; ++g) {
+        const double *c = s->bound + 4 * g;
+        double *w = s->gworld + 3 * g;
+        int j = s->gjoint[g];
+        if (j < 0) {
+            w[0] = c[0]; w[1] = c[1]; w[2] = c[2];
+            continue;
+        }
+        const double *R = m->R + 9 * j, *p = m->p + 3 * j;
+        for (int a = 0; a < 3; ++a) w[a] = p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2];
+    }
+}
+
+static double distance(int kind, const double *o, const double *x) {
+    double d[3] = {x[0] - o[0], x[1] - o[1], x[2] - o[2]};
+    switch (kind) {
+    case 0:
+        return sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) - o[15];
+    case 1: {
+        double out = 0.0, in = -INFINITY;
+        for (int b = 0; b < 3; ++b) {
+            double l = fabs(d[0] * o[3 + b] + d[1] * o[6 + b] + d[2] * o[9 + b]) - o[12 + b];
+            if (l > 0.0) out += l * l;
+            if (l > in) in = l;
+        }
+        return sqrt(out) + (in < 0.0 ? in : 0.0);
+    }
+    case 2: {
+        double ab[3] = {o[3] - o[0], o[4] - o[1], o[5] - o[2]};
+        double den = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2], t = 0.0;
+        if (den > 0.0) {
+            t = (d[0] * ab[0] + d[1] * ab[1] + d[2] * ab[2]) / den;
+            t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+        }
+        double e[3] = {d[0] - t * ab[0], d[1] - t * ab[1], d[2] - t * ab[2]};
+        return sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) - o[15];
+    }
+    case 3: {
+        double l[3];
+        for (int b = 0; b < 3; ++b) l[b] = d[0] * o[3 + b] + d[1] * o[6 + b] + d[2] * o[9 + b];
+        double u0 = hypot(l[0], l[1]) - o[12], u1 = fabs(l[2]) - o[13];
+        double a0 = u0 > 0.0 ? u0 : 0.0, a1 = u1 > 0.0 ? u1 : 0.0, mx = u0 > u1 ? u0 : u1;
+        return sqrt(a0 * a0 + a1 * a1) + (mx < 0.0 ? mx : 0.0);
+    }
+    default:
+        return x[0] * o[0] + x[1] * o[1] + x[2] * o[2] - o[3];
+    }
+}
+
+/* The smallest sphere-obstacle clearance, or (stop finite) the first one found below
+ * stop. A group whose ball is at least the best found (or stop) away is skipped: signed
+ * distances are 1-Lipschitz, so the ball's clearance bounds its spheres'. Needs the balls
+ * placed (place_bounds); places the spheres it visits. */
+static double clearance(gs_model *m, double stop) {
+    double best = INFINITY;
+    gs_spheres *s = &m->obs;
+    for (int g = 0; g < s->groups; ++g) {
+        const double *bw = s->gworld + 3 * g, *bl = s->bound + 4 * g;
+        int j = s->gjoint[g];
+        const double *R = j < 0 ? NULL : m->R + 9 * j, *p = j < 0 ? NULL : m->p + 3 * j;
+        for (int k = 0; k < m->n_obstacles; ++k) {
+            const double *o = m->opar + GS_OBSTACLE * k;
+            double lim = stop > -INFINITY ? stop : best;
+            if (distance(m->okind[k], o, bw) - bl[3] >= lim) continue;
+            for (int at = s->gstart[g]; at < s->gstart[g + 1]; ++at) {
+                int i = s->order[at];
+                const double *c = s->centre + 3 * i;
+                double w[3];
+                for (int a = 0; a < 3; ++a)
+                    w[a] = R ? p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2] : c[a];
+                double v = distance(m->okind[k], o, w) - s->radius[i];
+                if (v < best) best = v;
+            }
+            if (best < stop) return best;
+        }
+    }
+    return best;
+}
+
+static double pair_distance(const gs_model *m, int pair) {
+    const gs_spheres *s = &m->own;
+    double best = INFINITY;
+    for (int k = m->start[pair]; k < m->start[pair + 1]; ++k) {
+        const double *a = s->world + 3 * m->first[k], *b = s->world + 3 * m->second[k];
+        double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+        double v = sqrt(dx * dx + dy * dy + dz * dz) - s->radius[m->first[k]] - s->radius[m->second[k]];
+        if (v < best) best = v;
+    }
+    return best;
+}
+
+/* Whether pair `pair` keeps its floor: its joints' balls first (a lower bound of
+ * every sphere distance), then its spheres, squared distances. Needs both placed. */
+static int pair_ok(const gs_model *m, int pair) {
+    const gs_spheres *s = &m->own;
+    double floor = m->floor[pair];
+    int k0 = m->start[pair], k1 = m->start[pair + 1];
+    if (k0 == k1) return 1;
+    int ga = s->group[m->first[k0]], gb = s->group[m->second[k0]];
+    const double *a = s->gworld + 3 * ga, *b = s->gworld + 3 * gb;
+    double dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+    double lim = s->bound[4 * ga + 3] + s->bound[4 * gb + 3] + floor;
+    if (lim <= 0.0 || dx * dx + dy * dy + dz * dz >= lim * lim) return 1;
+    for (int k = k0; k < k1; ++k) {
+        int i = m->first[k], j = m->second[k];
+        const double *x = s->world + 3 * i, *y = s->world + 3 * j;
+        double ex = x[0] - y[0], ey = x[1] - y[1], ez = x[2] - y[2];
+        double t = s->radius[i] + s->radius[j] + floor, d2 = ex * ex + ey * ey + ez * ez;
+        /* near the floor, the distance as pair_distance computes it (the floors come
+         * from it: a configuration at its own floor stays valid) */
+        if (t > 0.0 && d2 < t * t * (1.0 + 1e-9) &&
+            sqrt(d2) - s->radius[i] - s->radius[j] < floor)
+            return 0;
+    }
+    return 1;
+}
+
+/* out[k]: the smallest sphere-obstacle clearance at configuration k of Q (K, nq) [m]. */
+GS_API void geosyn_spheres_clearances(void *handle, const double *Q, int K, double *out) {
+    gs_model *m = handle;
+    for (int k = 0; k < K; ++k) {
+        kinematics(m, Q + (size_t)m->nq * k);
+        place_bounds(m, &m->obs);
+        out[k] = clearance(m, -INFINITY);
+    }
+}
+
+/* out (K, S, O): the clearance of every sphere of the obstacle set to every obstacle [m]
+ * (signed distance of its centre minus its radius). */
+GS_API void geosyn_spheres_obstacle_distances(void *handle, const double *Q, int K, double *out) {
+    gs_model *m = handle;
+    gs_spheres *s = &m->obs;
+    int O = m->n_obstacles;
+    for (int k = 0; k < K; ++k) {
+        kinematics(m, Q + (size_t)m->nq * k);
+        place_spheres(m, s);
+        for (int i = 0; i < s->n; ++i)
+            for (int o = 0; o < O; ++o)
+                out[((size_t)k * s->n + i) * O + o] =
+                    distance(m->okind[o], m->opar + GS_OBSTACLE * o, s->world + 3 * i) - s->radius[i];
+    }
+}
+
+/* out (K, n_pairs): the smallest sphere distance of each self pair [m]. */
+GS_API void geosyn_spheres_self_clearances(void *handle, const double *Q, int K, double *out) {
+    gs_model *m = handle;
+    for (int k = 0; k < K; ++k) {
+        kinematics(m, Q + (size_t)m->nq * k);
+        place_spheres(m, &m->own);
+        for (int i = 0; i < m->n_pairs; ++i) out[(size_t)m->n_pairs * k + i] = pair_distance(m, i);
+    }
+}
+
+/* Whether configuration q keeps clearance >= margin and (self) every pair its floor. */
+static int config_valid(gs_model *m, const double *q, double margin, int self) {
+    kinematics(m, q);
+    if (m->n_obstacles && m->obs.n) {
+        place_bounds(m, &m->obs);
+        if (clearance(m, margin) < margin) return 0;
+    }
+    if (self && m->n_pairs) {
+        place_spheres(m, &m->own);
+        place_bounds(m, &m->own);
+        for (int i = 0; i < m->n_pairs; ++i)
+            if (!pair_ok(m, i)) return 0;
+    }
+    return 1;
+}
+
+/* out[k] = 1 where configuration k is valid (config_valid); returns the number of valid
+ * configurations. stop_at_invalid: return at the first invalid one (the rest of out
+ * left as it was). */
+GS_API int geosyn_spheres_valid(void *handle, const double *Q, int K, double margin, int self,
+                                int stop_at_invalid, unsigned char *out) {
+    gs_model *m = handle;
+    int count = 0;
+    for (int k = 0; k < K; ++k) {
+        int ok = config_valid(m, Q + (size_t)m->nq * k, margin, self);
+        out[k] = (unsigned char)ok;
+        count += ok;
+        if (!ok && stop_at_invalid) return count;
+    }
+    return count;
+}
+
+/* Whether the straight segment a -> b is valid at the points a + (i / k) (b - a),
+ * i = 1 .. k, k = max(1, ceil(|b - a| / resolution)) (a itself is not checked). */
+static int segment_valid(gs_model *m, const double *a, const double *b, double resolution,
+                         double margin, int self, double *q) {
+    int n = m->nq;
+    double d2 = 0.0;
+    for (int i = 0; i < n; ++i) d2 += (b[i] - a[i]) * (b[i] - a[i]);
+    int k = (int)ceil(sqrt(d2) / resolution);
+    k = k < 1 ? 1 : k;
+    for (int s = 1; s <= k; ++s) {
+        double u = (double)s / k;
+        for (int i = 0; i < n; ++i) q[i] = a[i] + u * (b[i] - a[i]);
+        if (!config_valid(m, q, margin, self)) return 0;
+    }
+    return 1;
+}
+
+GS_API int geosyn_spheres_segment_valid(void *handle, const double *a, const double *b,
+                                        double resolution, double margin, int self) {
+    gs_model *m = handle;
+    double q[64];
+    if (m->nq > 64) return -1;
+    return segment_valid(m, a, b, resolution, margin, self, q);
+}
+
+static double seconds_now(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+static double uniform(uint64_t *s) { /* xorshift128+, in [0, 1) */
+    uint64_t x = s[0], y = s[1];
+    s[0] = y;
+    x ^= x << 23;
+    s[1] = x ^ y ^ (x >> 17) ^ (y >> 26);
+    return (double)((s[1] + y) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+typedef struct {
+    double *q;
+    int *parent, *size;
+} gs_tree;
+
+/* Extend tree t towards target by at most step: the new node's index, or -1 (the
+ * segment from the nearest node is invalid, or the tree is full); *reached: the new
+ * node is the target. */
+static int extend(gs_model *m, gs_tree *t, const double *target, double step, double resolution,
+                  double margin, int self, int max_nodes, int *reached, double *work) {
+    int n = m->nq, best = 0;
+    double bd = INFINITY;
+    for (int i = 0; i < *t->size; ++i) {
+        const double *x = t->q + (size_t)n * i;
+        double d = 0.0;
+        for (int a = 0; a < n && d < bd; ++a) d += (x[a] - target[a]) * (x[a] - target[a]);
+        if (d < bd) bd = d, best = i;
+    }
+    if (*t->size >= max_nodes) return -1;
+    const double *near = t->q + (size_t)n * best;
+    double dist = sqrt(bd), *fresh = t->q + (size_t)n * *t->size;
+    *reached = dist <= step;
+    for (int a = 0; a < n; ++a)
+        fresh[a] = *reached ? target[a] : near[a] + (target[a] - near[a]) * (step / dist);
+    if (!segment_valid(m, near, fresh, resolution, margin, self, work)) return -1;
+    t->parent[*t->size] = best;
+    return (*t->size)++;
+}
+
+/* RRT-Connect (Kuffner & LaValle) on trees 0 (rooted at the start) and 1 (the goal),
+ * resumable: the trees (q (max_nodes, n), parent (max_nodes,), size[2]), whose turn it
+ * is (*turn: the tree that grows towards the next sample) and the sampler's state
+ * (rng[2]) live in the caller's arrays. Grows them towards uniform samples of the box
+ * [lo, hi] for at most `seconds`; returns 1 when they connect (ends[0] in tree 0,
+ * ends[1] in tree 1 are the same configuration), 0 when the time is spent, -1 when a
+ * tree is full. */
+GS_API int geosyn_spheres_rrt_connect(void *handle, const double *lo, const double *hi,
+                                      double step, double resolution, double margin, int self,
+                                      double *q0, int *p0, double *q1, int *p1, int *size,
+                                      int max_nodes, int *turn, uint64_t *rng, double seconds,
+                                      int *ends) {
+    gs_model *m = handle;
+    int n = m->nq;
+    double sample[64], work[64];
+    if (n > 64) return -2;
+    gs_tree trees[2] = {{q0, p0, size}, {q1, p1, size + 1}};
+    double end = seconds_now() + seconds;
+    while (seconds_now() < end) {
+        gs_tree *a = &trees[*turn], *b = &trees[1 - *turn];
+        if (*a->size >= max_nodes || *b->size >= max_nodes) return -1;
+        for (int i = 0; i < n; ++i) sample[i] = lo[i] + uniform(rng) * (hi[i] - lo[i]);
+        int reached = 0, j = extend(m, a, sample, step, resolution, margin, self, max_nodes,
+                                    &reached, work);
+        if (j >= 0) {
+            const double *target = a->q + (size_t)n * j;
+            for (;;) {
+                int k = extend(m, b, target, step, resolution, margin, self, max_nodes,
+                               &reached, work);
+                if (k < 0) break;
+                if (reached) {
+                    ends[*turn] = j;
+                    ends[1 - *turn] = k;
+                    return 1;
+                }
+                if (seconds_now() >= end) break;
+            }
+        }
+        *turn = 1 - *turn;
+    }
+    return 0;
+}

@@ -1,0 +1,191 @@
+"""The C sphere check (`geosyn.metrics.planning.sphere_native`) against independent
+referees: Pinocchio's forward kinematics (sphere centres placed by ``data.oMi``), the
+closed-form signed distances of `geosyn.world.distance`, and the validity rule written
+out by hand. Trees with unaligned hinges, a slide joint and two root joints included.
+Tolerances: 1e-12 m (round-off of the kinematics summed in another order)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geosyn.metrics.planning.rrt import string_pull
+from geosyn.metrics.planning.sphere_check import SphereCheck
+from geosyn.metrics.planning.sphere_native import NativeSphereCheck, joint_table, sphere_check
+from geosyn.robots import load_robot
+from geosyn.robots.robot import CollisionSphere
+from geosyn.world import shapes
+from geosyn.world.distance import signed_distance
+
+FIXTURES = Path(__file__).parent / "fixtures"
+TOL = 1e-12
+
+
+def _spheres(robot, rng, per_joint: int = 3) -> list[CollisionSphere]:
+    """Random spheres on every joint and two on the world (seeded)."""
+    out = [CollisionSphere("universe", tuple(rng.uniform(-0.3, 0.3, 3)), 0.02)]
+    for name in robot.model.names[1:]:
+        for _ in range(per_joint):
+            out.append(CollisionSphere(name, tuple(rng.uniform(-0.1, 0.1, 3)),
+                                       float(rng.uniform(0.01, 0.05))))  # fmt: skip
+    return out
+
+
+def _world_centres(robot, spheres, q) -> np.ndarray:
+    """(S, 3) sphere centres placed by Pinocchio's own kinematics (the referee)."""
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q)
+    out = []
+    for s in spheres:
+        M = pin.SE3.Identity() if s.joint == "universe" else data.oMi[robot.joint_id(s.joint)]
+        out.append(M.act(np.asarray(s.center)))
+    return np.array(out)
+
+
+def _obstacles(rng) -> list[shapes.Shape]:
+    R = pin.rpy.rpyToMatrix(*rng.uniform(-1.0, 1.0, 3))
+    return [
+        shapes.Sphere(tuple(rng.uniform(-0.3, 0.3, 3)), 0.05),
+        shapes.Box(tuple(rng.uniform(-0.3, 0.3, 3)), (0.05, 0.1, 0.02), R),
+        shapes.Capsule(tuple(rng.uniform(-0.3, 0.3, 3)), tuple(rng.uniform(-0.3, 0.3, 3)), 0.03),
+        shapes.Cylinder(tuple(rng.uniform(-0.3, 0.3, 3)), 0.04, 0.1, R.T),
+        shapes.HalfSpace((0.0, 0.0, 1.0), -0.2),
+    ]
+
+
+@pytest.mark.parametrize(
+    "robot_name", ["panda", str(FIXTURES / "arm_root_quat.xml"), str(FIXTURES / "two_fingers.xml")]
+)
+def test_clearances_match_pinocchio_kinematics_and_closed_form_distances(robot_name: str) -> None:
+    """Every shape at once and each alone, 200 seeded configurations within the limits."""
+    robot = load_robot(robot_name)
+    assert not isinstance(joint_table(robot), str)
+    rng = np.random.default_rng(3)
+    spheres = _spheres(robot, rng)
+    check = NativeSphereCheck(robot, spheres)
+    radius = np.array([s.radius for s in spheres])
+    lo = np.where(np.isfinite(robot.q_min), robot.q_min, -np.pi)
+    hi = np.where(np.isfinite(robot.q_max), robot.q_max, np.pi)
+    Q = rng.uniform(lo, hi, size=(200, robot.nq))
+    centres = np.array([_world_centres(robot, spheres, q) for q in Q])  # (K, S, 3)
+    obstacles = _obstacles(rng)
+    for chosen in [obstacles, *([ob] for ob in obstacles)]:
+        check.set_obstacles(chosen)
+        expected = np.array([
+            min(float((signed_distance(ob, c) - radius).min()) for ob in chosen) for c in centres
+        ])  # fmt: skip
+        assert np.abs(check.clearances(Q) - expected).max() < TOL
+
+
+def test_self_clearances_and_validity_follow_the_rule() -> None:
+    """Self pairs on the Panda's fitted spheres: each pair's smallest sphere distance
+    from Pinocchio-placed centres; `valid` = clearance >= margin and every pair >= its
+    floor, with margins and floors near the values the bounding balls prune at."""
+    from geosyn.robots.collision_spheres import file_spheres
+
+    robot = load_robot("panda")
+    fitted = file_spheres(robot)
+    check = NativeSphereCheck(robot, fitted.spheres)
+    check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
+    rng = np.random.default_rng(5)
+    Q = rng.uniform(robot.q_min, robot.q_max, size=(300, 7))
+    radius = np.array([s.radius for s in fitted.spheres])
+    links = list(fitted.links)
+    own = np.empty((len(Q), len(check.self_pairs)))
+    for k, q in enumerate(Q):
+        c = _world_centres(robot, fitted.spheres, q)
+        for p, (a, b) in enumerate(check.self_pairs):
+            ia = [i for i, link in enumerate(links) if link == a]
+            ib = [j for j, link in enumerate(links) if link == b]
+            own[k, p] = min(np.linalg.norm(c[i] - c[j]) - radius[i] - radius[j]
+                            for i in ia for j in ib)  # fmt: skip
+    assert np.abs(check.self_clearances(Q) - own).max() < TOL
+    check.set_obstacles([shapes.Box((0.5, 0.0, 0.4), (0.1, 0.3, 0.3), np.eye(3))])
+    clear = check.clearances(Q)
+    own = check.self_clearances(Q)  # equal to the referee's; the floors come from it
+    folded = int(np.argmin(own.min(axis=1)))  # a configuration with sphere overlaps
+    assert own[folded].min() < 0.0
+    for ends in ((), (Q[folded],)):
+        check.set_self_floor(*ends)  # floors: min(0, each pair's distance at the ends)
+        floor = np.minimum(0.0, own[folded]) if ends else np.zeros(len(check.self_pairs))
+        for margin in (0.0, 0.01, float(np.median(clear))):
+            expected = (clear >= margin) & np.all(own >= floor, axis=1)
+            if ends:  # valid at its own floors
+                assert expected[folded] == (clear[folded] >= margin)
+            assert 0 < expected.sum() < len(Q)  # both answers occur
+            np.testing.assert_array_equal(check.valid(Q, margin), expected)
+            assert check.all_valid(Q[expected], margin)
+            assert not check.all_valid(Q, margin)
+
+
+def test_segment_check_stops_at_an_obstacle_the_numpy_check_agrees() -> None:
+    """A Panda joint-1 sweep through a post is refused, its free half accepted; the
+    same answers as the numpy `SphereCheck` on the same points."""
+    robot = load_robot("panda")
+    rng = np.random.default_rng(0)
+    spheres = _spheres(robot, rng, per_joint=2)
+    native, slow = NativeSphereCheck(robot, spheres), SphereCheck(robot, spheres)
+    q = np.array([0.0, 0.3, 0.0, -1.5, 0.0, 1.8, 0.8])
+    c = _world_centres(robot, spheres, q)[-1]  # a sphere of the hand
+    post = shapes.Box((-c[0], -c[1], c[2]), (0.03, 0.03, 0.5), np.eye(3))  # joint 1 at pi
+    for check in (native, slow):
+        check.set_obstacles([post])
+    a, b = q.copy(), q.copy()
+    b[0] = 2.0 * np.pi - 0.2
+    mid = q.copy()
+    mid[0] = 2.0
+    for res in (0.05, 0.01):
+        assert not native.segment_valid(a, b, res, 0.0)
+        assert native.segment_valid(a, mid, res, 0.0)
+        assert native.segment_valid(a, b, res, 0.0) == slow.segment_valid(a, b, res, 0.0)
+
+
+def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> None:
+    """Start and goal on either side of a wall: the path joins them, each of its edges
+    passes the numpy check 10x finer than RRT's resolution, and the same seed gives
+    the same path; `string_pull` keeps it valid and makes it shorter."""
+    robot = load_robot("panda")
+    from geosyn.robots.collision_spheres import file_spheres
+
+    fitted = file_spheres(robot)
+    native, slow = NativeSphereCheck(robot, fitted.spheres), SphereCheck(robot, fitted.spheres)
+    wall = [shapes.Box((0.45, 0.0, 0.35), (0.02, 0.25, 0.35), np.eye(3))]
+    for check in (native, slow):
+        check.set_obstacles(wall)
+    q0 = np.array([-0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
+    q1 = np.array([0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
+    assert not native.segment_valid(q0, q1, 0.05, 0.0)
+    lo, hi = robot.q_min, robot.q_max
+    path, grown = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=7)
+    assert path is not None and grown > 2
+    np.testing.assert_array_equal(path[0], q0)
+    np.testing.assert_array_equal(path[-1], q1)
+    assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.3 + 1e-12)
+    for x, y in zip(path[:-1], path[1:], strict=True):
+        assert slow.segment_valid(x, y, 0.005, 0.0)
+    again, _ = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=7)
+    np.testing.assert_array_equal(path, again)
+    # string pulling: fewer vertices, no longer in joint space, every edge still valid
+    pulled = string_pull(lambda a, b, r: native.segment_valid(a, b, r, 0.0), path)
+    joint = [float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in (path, pulled)]
+    assert len(pulled) < len(path) and joint[1] <= joint[0] + 1e-12
+    np.testing.assert_array_equal(pulled[[0, -1]], path[[0, -1]])
+    for x, y in zip(pulled[:-1], pulled[1:], strict=True):
+        assert slow.segment_valid(x, y, 0.005, 0.0)
+
+
+def test_a_robot_the_c_kinematics_cannot_model_falls_back_to_numpy_and_says_so() -> None:
+    """A free-floating base (a 7-coordinate joint): the numpy check, and the note names
+    the joint."""
+    robot = load_robot(str(FIXTURES / "floating_arm.xml"))
+    reason = joint_table(robot)
+    assert isinstance(reason, str)
+    spheres = [CollisionSphere(robot.model.names[1], (0.0, 0.0, 0.0), 0.05)]
+    with pytest.warns(UserWarning, match="numpy"):
+        check, note = sphere_check(robot, spheres)
+    assert type(check) is SphereCheck and robot.model.names[1] in note
+    assert math.isinf(check.clearances(np.zeros(robot.nq))[0])
