@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -33,7 +33,7 @@ import pinocchio as pin
 from geosyn.world.distance import signed_distance
 from geosyn.world.exact_clearance import ExactClearance, PathClearance, checked_configurations
 
-__all__ = ["Bounds", "checked_configurations", "path_clearance"]
+__all__ = ["Bounds", "Kinematics", "PathAids", "checked_configurations", "path_clearance"]
 
 
 def _frames(exact: ExactClearance, Q: np.ndarray, joints: list[int],
@@ -54,7 +54,19 @@ def _frames(exact: ExactClearance, Q: np.ndarray, joints: list[int],
 Bounds = Callable[[np.ndarray], np.ndarray]
 """``bounds(Q (K, n)) -> (K, L, O)``: lower bounds [m] of the exact distance of each of
 ``exact``'s L collision objects to each of its O obstacles (e.g. from collision spheres
-that cover the objects: `geosyn.metrics.planning.planner.Planner.exact_bounds`)."""
+that cover the objects: `geosyn.metrics.planning.sampling.Sampling.exact_bounds`)."""
+
+Kinematics = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""``kinematics(Q (K, n)) -> ((K, J, 3, 3), (K, J, 3))``: world rotations and positions
+of every joint by Pinocchio index (0: the universe), as ``data.oMi`` (e.g. in C:
+`geosyn.metrics.planning.sphere_native.NativeSphereCheck.joint_frames`)."""
+
+
+class PathAids(NamedTuple):
+    """What makes `path_clearance` faster, with the same result."""
+
+    bounds: Bounds | None = None
+    kinematics: Kinematics | None = None
 
 
 def path_clearance(
@@ -62,17 +74,18 @@ def path_clearance(
     path: np.ndarray,
     resolution: float,
     deadline: float = math.inf,
-    bounds: Bounds | None = None,
+    aids: PathAids | None = None,
 ) -> PathClearance:
     """Smallest exact clearance of the linear interpolation of ``path`` (T, n) [rad] to
     the obstacles set on ``exact``, at the configurations of `checked_configurations`.
 
     Same value as ``exact.path_clearance(path, resolution)`` when it is below
     ``exact.near`` (else at least ``near``); ``inf`` without obstacles; NaN clearance
-    when ``time.perf_counter()`` passes ``deadline`` [s] first. ``bounds``: tighter lower
-    bounds, taken where larger than the bounding balls' (fewer pairs to measure; the same
-    result). O(K (n + L O)) array work plus coal's distance for the pairs whose bound is
-    below the result.
+    when ``time.perf_counter()`` passes ``deadline`` [s] first. ``aids``: the joints'
+    placements computed elsewhere (e.g. in C), tighter lower bounds of the pairs'
+    distances, taken where larger than the bounding balls' (fewer pairs to measure); the
+    same result. O(K (n + L O)) array work plus coal's distance for the pairs whose bound
+    is below the result.
     """
     import coal
 
@@ -81,12 +94,17 @@ def path_clearance(
     obstacles = exact._obstacles
     if not obstacles:
         return best
-    joints = sorted(set(exact._joint))
-    frames = _frames(exact, Q, joints, deadline)
-    if frames is None:
-        return best._replace(clearance=math.nan, checked=0)
-    R, p = frames
-    slot = np.array([joints.index(j) for j in exact._joint])
+    aids = aids if aids is not None else PathAids()
+    if aids.kinematics is not None:
+        R, p = aids.kinematics(Q)
+        slot = np.array(exact._joint)
+    else:
+        joints = sorted(set(exact._joint))
+        frames = _frames(exact, Q, joints, deadline)
+        if frames is None:
+            return best._replace(clearance=math.nan, checked=0)
+        R, p = frames
+        slot = np.array([joints.index(j) for j in exact._joint])
     c_local = np.array([c for c, _ in exact._ball])  # (L, 3) in each joint's frame
     radii = np.array([r for _, r in exact._ball])
     centres = np.einsum("klab,lb->kla", R[:, slot], c_local) + p[:, slot]  # (K, L, 3)
@@ -95,8 +113,8 @@ def path_clearance(
         [(signed_distance(ob[3], flat).reshape(len(Q), -1) - radii) for ob in obstacles],
         axis=-1,
     )  # (K, L, O) lower bounds of the exact distances
-    if bounds is not None:
-        bound = np.maximum(bound, bounds(Q))
+    if aids.bounds is not None:
+        bound = np.maximum(bound, aids.bounds(Q))
     near = np.flatnonzero(bound.ravel() < exact.near)
     order = near[np.argsort(bound.ravel()[near], kind="stable")]
     low, request = math.inf, exact._request

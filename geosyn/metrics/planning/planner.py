@@ -6,9 +6,10 @@ One query, within a stated time budget:
    `OutsideJointLimits` / `InCollision` naming the obstacle and the robot sphere), at most
    ``capacity`` obstacles (else `geosyn.metrics.shaping.CapacityExceeded`);
    then a sampled first plan without an NLP, for the anytime return (RRT-Connect on the
-   spheres, shortened in the metric, verified as in 4.: `geosyn.metrics.planning.query`),
-   whose path is also RRT-Connect's first seed in 3.; with less than
-   `query.MIN_COLLOCATION` left after it, the rest of the budget shortens it further
+   spheres, in C: `geosyn.metrics.planning.sampling`; pulled taut in the metric,
+   verified as in 4.: `geosyn.metrics.planning.query`), whose path is also
+   RRT-Connect's first seed in 3.; with less than `query.MIN_COLLOCATION` left after
+   it, the rest of the budget relaxes it further and tries other RRT-Connect paths
    instead of 2.-3.;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
@@ -69,13 +70,12 @@ from geosyn.metrics.planning.query import (
     REFINEMENTS,
     Query,
 )
-from geosyn.metrics.planning.rrt import rrt_connect
+from geosyn.metrics.planning.sampling import Sampling
 from geosyn.metrics.planning.self_collision import (
     SelfCollision,
     check_self_end,
     path_self_clearance,
 )
-from geosyn.metrics.planning.sphere_native import NativeSphereCheck, sphere_check
 from geosyn.metrics.planning.verify import (
     check_end,
     exact_check,
@@ -95,10 +95,6 @@ __all__ = [
     "Planner",
     "densify",
 ]
-
-
-SAMPLING_SLACK = 1e-6
-"""[m] below the nearer end's sphere clearance: the lowest sampling margin of a query."""
 
 
 def densify(path: np.ndarray, factor: int) -> np.ndarray:
@@ -183,16 +179,9 @@ class Planner:
             warnings.warn(f"Planner: {self.geometry_note}", UserWarning, stacklevel=2)
         self.term = ObstacleTerm((), capacity=capacity, spheres=spheres, distance=distance)
         self.term.bind(robot)
-        self.sphere_check, self.sampling_note = sphere_check(robot, spheres)
-        self._cover: NativeSphereCheck | None = None  # the file's spheres: exact_bounds
-        if self.exact is not None:  # self pairs on the file's spheres (cached on disk)
-            from geosyn.robots.collision_spheres import file_spheres
-
-            fitted = file_spheres(robot)
-            self.sphere_check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
-            self._cover_bounds(fitted.spheres, fitted.links)
         self.margin = check_float(margin, "margin", low=0.0)
-        self.sampling_margin = 0.5 * self.margin  # a query lowers it to its ends' clearance
+        self.sampling = Sampling(robot, spheres, self.exact, 0.5 * self.margin)
+        self.sphere_check = self.sampling.check  # self pairs on the file's spheres
         self.nodes = check_int(nodes, "nodes", low=2)
         self.check_factor = check_int(check_factor, "check_factor", low=1)
         self.check_step = check_positive(check_step, "check_step", "rad")
@@ -308,61 +297,16 @@ class Planner:
         return coarse, float(clearances(densify(path, factor)).min())
 
     def valid(self, Q: np.ndarray) -> np.ndarray:
-        """(K,) True where the configurations ``Q`` (K, n) keep clearance >=
-        ``sampling_margin`` (margin / 2, lowered during a query to its ends' own sphere
-        clearance; exact sphere distances to the query's obstacles, `SphereCheck`, in C
-        where the robot allows: `geosyn.metrics.planning.sphere_native`) and no self
-        pair's sphere distance is below its floor (`SphereCheck.self_valid`)."""
-        self.sphere_check.set_obstacles(self.term.obstacles)
-        return self.sphere_check.valid(Q, self.sampling_margin)
+        """(K,) True where the configurations ``Q`` (K, n) [rad] are valid for sampling
+        (`Sampling.valid`, the planner's obstacles)."""
+        self.sampling.set_obstacles(self.term.obstacles)
+        return self.sampling.valid(Q)
 
     def segment_valid(self, a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
-        """Whether the joint segment ``a`` -> ``b`` (n,) [rad] is valid (`valid`) every
-        ``resolution`` [rad] (2-norm; ``a`` itself not checked), stopping at the first
-        invalid configuration."""
-        self.sphere_check.set_obstacles(self.term.obstacles)
-        return self.sphere_check.segment_valid(a, b, resolution, self.sampling_margin)
-
-    def connect(self, q0: np.ndarray, q1: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                budget: float, seed: int) -> tuple[np.ndarray | None, int]:  # fmt: skip
-        """RRT-Connect from ``q0`` to ``q1`` (n,) [rad] in the box ``[lo, hi]`` within
-        ``budget`` [s] on `valid` (`geosyn.metrics.planning.rrt.rrt_connect`'s result):
-        in C with the native check, else in Python."""
-        check = self.sphere_check
-        check.set_obstacles(self.term.obstacles)
-        if isinstance(check, NativeSphereCheck):
-            return check.rrt_connect(q0, q1, lo, hi, margin=self.sampling_margin, budget=budget,
-                                     seed=seed)  # fmt: skip
-        return rrt_connect(self.valid, q0, q1, lo, hi, budget=budget, seed=seed)
-
-    def _cover_bounds(self, spheres: Sequence[CollisionSphere], links: Sequence[str]) -> None:
-        """Set up `exact_bounds` from ``spheres`` covering the collision geometry of the
-        link of the same index of ``links`` (the file's fitted spheres, all links)."""
-        if not isinstance(self.sphere_check, NativeSphereCheck) or self.exact is None:
-            return
-        self._cover = NativeSphereCheck(self.robot, spheres)
-        self._cover_index = [
-            np.array([i for i, link in enumerate(links) if link == o.link], dtype=int)
-            for o in self.exact.objects
-        ]
-
-    def exact_bounds(self, Q: np.ndarray) -> np.ndarray:
-        """(K, L, O) lower bounds [m] of the exact distance of each collision object of
-        the file (L, `geosyn.world.exact_clearance.ExactClearance.objects`) to each of
-        the query's obstacles (O) at the configurations ``Q`` (K, n) [rad]: the smallest
-        clearance of the fitted spheres of its link (they cover every point of the link's
-        geometry, so no point is nearer; ``-inf`` for a link without spheres). Handed to
-        the exact check, they leave it fewer pairs to measure with coal, same result."""
-        Q = np.asarray(Q, dtype=float).reshape(-1, self.metric.n)
-        out = np.full((len(Q), len(self._cover_index), len(self.term.obstacles)), -math.inf)
-        if self._cover is None or not self.term.obstacles:
-            return out
-        self._cover.set_obstacles(self.term.obstacles)
-        d = self._cover.obstacle_distances(Q)
-        for k, index in enumerate(self._cover_index):
-            if index.size:
-                out[:, k] = d[:, index].min(axis=1)
-        return out
+        """Whether the joint segment ``a`` -> ``b`` (n,) [rad] is valid every
+        ``resolution`` [rad] (`Sampling.segment_valid`, the planner's obstacles)."""
+        self.sampling.set_obstacles(self.term.obstacles)
+        return self.sampling.segment_valid(a, b, resolution)
 
     def self_check(self, path: np.ndarray, deadline: float = math.inf) -> float:
         """Self-clearance [m] of ``path`` (T, n) [rad] at ``exact_resolution``
@@ -434,7 +378,7 @@ class Planner:
                 break
             coarse, fine = self.check(res.q)
             exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution,
-                                end, self.exact_bounds)  # fmt: skip
+                                end, self.sampling.aids)  # fmt: skip
             ok = exact.clearance >= 0.0 if self.exact is not None else min(coarse, fine) >= 0.0
             own = self.self_check(res.q, end) if ok else math.nan
             if ok and self.self_ok(own):
@@ -523,16 +467,10 @@ class Planner:
             self.term.set_obstacles(obstacles)
             self._check_end(q0, "start")
             self._check_end(q1, "goal")
-            self.sphere_check.set_self_floor(q0, q1)
-            self.sphere_check.set_obstacles(self.term.obstacles)
-            ends = float(self.sphere_check.clearances(np.array([q0, q1])).min())
-            # an end may sit nearer than the sampling margin on the spheres (they reach
-            # beyond the links) while clear of the exact geometry: the samples may then
-            # come as near as it, and the exact check decides
-            self.sampling_margin = min(0.5 * self.margin, ends - SAMPLING_SLACK)
+            self.sampling.start(obstacles, q0, q1)
             plan = Query(self, q0, q1, budget, seed, t0 + built).run()
         finally:  # ``term`` holds the last query's obstacles, on every slot
-            self.sampling_margin = 0.5 * self.margin
+            self.sampling.finish()
             if self.term is not self._full_term:
                 self._full_term.set_obstacles(obstacles)
             self.term = self._full_term

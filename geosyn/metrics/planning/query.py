@@ -156,7 +156,7 @@ class Query:
             coarse, fine = p.check(res.q)
             check, what = min(coarse, fine), "the fine check"
             exact = exact_check(p.exact, res.q, p.term.obstacles, p.exact_resolution,
-                                bounds=p.exact_bounds)
+                                aids=p.sampling.aids)
             if p.exact is not None:  # the robot's own geometry decides
                 check, what = exact.clearance, f"the exact check ({exact.link})"
             own = p.self_check(res.q) if check >= 0.0 else math.nan
@@ -201,7 +201,8 @@ class Query:
         # the sampling box: the limits, or within pi of start and goal where infinite
         lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
         hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
-        return p.connect(q0, q1, lo, hi, budget, self.seed + index)
+        p.sampling.set_obstacles(p.term.obstacles)
+        return p.sampling.connect(q0, q1, lo, hi, budget, self.seed + index)
 
     def sampled(self) -> Plan | None:
         """The first plan without an NLP (module docstring), or None; its path (when
@@ -237,8 +238,8 @@ class Query:
         rough = string_pull(p.segment_valid, path)
         rough = metric_shortcut(p.valid, p.metric, rough, budget=0.3 * budget,
                                 tries=SAMPLED_TRIES, seed=self.seed, segment=p.segment_valid)  # fmt: skip
-        p.sphere_check.set_obstacles(p.term.obstacles)
-        taut = metric_relax(p.segment_valid, p.sphere_check.clearances, p.metric,
+        p.sampling.set_obstacles(p.term.obstacles)
+        taut = metric_relax(p.segment_valid, p.sampling.check.clearances, p.metric,
                             even_in_metric(p.metric, rough, p.nodes + 1),
                             budget=max(end - time.perf_counter(), 0.0))  # fmt: skip
         return taut, rough
@@ -276,7 +277,7 @@ class Query:
         path = even_in_metric(p.metric, path, p.nodes + 1)
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
-                            self.t0 + ANYTIME_SLACK * self.budget, p.exact_bounds)  # fmt: skip
+                            self.t0 + ANYTIME_SLACK * self.budget, p.sampling.aids)  # fmt: skip
         ok = exact.clearance >= 0.0 if p.exact is not None else min(coarse, fine) >= 0.0
         self.exact_failed = bool(exact.clearance < 0.0)  # not NaN: decided, and crossed
         own = p.self_check(path, self.t0 + ANYTIME_SLACK * self.budget) if ok else math.nan

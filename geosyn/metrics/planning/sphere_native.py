@@ -61,6 +61,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_self_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_obstacle_distances": (None, [_P, _P, _I, _P]),
+        "geosyn_spheres_frames": (None, [_P, _P, _I, _P, _P]),
         "geosyn_spheres_valid": (_I, [_P, _P, _I, _D, _I, _I, _P]),
         "geosyn_spheres_segment_valid": (_I, [_P, _P, _P, _D, _D, _I]),
         "geosyn_spheres_rrt_connect": (
@@ -221,6 +222,22 @@ class NativeSphereCheck(SphereCheck):
         out = np.empty(len(Q))
         self._lib.geosyn_spheres_clearances(self._handle, _address(Q), len(Q), _address(out))
         return out
+
+    def joint_frames(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((K, J + 1, 3, 3), (K, J + 1, 3)) world rotations and positions of every joint
+        of the model, by Pinocchio index (0: the universe, the identity), at each
+        configuration of ``Q`` (K, n) [rad]: Pinocchio's ``data.oMi`` (round-off)."""
+        Q = self._configurations(Q)
+        J = len(self._table[0])
+        R = np.empty((len(Q), J + 1, 3, 3))
+        p = np.empty((len(Q), J + 1, 3))
+        R[:, 0], p[:, 0] = np.eye(3), 0.0
+        Rj = np.empty((len(Q), J, 3, 3))
+        pj = np.empty((len(Q), J, 3))
+        self._lib.geosyn_spheres_frames(self._handle, _address(Q), len(Q), _address(Rj),
+                                        _address(pj))  # fmt: skip
+        R[:, 1:], p[:, 1:] = Rj, pj
+        return R, p
 
     def obstacle_distances(self, Q: np.ndarray) -> np.ndarray:
         """(K, S, O) the clearance [m] of every sphere to every obstacle at each

@@ -18,7 +18,7 @@ import numpy as np
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_parts import CollocationResult
 from geosyn.metrics.planning.errors import InCollision, OutsideJointLimits
-from geosyn.metrics.planning.exact_path import Bounds, path_clearance
+from geosyn.metrics.planning.exact_path import PathAids, path_clearance
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import CollisionSphere, Robot
@@ -70,16 +70,15 @@ def exact_check(
     obstacles: Sequence[Shape],
     resolution: float,
     deadline: float = math.inf,
-    bounds: Bounds | None = None,
+    aids: PathAids | None = None,
 ) -> PathClearance:
     """The smallest exact clearance of ``path`` (T, n) [rad] to ``obstacles`` (NaN
     clearance without an exact checker, or when ``deadline`` [s, perf_counter] passes;
-    batched: `geosyn.metrics.planning.exact_path`, with the lower ``bounds`` of its
-    pairs' distances when given)."""
+    batched: `geosyn.metrics.planning.exact_path`, faster with its ``aids``)."""
     if exact is None:
         return PathClearance(math.nan, 0.0, "", -1, 0, resolution)
     exact.set_obstacles(obstacles)
-    return path_clearance(exact, path, resolution, deadline, bounds)
+    return path_clearance(exact, path, resolution, deadline, aids)
 
 
 def check_end(

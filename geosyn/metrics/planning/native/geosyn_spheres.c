@@ -369,6 +369,17 @@ GS_API void geosyn_spheres_obstacle_distances(void *handle, const double *Q, int
     }
 }
 
+/* R (K, J, 9) row-major world rotations and p (K, J, 3) world positions of the J joints
+ * at each configuration of Q (K, nq). */
+GS_API void geosyn_spheres_frames(void *handle, const double *Q, int K, double *R, double *p) {
+    gs_model *m = handle;
+    for (int k = 0; k < K; ++k) {
+        kinematics(m, Q + (size_t)m->nq * k);
+        memcpy(R + (size_t)9 * m->nj * k, m->R, sizeof(double) * 9 * m->nj);
+        memcpy(p + (size_t)3 * m->nj * k, m->p, sizeof(double) * 3 * m->nj);
+    }
+}
+
 /* out (K, n_pairs): the smallest sphere distance of each self pair [m]. */
 GS_API void geosyn_spheres_self_clearances(void *handle, const double *Q, int K, double *out) {
     gs_model *m = handle;
