@@ -4,6 +4,7 @@ when it fails). The chunk is forced to 7 ticks so that short seeded runs spool."
 
 from __future__ import annotations
 
+import errno
 import gc
 import json
 import sys
@@ -25,6 +26,7 @@ from geosyn.sim import (
     SensorNoise,
     SimResult,
     Simulation,
+    SpoolError,
     TorqueNoise,
     log_spool,
     spool_directory,
@@ -207,3 +209,13 @@ def test_a_failed_run_keeps_its_ticks_and_leaves_no_spool_file(at, tmp_path, mon
     assert res.status.startswith("controller failed") and res.n_ticks == at - 1
     assert res.spooled == (at > 7) and list(tmp_path.iterdir()) == []
     np.testing.assert_array_equal(res.t, np.arange(at - 1) * 1e-3)
+
+
+def test_a_spool_directory_that_cannot_take_the_file_is_a_spool_error(tmp_path, monkeypatch):
+    """Refused before the run starts, as a geosyn error that is also the OSError it was."""
+    monkeypatch.setattr(log_spool, "SPOOL_CHUNK", 7)
+    sim, q0 = _sim("planar2")
+    with pytest.raises(SpoolError) as err:
+        sim.run(q0, None, 0.1, spool_dir=tmp_path / "missing")
+    assert isinstance(err.value, GeosynError) and isinstance(err.value, OSError)
+    assert err.value.errno == errno.ENOENT and str(tmp_path / "missing") in str(err.value)

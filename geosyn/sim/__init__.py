@@ -27,9 +27,9 @@ from geosyn.sim.disturbances import (
     TorqueNoise,
     Wrench,
 )
-from geosyn.sim.errors import RenderError, SimError, UnknownBody
+from geosyn.sim.errors import RenderError, SimError, SpoolError, UnknownBody
 from geosyn.sim.log import SimResult
-from geosyn.sim.log_spool import SpoolError, spool_directory
+from geosyn.sim.log_spool import spool_directory
 from geosyn.sim.perception import PinholeCamera, TargetEstimate, estimate_ball
 from geosyn.sim.render import Clip, Motion, render_video
 from geosyn.sim.scene import Scene, build_scene

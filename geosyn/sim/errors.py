@@ -1,4 +1,4 @@
-"""Errors of the simulation layer (scene building, disturbances, rendering).
+"""Errors of the simulation layer (scene building, disturbances, log spooling, rendering).
 
 A bad obstacle shape or payload is a `geosyn.world.InvalidGeometry`, raised where shapes
 and payloads are validated.
@@ -23,8 +23,13 @@ class UnknownBody(SimError, KeyError):
         return str(self.args[0]) if self.args else ""
 
 
+class SpoolError(SimError, OSError):
+    """A long run's spool file (`geosyn.sim.log_spool`) could not be created, written or
+    mapped: ``errno`` says why (e.g. ``ENOSPC``, no space left), ``filename`` where."""
+
+
 class RenderError(SimError):
     """A video could not be rendered or written (no OpenGL context, no writer, ...)."""
 
 
-__all__ = ["InvalidArgument", "RenderError", "SimError", "UnknownBody"]
+__all__ = ["InvalidArgument", "RenderError", "SimError", "SpoolError", "UnknownBody"]

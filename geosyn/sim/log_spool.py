@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geosyn.sim.errors import SimError
+from geosyn.sim.errors import SpoolError
 from geosyn.sim.log import LOG_FIELDS, allocate_rows, derive_rows, finish_rows
 
 #: Ticks per chunk of a spooled log; a run of at most this many ticks stays in memory
@@ -48,11 +48,6 @@ SPOOL_CHUNK = 8192
 _SPOOLED = tuple(f for f in LOG_FIELDS if f.source in ("tick", "derived"))
 
 _DIRECTORY: ContextVar[Path | None] = ContextVar("geosyn_spool_directory", default=None)
-
-
-class SpoolError(SimError, OSError):
-    """A spool file could not be created, written or mapped (``errno`` says why: e.g.
-    ``ENOSPC``, no space left in the spool directory, named in ``filename``)."""
 
 
 @contextmanager
