@@ -189,3 +189,61 @@ def test_a_robot_the_c_kinematics_cannot_model_falls_back_to_numpy_and_says_so()
         check, note = sphere_check(robot, spheres)
     assert type(check) is SphereCheck and robot.model.names[1] in note
     assert math.isinf(check.clearances(np.zeros(robot.nq))[0])
+
+
+def test_the_ramp_lowers_the_margin_only_near_the_ends_in_c_and_numpy() -> None:
+    """With a ramp from two ends, `valid` is ``clearance >= min(margin, c_e + slope
+    |q - e|)`` (written out here), the same in C and numpy, on 400 seeded configurations
+    around the ends; without it, the margin everywhere."""
+    robot = load_robot("panda")
+    rng = np.random.default_rng(11)
+    spheres = _spheres(robot, rng, per_joint=2)
+    native, slow = NativeSphereCheck(robot, spheres), SphereCheck(robot, spheres)
+    wall = [shapes.Box((0.45, 0.0, 0.35), (0.02, 0.25, 0.35), np.eye(3))]
+    ends = rng.uniform(robot.q_min, robot.q_max, size=(2, 7))
+    Q = np.concatenate([e + rng.normal(0.0, 0.3, size=(200, 7)) for e in ends])
+    margin, slope = 0.05, 0.1
+    for check in (native, slow):
+        check.set_obstacles(wall)
+    clear = slow.clearances(Q)
+    c_end = slow.clearances(ends) - 0.03
+    force = np.minimum(margin, np.min([c + slope * np.linalg.norm(Q - e, axis=1)
+                                       for e, c in zip(ends, c_end, strict=True)], axis=0))  # fmt: skip
+    for check in (native, slow):
+        check.set_ramp(ends, c_end, slope)
+        expected = clear >= force
+        assert 0 < expected.sum() < len(Q) and (clear >= margin).sum() < expected.sum()
+        np.testing.assert_array_equal(check.valid(Q, margin), expected)
+        check.set_ramp([], [], 0.0)
+        np.testing.assert_array_equal(check.valid(Q, margin), clear >= margin)
+
+
+def test_only_self_pairs_whose_spheres_overlap_on_most_of_the_joint_box_get_slack() -> None:
+    """UR5: the flagged pairs are those whose spheres overlap on more than half of 1,000
+    seeded configurations (counted here on the numpy check), their slack the two links'
+    measured reach; at the overlapping configurations coal finds the links themselves
+    apart on most (the spheres cannot tell); no Panda pair is flagged."""
+    from geosyn.metrics.planning.sampling import SELF_UNINFORMATIVE, uninformative_slack
+    from geosyn.metrics.planning.self_collision import SelfCollision
+    from geosyn.robots.collision_spheres import file_spheres
+
+    for name, flagged_somewhere in (("ur5", True), ("panda", False)):
+        robot = load_robot(name)
+        fitted = file_spheres(robot)
+        check = SphereCheck(robot, fitted.spheres)
+        check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
+        slack = uninformative_slack(check, fitted.links, fitted.reach)
+        lo = np.where(np.isfinite(robot.q_min), robot.q_min, -np.pi)
+        hi = np.where(np.isfinite(robot.q_max), robot.q_max, np.pi)
+        Q = np.random.default_rng(0).uniform(lo, hi, size=(1000, robot.nq))
+        overlap = np.mean(check.self_clearances(Q) < 0.0, axis=0)
+        reach = dict(zip(dict.fromkeys(fitted.links), fitted.reach, strict=True))
+        for k, (a, b) in enumerate(check.self_pairs):
+            want = reach[a] + reach[b] if overlap[k] > SELF_UNINFORMATIVE else 0.0
+            assert slack[k] == pytest.approx(want, abs=1e-15)
+        assert bool(np.any(slack > 0)) == flagged_somewhere
+        exact = SelfCollision(robot, fitted.self_pairs)
+        for k in np.flatnonzero(slack > 0):
+            hits = np.flatnonzero(check.self_clearances(Q)[:, k] < 0.0)[:40]
+            apart = [exact.clearance(Q[i], check.self_pairs[k])[0] > 0.0 for i in hits]
+            assert np.mean(apart) > 0.5

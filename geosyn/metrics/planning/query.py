@@ -84,7 +84,7 @@ SAMPLED_TRIES = 30
 """Partial shortcuts in the metric of a sampled path before it is relaxed (`Query.taut`):
 they straighten RRT-Connect's detours, which the relaxation (a local method) keeps."""
 
-SAMPLED_RELAX = 0.3
+SAMPLED_RELAX = 0.15
 """Share of the budget (at most `SAMPLED_RELAX_MAX`) for pulling the sampled plan taut."""
 
 SAMPLED_CHECK_SHARE = 0.5
@@ -92,7 +92,7 @@ SAMPLED_CHECK_SHARE = 0.5
 may take (all of it when the budget is too small for collocation): the rest is for its
 exact check (10-60 ms on the Panda scenes)."""
 
-SAMPLED_RELAX_MAX = 0.3
+SAMPLED_RELAX_MAX = 0.2
 """Longest relaxation of the sampled plan [s] (it converges in 0.03-0.3 s on the Panda
 benchmark scenes, `benchmarks/RESULTS.md`)."""
 
@@ -100,11 +100,12 @@ SAMPLED_SMALL = 0.8
 """Share of a budget too small for collocation (less than `MIN_COLLOCATION` would be
 left after `SAMPLED_SEARCH`) that RRT-Connect may take for the sampled plan."""
 
-MIN_COLLOCATION = 0.4
+MIN_COLLOCATION = 2.5
 """Time left [s] below which no collocation is started once a sampled plan is verified:
-the time goes to shortening it (`Query.polish`). A Panda collocation among obstacles
-takes 0.3-2 s (median 0.8 s, `benchmarks/RESULTS.md`): stopped sooner, IPOPT mostly
-returns nothing better."""
+the time goes to relaxing it and to other RRT-Connect paths (`Query.polish`). A Panda
+collocation among obstacles takes 0.5-2.5 s (`benchmarks/RESULTS.md`: at 1-2 s budgets
+it finished on fewer than half of the 14 benchmark scenes), where a relaxed sampled
+plan comes within a few per cent of its length in 0.1-0.3 s."""
 
 COARSE_TO_FINE = 0.8
 """Share of the budget left after the sampled plan that the coarse-to-fine collocation

@@ -7,10 +7,15 @@ itself (`connect`). In C wherever the robot's joints allow
 (`geosyn.metrics.planning.sphere_native`, about 1 us a configuration on the Panda), else
 in numpy (`geosyn.metrics.planning.sphere_check`, said once).
 
-A query sets its obstacles and ends (`start`): the self pairs' floors and the sampling
-margin are lowered to the ends' own sphere distances (the spheres reach beyond the links:
-an end clear of the exact geometry may sit nearer on the spheres), and the exact check
-decides every returned plan. For a robot with a file, the file's fitted spheres also
+A query sets its obstacles and ends (`start`): the self pairs' floors are lowered to
+the ends' own sphere distances, and near each end the sampling margin ramps down to the
+end's own clearance (`SAMPLING_RAMP`): the spheres reach beyond the links, so an end
+clear of the exact geometry may sit nearer on the spheres. A self pair whose spheres
+overlap on most of the joint box (`SELF_UNINFORMATIVE`) is only refused below minus the
+two links' measured reach beyond their convex hulls (below that the hulls intersect;
+above it the spheres cannot tell). The exact check decides every returned plan,
+self-collision included.
+For a robot with a file, the file's fitted spheres also
 give the exact check its aids (`aids`: joint placements in C and lower bounds of every
 (collision object, obstacle) distance from the spheres that cover the object's link).
 """
@@ -30,10 +35,44 @@ from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.exact_clearance import ExactClearance
 from geosyn.world.shapes import Shape
 
-__all__ = ["SAMPLING_SLACK", "Sampling"]
+__all__ = ["SAMPLING_RAMP", "SAMPLING_SLACK", "SELF_UNINFORMATIVE", "Sampling",
+           "uninformative_slack"]
 
 SAMPLING_SLACK = 1e-6
-"""[m] below the nearer end's sphere clearance: the lowest sampling margin of a query."""
+"""[m] below an end's sphere clearance: the margin in force at that end."""
+
+SAMPLING_RAMP = 0.05
+"""Slope [m/rad] of the margin near a query's ends: from an end's own sphere clearance
+(when below the margin) back up to the margin within ``(margin - c) / slope`` rad
+(0.1 rad from an end touching its spheres, for the default 5 mm), as the collocation's
+clearance bounds ramp from its ends."""
+
+
+SELF_UNINFORMATIVE = 0.5
+"""Share of seeded configurations in the joint box (`SELF_SAMPLES` of them) at which a
+self pair's spheres overlap, above which the pair's sphere distance is taken to say
+nothing at 0 (the UR5's wrist 1 and 3: 84 %; no Panda pair is above 15 %)."""
+
+SELF_SAMPLES = 1000
+"""Configurations drawn (seed 0) to find the uninformative self pairs."""
+
+
+def uninformative_slack(check: SphereCheck, links: Sequence[str],
+                        reach: Sequence[float]) -> np.ndarray:  # fmt: skip
+    """(P,) per self pair of ``check`` [m]: the two links' ``reach`` beyond their convex
+    hulls (the links' order of first appearance in ``links``, `SphereModel.reach`) where
+    the pair's spheres overlap on more than `SELF_UNINFORMATIVE` of `SELF_SAMPLES`
+    seeded configurations in the joint box (infinite limits: +-pi), else 0."""
+    if not check.self_pairs:
+        return np.zeros(0)
+    model = check.robot.model
+    lo = np.where(np.isfinite(check.robot.q_min), check.robot.q_min, -np.pi)
+    hi = np.where(np.isfinite(check.robot.q_max), check.robot.q_max, np.pi)
+    Q = np.random.default_rng(0).uniform(lo, hi, size=(SELF_SAMPLES, model.nq))
+    overlap = np.mean(check.self_clearances(Q) < 0.0, axis=0)
+    of = dict(zip(dict.fromkeys(links), reach, strict=True))
+    slack = np.array([of[a] + of[b] for a, b in check.self_pairs])
+    return np.where(overlap > SELF_UNINFORMATIVE, slack, 0.0)
 
 
 class Sampling:
@@ -49,7 +88,7 @@ class Sampling:
     Attributes:
         check: the sphere check (`NativeSphereCheck` or `SphereCheck`).
         note: why the check is in numpy ("" when in C).
-        margin: the sampling margin in force [m].
+        margin: the sampling margin [m] (lower near a query's ends: `start`).
         aids: the exact check's aids (`PathAids`; empty without a file or without C).
     """
 
@@ -58,7 +97,7 @@ class Sampling:
         self.robot, self.exact = robot, exact
         self.check: SphereCheck
         self.check, self.note = sphere_check(robot, spheres)
-        self.base_margin = self.margin = margin
+        self.margin = margin
         self._cover: NativeSphereCheck | None = None
         self._cover_index: list[np.ndarray] = []
         self.aids = PathAids()
@@ -68,6 +107,7 @@ class Sampling:
 
         fitted = file_spheres(robot)
         self.check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
+        self.check.self_slack = uninformative_slack(self.check, fitted.links, fitted.reach)
         if isinstance(self.check, NativeSphereCheck):
             self._cover = NativeSphereCheck(robot, fitted.spheres)
             self._cover_index = [
@@ -78,17 +118,17 @@ class Sampling:
         self._obstacles: tuple[Shape, ...] = ()
 
     def start(self, obstacles: Sequence[Shape], q0: np.ndarray, q1: np.ndarray) -> None:
-        """A query's obstacles and ends (n,) [rad]: self floors and sampling margin
-        lowered to the ends' sphere distances (module docstring)."""
+        """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
+        sphere distances, the sampling margin ramped down to theirs (module docstring)."""
         self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
         self.check.set_self_floor(q0, q1)
-        ends = float(self.check.clearances(np.array([q0, q1])).min())
-        self.margin = min(self.base_margin, ends - SAMPLING_SLACK)
+        ends = self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK
+        self.check.set_ramp([q0, q1], np.minimum(ends, self.margin), SAMPLING_RAMP)
 
     def finish(self) -> None:
-        """End of a query: the sampling margin back to the planner's."""
-        self.margin = self.base_margin
+        """End of a query: no ramp (the sampling margin everywhere)."""
+        self.check.set_ramp([], [], 0.0)
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """The obstacles the checks use (`start` sets them for a query)."""

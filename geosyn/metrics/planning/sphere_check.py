@@ -55,6 +55,9 @@ class SphereCheck:
         self._data = robot.model.createData()
         self.obstacles: tuple[Shape, ...] = ()
         self.self_pairs: tuple[tuple[str, str], ...] = ()
+        self.self_slack = np.zeros(0)
+        self._ramp: tuple[np.ndarray, np.ndarray, float] = (
+            np.zeros((0, robot.model.nq)), np.zeros(0), 0.0)  # fmt: skip
         self._self_floor = np.zeros(0)
 
     def set_self_pairs(self, spheres: Sequence[CollisionSphere], links: Sequence[str],
@@ -81,6 +84,7 @@ class SphereCheck:
                 first += [i for i in ia for _ in ib]
                 second += [j for _ in ia for j in ib]
         self.self_pairs = tuple(kept)
+        self.self_slack = np.zeros(len(kept))  # [m] below each floor (`set_self_floor`)
         self._I, self._J = np.array(first, dtype=int), np.array(second, dtype=int)
         self._start = np.array(start, dtype=int)
         self._self_floor = np.zeros(len(kept))
@@ -113,13 +117,13 @@ class SphereCheck:
 
     def set_self_floor(self, *Q: np.ndarray) -> None:
         """Per pair, the lowest sphere distance `self_valid` accepts: min(0, the pair's
-        distance at the configurations ``Q`` (n,) [rad] each, e.g. start and goal). The
-        spheres reach up to their model's ``excess`` beyond the links: a query whose
+        distance at the configurations ``Q`` (n,) [rad] each, e.g. start and goal), less
+        the pair's ``self_slack`` [m]. The spheres reach beyond the links: a query whose
         ends are exactly clear but sphere-close keeps them valid."""
         floor = np.zeros(len(self.self_pairs))
         for q in Q:
             floor = np.minimum(floor, self.self_clearances(q)[0] if len(floor) else floor)
-        self._self_floor = floor
+        self._self_floor = floor - self.self_slack
 
     def self_valid(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
         """(K,) True where no self pair's sphere distance is below its floor
@@ -128,13 +132,34 @@ class SphereCheck:
             return np.ones(len(np.asarray(Q).reshape(-1, self.robot.model.nq)), dtype=bool)
         return np.asarray(np.all(self.self_clearances(Q, frames) >= self._self_floor, axis=1))
 
+    def set_ramp(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
+                 slope: float) -> None:  # fmt: skip
+        """Near the configurations ``ends`` (at most 2, (n,) [rad]), `valid` asks for less
+        clearance: at ``q`` the margin in force is ``min(margin, c_e + slope |q - e|)``
+        over the ends ``e`` with their ``clearances`` ``c_e`` [m] (``slope`` [m/rad]); no
+        ends: the margin everywhere."""
+        E = np.asarray(ends, dtype=float).reshape(-1, self.robot.model.nq)
+        if len(E) > 2:
+            raise ValueError("set_ramp: at most 2 ends")
+        self._ramp = (E, np.asarray(clearances, dtype=float).reshape(len(E)), float(slope))
+
+    def margins(self, Q: np.ndarray, margin: float) -> np.ndarray:
+        """(K,) the margin in force [m] at each configuration of ``Q`` (K, n) [rad]
+        (`set_ramp`)."""
+        E, c, slope = self._ramp
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
+        out = np.full(len(Q), float(margin))
+        for e, ce in zip(E, c, strict=True):
+            out = np.minimum(out, ce + slope * np.linalg.norm(Q - e, axis=1))
+        return out
+
     def valid(self, Q: np.ndarray, margin: float) -> np.ndarray:
-        """(K,) True where the configurations ``Q`` (K, n) [rad] keep clearance >=
-        ``margin`` [m] to the obstacles and no self pair is below its floor
-        (`self_valid`)."""
+        """(K,) True where the configurations ``Q`` (K, n) [rad] keep clearance >= the
+        margin in force (``margin`` [m], lower near the ramp's ends: `margins`) to the
+        obstacles and no self pair is below its floor (`self_valid`)."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
         R, p = self.frames(Q)
-        ok = self.clearances(Q, (R, p)) >= margin
+        ok = self.clearances(Q, (R, p)) >= self.margins(Q, margin)
         if self.self_pairs and ok.any():
             ok[ok] = self.self_valid(Q[ok], (R[ok], p[ok]))
         return ok

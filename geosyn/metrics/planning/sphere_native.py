@@ -62,6 +62,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_self_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_obstacle_distances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_frames": (None, [_P, _P, _I, _P, _P]),
+        "geosyn_spheres_set_ramp": (_I, [_P, _I, _P, _P, _D]),
         "geosyn_spheres_valid": (_I, [_P, _P, _I, _D, _I, _I, _P]),
         "geosyn_spheres_segment_valid": (_I, [_P, _P, _P, _D, _D, _I]),
         "geosyn_spheres_rrt_connect": (
@@ -195,6 +196,16 @@ class NativeSphereCheck(SphereCheck):
         if self._n_pairs:
             floor = np.ascontiguousarray(self._self_floor, dtype=float)
             self._lib.geosyn_spheres_set_floor(self._handle, _address(floor))
+
+    def set_ramp(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
+                 slope: float) -> None:  # fmt: skip
+        """As `SphereCheck.set_ramp`; also hands the ramp to C."""
+        super().set_ramp(ends, clearances, slope)
+        E, c, _ = self._ramp
+        E, c = np.ascontiguousarray(E), np.ascontiguousarray(c)
+        if self._lib.geosyn_spheres_set_ramp(self._handle, len(c), _address(E), _address(c),
+                                             float(slope)):  # fmt: skip
+            raise ValueError("set_ramp: at most 2 ends")
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """As `SphereCheck.set_obstacles` (the same obstacles again: nothing to do)."""

@@ -42,6 +42,10 @@ typedef struct {
     double *floor;
     int n_obstacles, *okind;
     double *opar;
+    /* the margin ramp near a query's ends: at q, the margin in force is
+     * min(margin, end_clear[e] + slope |q - ends[e]|) over the n_ends ends */
+    int n_ends;
+    double ends[2 * 64], end_clear[2], slope;
 } gs_model;
 
 static void *copy(const void *src, size_t bytes) {
@@ -174,6 +178,30 @@ GS_API int geosyn_spheres_set_obstacles(void *handle, int n, const int *kind, co
     m->okind = copy(kind, sizeof(int) * n);
     m->opar = copy(par, sizeof(double) * GS_OBSTACLE * n);
     return (m->okind && m->opar) ? 0 : -1;
+}
+
+/* The margin ramp (see gs_model): n_ends (0-2) configurations (n_ends, nq), their
+ * clearances [m] and the slope [m/rad]. */
+GS_API int geosyn_spheres_set_ramp(void *handle, int n_ends, const double *ends,
+                                   const double *clear, double slope) {
+    gs_model *m = handle;
+    if (n_ends < 0 || n_ends > 2 || m->nq > 64) return -1;
+    m->n_ends = n_ends;
+    memcpy(m->ends, ends, sizeof(double) * m->nq * n_ends);
+    memcpy(m->end_clear, clear, sizeof(double) * n_ends);
+    m->slope = slope;
+    return 0;
+}
+
+static double ramped(const gs_model *m, const double *q, double margin) {
+    for (int e = 0; e < m->n_ends; ++e) {
+        const double *x = m->ends + m->nq * e;
+        double d2 = 0.0;
+        for (int i = 0; i < m->nq; ++i) d2 += (q[i] - x[i]) * (q[i] - x[i]);
+        double v = m->end_clear[e] + m->slope * sqrt(d2);
+        if (v < margin) margin = v;
+    }
+    return margin;
 }
 
 static void kinematics(gs_model *m, const double *q) {
@@ -392,6 +420,7 @@ GS_API void geosyn_spheres_self_clearances(void *handle, const double *Q, int K,
 
 /* Whether configuration q keeps clearance >= margin and (self) every pair its floor. */
 static int config_valid(gs_model *m, const double *q, double margin, int self) {
+    margin = ramped(m, q, margin);
     kinematics(m, q);
     if (m->n_obstacles && m->obs.n) {
         place_bounds(m, &m->obs);
