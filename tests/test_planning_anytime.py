@@ -138,34 +138,54 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda:
     assert _metric_length(metric, plan.q) >= 0.99 * _metric_length(metric, long.q)
 
 
+def _brute_clearance(robot: Robot, exact: object, obstacles: list, path: np.ndarray,
+                     resolution: float) -> float:  # fmt: skip
+    """coal's smallest distance over every (configuration, collision object, obstacle)
+    of ``path`` at ``resolution``, by brute force (Pinocchio's kinematics, no bounds)."""
+    world = [coal.CollisionObject(*_coal_obstacle(ob)) for ob in obstacles]
+    hulls = [coal_shape(o) for o in exact.objects]  # type: ignore[attr-defined]
+    data = robot.model.createData()
+    brute = math.inf
+    for q in checked_configurations(path, resolution):
+        pin.forwardKinematics(robot.model, data, q)
+        for o, h in zip(exact.objects, hulls, strict=True):  # type: ignore[attr-defined]
+            j = robot.joint_id(o.joint) if o.joint != "universe" else 0
+            M = data.oMi[j] * pin.SE3(o.placement)
+            obj = coal.CollisionObject(h, coal.Transform3s(M.rotation, M.translation))
+            for w in world:
+                d = coal.distance(obj, w, coal.DistanceRequest(), coal.DistanceResult())
+                brute = min(brute, d)
+    return brute
+
+
 def test_batched_exact_check_equals_coal_at_every_configuration(panda: Case) -> None:
     """The batched, best-first exact path check returns coal's smallest distance over
     every (configuration, collision object, obstacle) of the path at its resolution,
-    computed here by brute force (no bounding balls), on seeded random paths."""
+    computed here by brute force (no bounding balls), on seeded random paths; with the
+    planner's aids (joint placements in C, bounds from the covering spheres) the same
+    where a path is clear (1e-9 m) and negative where it is not."""
     robot, planner, q0, q1 = panda
     exact = planner.exact
     assert exact is not None  # the Panda has file geometry
     obstacles: list[Box | Sphere] = [BLOCK, Sphere((0.3, 0.3, 0.4), 0.08)]
     exact.set_obstacles(obstacles)
-    world = [coal.CollisionObject(*_coal_obstacle(ob)) for ob in obstacles]
-    hulls = [coal_shape(o) for o in exact.objects]
-    data = robot.model.createData()
+    planner.sampling.set_obstacles(obstacles)
     rng = np.random.default_rng(7)
     for _ in range(3):
         path = np.array([q0, 0.5 * (q0 + q1) + rng.normal(0.0, 0.3, 7), q1])
         got = path_clearance(exact, path, 0.03)
-        brute = math.inf
-        for q in checked_configurations(path, 0.03):
-            pin.forwardKinematics(robot.model, data, q)
-            for o, h in zip(exact.objects, hulls, strict=True):
-                j = robot.joint_id(o.joint) if o.joint != "universe" else 0
-                M = data.oMi[j] * pin.SE3(o.placement)
-                obj = coal.CollisionObject(h, coal.Transform3s(M.rotation, M.translation))
-                for w in world:
-                    d = coal.distance(obj, w, coal.DistanceRequest(), coal.DistanceResult())
-                    brute = min(brute, d)
+        brute = _brute_clearance(robot, exact, obstacles, path, 0.03)
         assert brute < exact.near
         assert abs(got.clearance - brute) < 1e-9
+        aided = path_clearance(exact, path, 0.03, aids=planner.sampling.aids)
+        assert (aided.clearance < 0.0) if brute < 0.0 else abs(aided.clearance - brute) < 1e-9
+    clear = planner.plan(q0, q1, [BLOCK], budget=0.3).q  # a verified, clear path
+    exact.set_obstacles([BLOCK])
+    planner.sampling.set_obstacles([BLOCK])
+    brute = _brute_clearance(robot, exact, [BLOCK], clear, 0.01)
+    assert 0.0 < brute < exact.near
+    aided = path_clearance(exact, clear, 0.01, aids=planner.sampling.aids)
+    assert abs(aided.clearance - brute) < 1e-9
 
 
 def _coal_obstacle(ob: Box | Sphere) -> tuple[object, object]:
