@@ -239,32 +239,22 @@ static void kinematics(gs_model *m, const double *q) {
     }
 }
 
-static void place_spheres(const gs_model *m, gs_spheres *s) {
-    for (int i = 0; i < s->n; ++i) {
-        const double *c = s->centre + 3 * i;
-        double *w = s->world + 3 * i;
-        int j = s->joint[i];
-        if (j < 0) {
-            w[0] = c[0]; w[1] = c[1]; w[2] = c[2];
-            continue;
-        }
-        const double *R = m->R + 9 * j, *p = m->p + 3 * j;
-        for (int a = 0; a < 3; ++a) w[a] = p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2];
+/* w = the point c of joint j's frame in the world (j -1: the world itself). */
+static void to_world(const gs_model *m, int j, const double *c, double *w) {
+    if (j < 0) {
+        w[0] = c[0]; w[1] = c[1]; w[2] = c[2];
+        return;
     }
+    const double *R = m->R + 9 * j, *p = m->p + 3 * j;
+    for (int a = 0; a < 3; ++a) w[a] = p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2];
+}
+
+static void place_spheres(const gs_model *m, gs_spheres *s) {
+    for (int i = 0; i < s->n; ++i) to_world(m, s->joint[i], s->centre + 3 * i, s->world + 3 * i);
 }
 
 static void place_bounds(const gs_model *m, gs_spheres *s) {
-    for (int g = 0; g < s->groups; ++g) {
-        const double *c = s->bound + 4 * g;
-        double *w = s->gworld + 3 * g;
-        int j = s->gjoint[g];
-        if (j < 0) {
-            w[0] = c[0]; w[1] = c[1]; w[2] = c[2];
-            continue;
-        }
-        const double *R = m->R + 9 * j, *p = m->p + 3 * j;
-        for (int a = 0; a < 3; ++a) w[a] = p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2];
-    }
+    for (int g = 0; g < s->groups; ++g) to_world(m, s->gjoint[g], s->bound + 4 * g, s->gworld + 3 * g);
 }
 
 static double distance(int kind, const double *o, const double *x) {
@@ -306,24 +296,20 @@ static double distance(int kind, const double *o, const double *x) {
 /* The smallest sphere-obstacle clearance, or (stop finite) the first one found below
  * stop. A group whose ball is at least the best found (or stop) away is skipped: signed
  * distances are 1-Lipschitz, so the ball's clearance bounds its spheres'. Needs the balls
- * placed (place_bounds); places the spheres it visits. */
+ * placed (place_bounds); computes the world centres of the spheres it visits. */
 static double clearance(gs_model *m, double stop) {
     double best = INFINITY;
     gs_spheres *s = &m->obs;
     for (int g = 0; g < s->groups; ++g) {
         const double *bw = s->gworld + 3 * g, *bl = s->bound + 4 * g;
-        int j = s->gjoint[g];
-        const double *R = j < 0 ? NULL : m->R + 9 * j, *p = j < 0 ? NULL : m->p + 3 * j;
         for (int k = 0; k < m->n_obstacles; ++k) {
             const double *o = m->opar + GS_OBSTACLE * k;
             double lim = stop > -INFINITY ? stop : best;
             if (distance(m->okind[k], o, bw) - bl[3] >= lim) continue;
             for (int at = s->gstart[g]; at < s->gstart[g + 1]; ++at) {
                 int i = s->order[at];
-                const double *c = s->centre + 3 * i;
                 double w[3];
-                for (int a = 0; a < 3; ++a)
-                    w[a] = R ? p[a] + R[3 * a] * c[0] + R[3 * a + 1] * c[1] + R[3 * a + 2] * c[2] : c[a];
+                to_world(m, s->gjoint[g], s->centre + 3 * i, w);
                 double v = distance(m->okind[k], o, w) - s->radius[i];
                 if (v < best) best = v;
             }
