@@ -244,7 +244,11 @@ def test_planned_reference_to_an_end_effector_position_in_yaml(tmp_path):
         q_end = d["qp__q_ref"][-1]
     pin.framesForwardKinematics(robot.model, data_pin, q_end)
     assert np.linalg.norm(data_pin.oMf[frame].translation - target) <= 0.002 + 1e-9
-    assert run.summary["planned_clearance"] >= 0.005  # half the planner's 1 cm margin
+    # clear of the box on the planner's spheres; each IK solution's plan has part of the
+    # 5 s budget (< MIN_COLLOCATION), so it is a sampled plan, which keeps half the 1 cm
+    # margin at its checked configurations (every 0.02 rad) and may dip between them
+    assert 0.0 < run.summary["planned_clearance"]
+    assert run.summary["qp.min_clearance"] > 0.0  # and the executed run
 
 
 def test_sections_a_kind_does_not_read_are_named():

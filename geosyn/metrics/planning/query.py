@@ -52,6 +52,8 @@ __all__ = [
     "COARSE_TO_FINE",
     "MIN_COLLOCATION",
     "REFINEMENTS",
+    "POLISH_GAIN",
+    "POLISH_PATIENCE",
     "SAME",
     "SAMPLED_CHECK_SHARE",
     "SAMPLED_RELAX",
@@ -79,6 +81,14 @@ SAMPLED_SEARCH = (0.7, 0.3, 0.1)
 ``min(a T, b + c T)`` [s] of a budget ``T`` [s] for ``(a, b, c)`` = this (it stops
 sooner when the trees connect, within 0.01-0.5 s on the Panda benchmark scenes: at small
 budgets it may take most of the time, at large ones it leaves most to collocation)."""
+
+POLISH_PATIENCE = 3
+"""Paths in a row that shorten the best by less than `POLISH_GAIN` before `Query.polish`
+returns (a plan need not take its whole budget: on the Panda scenes the shortest of
+several RRT-Connect paths pulled taut is mostly among the first three)."""
+
+POLISH_GAIN = 0.005
+"""Relative shortening that counts as progress in `Query.polish`."""
 
 SAMPLED_TRIES = 30
 """Partial shortcuts in the metric of a sampled path before it is relaxed (`Query.taut`):
@@ -249,22 +259,29 @@ class Query:
         """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
         the last one's): its path relaxed further, then new RRT-Connect paths (seeds
         ``seed + 1, 2, ...``, each sampled in at most a third of the time left) pulled
-        taut alike (`taut`; valid on the spheres); the shortest in the metric is then
-        verified once, and kept if it passes and is shorter than ``plan``."""
+        taut alike (`taut`; valid on the spheres), until `POLISH_PATIENCE` of them in a
+        row shorten the best by less than `POLISH_GAIN`; the shortest in the metric is
+        then verified once, and kept if it passes and is shorter than ``plan``."""
         p, path = self.p, self.sampled_path
         length = metric_length(p.metric, plan.q)
-        shortest, how = None, ""
+        shortest, how, stale = None, "", 0
         reserve = 1.5 * self.check_time + 0.005
         for restart in range(1, 10**6):
             if path is not None:
                 if self.left() <= reserve:
                     break
                 taut, _ = self.taut(path, 0.5 * (self.left() - reserve))
-                if (new := metric_length(p.metric, taut)) < length:
+                new = metric_length(p.metric, taut)
+                stale = 0 if new < (1.0 - POLISH_GAIN) * length else stale + 1
+                if new < length:
                     shortest, length = taut, new
                     how = f"RRT-Connect path #{restart - 1} pulled taut in the metric"
             if self.left() <= 2.0 * reserve or (path is not None and len(path) == 2):
                 break  # no time left, or the straight line is free: no other way round
+            if stale >= POLISH_PATIENCE:
+                self.attempts.append(f"polishing stopped: {stale} paths in a row no shorter "
+                                     f"by {POLISH_GAIN:.1%}")  # fmt: skip
+                break
             path, _ = self._rrt(restart, (self.left() - reserve) / 3.0)
         if shortest is not None and (better := self.verified(shortest, how)) is not None:
             self.sampled_path = shortest
