@@ -438,7 +438,11 @@ class Planner:
                 kept; see `geosyn.metrics.planning.goals`).
             obstacles: shapes of `geosyn.world`, at most ``capacity``.
             budget: wall-time limit of the query [s], > 0 (a shooting refinement of a
-                free geodesic may add its own bounded iterations).
+                free geodesic may add its own bounded iterations). When less than
+                `query.MIN_COLLOCATION` (2.5 s) is left after the sampled first plan, the
+                plan is a sampled path pulled taut in the metric (``result.kind``
+                ``"feasible"``, verified like every plan); with more, collocation makes
+                the minimum-energy path (``"constrained"`` or ``"geodesic"``).
             seed: seed of the sampling fallback.
 
         Returns:
