@@ -212,7 +212,6 @@ class Query:
         # the sampling box: the limits, or within pi of start and goal where infinite
         lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
         hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
-        p.sampling.set_obstacles(p.term.obstacles)
         return p.sampling.connect(q0, q1, lo, hi, budget, self.seed + index)
 
     def sampled(self) -> Plan | None:
@@ -246,11 +245,11 @@ class Query:
         relaxed (`metric_relax` on ``nodes + 1`` samples even in the metric) within
         ``budget`` [s] in all."""
         p, end = self.p, time.perf_counter() + budget
-        rough = string_pull(p.segment_valid, path)
-        rough = metric_shortcut(p.valid, p.metric, rough, budget=0.3 * budget,
-                                tries=SAMPLED_TRIES, seed=self.seed, segment=p.segment_valid)  # fmt: skip
-        p.sampling.set_obstacles(p.term.obstacles)
-        taut = metric_relax(p.segment_valid, p.sampling.check.clearances, p.metric,
+        check = p.sampling  # the query's obstacles and ends set (`Sampling.start`)
+        rough = string_pull(check.segment_valid, path)
+        rough = metric_shortcut(check.valid, p.metric, rough, budget=0.3 * budget,
+                                tries=SAMPLED_TRIES, seed=self.seed, segment=check.segment_valid)  # fmt: skip
+        taut = metric_relax(check.segment_valid, check.check.clearances, p.metric,
                             even_in_metric(p.metric, rough, p.nodes + 1),
                             budget=max(end - time.perf_counter(), 0.0))  # fmt: skip
         return taut, rough
@@ -330,11 +329,11 @@ class Query:
                 self.attempts.append(f"{name}: the straight line is collision-free")
                 return None
             path = shortcut(
-                p.valid,
+                p.sampling.valid,
                 found,
                 budget=0.05 * self.left(),
                 seed=self.seed + index,
-                segment=p.segment_valid,
+                segment=p.sampling.segment_valid,
             )
             self.attempts.append(f"{name}: path of {len(path)} vertices ({grown} nodes)")
         if (remaining := self.left()) <= 0:

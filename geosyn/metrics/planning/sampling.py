@@ -98,6 +98,7 @@ class Sampling:
         self.check: SphereCheck
         self.check, self.note = sphere_check(robot, spheres)
         self.margin = margin
+        self._obstacles: tuple[Shape, ...] = ()
         self._cover: NativeSphereCheck | None = None
         self._cover_index: list[np.ndarray] = []
         self.aids = PathAids()
@@ -115,7 +116,6 @@ class Sampling:
                 for o in exact.objects
             ]
             self.aids = PathAids(self.exact_bounds, self._cover.joint_frames)
-        self._obstacles: tuple[Shape, ...] = ()
 
     def start(self, obstacles: Sequence[Shape], q0: np.ndarray, q1: np.ndarray) -> None:
         """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
