@@ -224,3 +224,27 @@ def test_a_self_colliding_start_is_refused(panda_planner: Planner, panda_referee
                if panda_referee.collides(q))  # fmt: skip
     with pytest.raises(InCollision, match="self-collision"):
         panda_planner.plan(hit, FOLD_GOAL, budget=0.5)
+
+
+def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(
+    panda_planner: Planner, panda_referee: _Referee
+) -> None:
+    """A path up to just before the fold's self-collision: its self-clearance, computed
+    with the joints placed in C for every checked configuration (the planner's default),
+    is Pinocchio's smallest pair distance over those configurations (1e-6 m), and the
+    same as without the C placements (Pinocchio's forward kinematics per item)."""
+    from geosyn.metrics.planning.self_collision import path_self_clearance
+
+    assert panda_planner.sampling.aids.kinematics is not None  # the C check is in use
+    line = np.array([FOLD_START, FOLD_GOAL])
+    Q = checked_configurations(line, panda_planner.exact_resolution)
+    first_hit = next(i for i, q in enumerate(Q) if panda_referee.collides(q))
+    part = np.array([FOLD_START, Q[max(first_hit - 2, 0)]])
+    ours = panda_planner.self_check(part)
+    lowest = min(min(panda_referee.distances(q).values())
+                 for q in checked_configurations(part, panda_planner.exact_resolution))  # fmt: skip
+    assert 0.0 < lowest < SELF_NEAR  # the test means something
+    assert abs(ours - lowest) < 1e-6
+    plain = path_self_clearance(panda_planner.self_collision, panda_planner.sphere_check,
+                                part, panda_planner.exact_resolution)  # fmt: skip
+    assert abs(plain - ours) < 1e-12

@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.planning.rrt import string_pull
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.metrics.planning.sphere_native import NativeSphereCheck, joint_table, sphere_check
@@ -79,6 +80,32 @@ def test_clearances_match_pinocchio_kinematics_and_closed_form_distances(robot_n
             min(float((signed_distance(ob, c) - radius).min()) for ob in chosen) for c in centres
         ])  # fmt: skip
         assert np.abs(check.clearances(Q) - expected).max() < TOL
+
+
+def test_group_distances_are_the_closed_form_minimum_per_group() -> None:
+    """Per group of spheres and obstacle, the smallest clearance of the group's spheres
+    placed by Pinocchio with the closed-form distances (1e-12 m); a sphere in no group
+    (-1) counts nowhere, an empty group is +inf; an out-of-range group is refused."""
+    robot = load_robot("panda")
+    rng = np.random.default_rng(11)
+    spheres = _spheres(robot, rng)
+    check = NativeSphereCheck(robot, spheres)
+    radius = np.array([s.radius for s in spheres])
+    group = rng.integers(-1, 4, size=len(spheres))  # groups 0-3, group 4 left empty
+    Q = rng.uniform(robot.q_min, robot.q_max, size=(50, robot.nq))
+    obstacles = _obstacles(rng)
+    check.set_obstacles(obstacles)
+    got = check.group_distances(Q, group, 5)
+    assert got.shape == (50, 5, len(obstacles))
+    for k, q in enumerate(Q):
+        c = _world_centres(robot, spheres, q)
+        for o, ob in enumerate(obstacles):
+            d = signed_distance(ob, c) - radius
+            for g in range(4):
+                assert abs(got[k, g, o] - d[group == g].min()) < TOL
+    assert np.all(np.isinf(got[:, 4]))
+    with pytest.raises(InvalidArgument, match="group"):
+        check.group_distances(Q, group, 3)
 
 
 def test_self_clearances_and_validity_follow_the_rule() -> None:

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -69,6 +69,32 @@ class PathAids(NamedTuple):
     kinematics: Kinematics | None = None
 
 
+def _lower_bounds(exact: ExactClearance, Q: np.ndarray, R: np.ndarray, p: np.ndarray,
+                  slot: np.ndarray, bounds: Bounds | None) -> np.ndarray:  # fmt: skip
+    """(K, L, O) lower bounds [m] of every exact (configuration, object, obstacle)
+    distance: ``bounds`` where it gives one, the objects' bounding balls elsewhere (every
+    object when ``bounds`` is None)."""
+    L, n_obs = len(exact._geoms), len(exact._obstacles)
+    bound = bounds(Q) if bounds is not None else np.full((len(Q), L, n_obs), -math.inf)
+    balls = np.flatnonzero(np.isneginf(bound[0]).any(axis=1)) if len(Q) else np.arange(L)
+    if balls.size:  # objects without a tighter bound: their bounding balls
+        c_local = np.array([exact._ball[k][0] for k in balls])  # in each joint's frame
+        radii = np.array([exact._ball[k][1] for k in balls])
+        s = slot[balls]
+        centres = np.einsum("klab,lb->kla", R[:, s], c_local) + p[:, s]  # (K, B, 3)
+        flat = centres.reshape(-1, 3)
+        ball = np.stack(
+            [signed_distance(ob[3], flat).reshape(len(Q), -1) - radii for ob in exact._obstacles],
+            axis=-1,
+        )
+        bound[:, balls] = np.maximum(bound[:, balls], ball)
+    return bound
+
+
+CHUNK = 64
+"""Pairs placed at once (numpy) before their coal distances, in order of their bounds."""
+
+
 def path_clearance(
     exact: ExactClearance,
     path: np.ndarray,
@@ -83,9 +109,9 @@ def path_clearance(
     ``exact.near`` (else at least ``near``); ``inf`` without obstacles; NaN clearance
     when ``time.perf_counter()`` passes ``deadline`` [s] first. ``aids``: the joints'
     placements computed elsewhere (e.g. in C), tighter lower bounds of the pairs'
-    distances, taken where larger than the bounding balls' (fewer pairs to measure); the
-    same result. O(K (n + L O)) array work plus coal's distance for the pairs whose bound
-    is below the result.
+    distances, used instead of the bounding balls wherever they give one (fewer pairs
+    to measure); the same result. O(K (n + L O)) array work plus coal's distance for
+    the pairs whose bound is below the result, placed `CHUNK` at a time.
     """
     import coal
 
@@ -105,33 +131,33 @@ def path_clearance(
             return best._replace(clearance=math.nan, checked=0)
         R, p = frames
         slot = np.array([joints.index(j) for j in exact._joint])
-    c_local = np.array([c for c, _ in exact._ball])  # (L, 3) in each joint's frame
-    radii = np.array([r for _, r in exact._ball])
-    centres = np.einsum("klab,lb->kla", R[:, slot], c_local) + p[:, slot]  # (K, L, 3)
-    flat = centres.reshape(-1, 3)
-    bound = np.stack(
-        [(signed_distance(ob[3], flat).reshape(len(Q), -1) - radii) for ob in obstacles],
-        axis=-1,
-    )  # (K, L, O) lower bounds of the exact distances
-    if aids.bounds is not None:
-        bound = np.maximum(bound, aids.bounds(Q))
-    near = np.flatnonzero(bound.ravel() < exact.near)
-    order = near[np.argsort(bound.ravel()[near], kind="stable")]
+    bound = _lower_bounds(exact, Q, R, p, slot, aids.bounds).ravel()
+    near = np.flatnonzero(bound < exact.near)
+    order = near[np.argsort(bound[near], kind="stable")]
+    sorted_bound = bound[order]
+    at, obj, obs = np.unravel_index(order, (len(Q), len(exact._geoms), len(obstacles)))
+    R_place = np.array([pl.rotation for pl in exact._place])  # (L, 3, 3) in the joints
+    t_place = np.array([pl.translation for pl in exact._place])
+    others = [(ob[0], coal.Transform3s(ob[2][:3, :3], ob[2][:3, 3])) for ob in obstacles]
     low, request = math.inf, exact._request
     hit: tuple[int, int, int] | None = None
-    for count, index in enumerate(order):
-        i, k, o = (int(x) for x in np.unravel_index(int(index), bound.shape))
-        if bound[i, k, o] >= low:
+    for start in range(0, len(order), CHUNK):
+        if sorted_bound[start] >= low:
             break  # every pair left is at least this far
-        if count % 64 == 63 and time.perf_counter() > deadline:
+        if start and time.perf_counter() > deadline:
             return best._replace(clearance=math.nan)
-        oMg = pin.SE3(R[i, slot[k]], p[i, slot[k]]) * exact._place[k]
-        obj: Any = coal.CollisionObject(
-            exact._geoms[k], coal.Transform3s(oMg.rotation, oMg.translation)
-        )
-        d = float(coal.distance(obj, obstacles[o][1], request, coal.DistanceResult()))
-        if d < low:
-            low, hit = d, (i, k, o)
+        i, k, o = at[start : start + CHUNK], obj[start : start + CHUNK], obs[start : start + CHUNK]
+        Rj, pj = R[i, slot[k]], p[i, slot[k]]
+        Rg = Rj @ R_place[k]  # (C, 3, 3) world placements of the objects
+        tg = np.einsum("cab,cb->ca", Rj, t_place[k]) + pj
+        for m in range(len(i)):
+            if sorted_bound[start + m] >= low:
+                break
+            geom, tf = others[o[m]]
+            d = float(coal.distance(exact._geoms[k[m]], coal.Transform3s(Rg[m], tg[m]),
+                                    geom, tf, request, coal.DistanceResult()))  # fmt: skip
+            if d < low:
+                low, hit = d, (int(i[m]), int(k[m]), int(o[m]))
     if hit is None:  # no pair nearer than ``near`` anywhere
         return best._replace(clearance=exact.near)
     return best._replace(clearance=low, where=hit[0] / max(len(Q) - 1, 1),

@@ -202,6 +202,8 @@ class Planner:
         self._terms: dict[int, ObstacleTerm] = {self.term.capacity: self.term}
         self._collocations: dict[tuple[int, int, int], Collocation] = {}
         self._build_nlps()
+        if self.sphere_check.self_pairs:  # every query checks its ends with it: built now
+            _ = self.self_collision
         self.build_time = time.perf_counter() - t0
 
     def _build_nlps(self) -> None:
@@ -258,8 +260,9 @@ class Planner:
 
     @functools.cached_property
     def self_collision(self) -> SelfCollision | None:
-        """Exact self-clearance on the file's self-collision pairs (built on first use:
-        IK goals are checked with it), or None for a robot without file geometry."""
+        """Exact self-clearance on the file's self-collision pairs (built with the
+        planner when it has self pairs, not in a query's budget: ~70 ms on the Panda), or
+        None for a robot without file geometry."""
         return SelfCollision.for_robot(self.robot) if self.exact is not None else None
 
     def collocation(self, nodes: int, subdivisions: int = 1) -> Collocation:
@@ -313,7 +316,7 @@ class Planner:
         (`path_self_clearance`; NaN without file geometry or past ``deadline``)."""
         checker = self.self_collision if self.sphere_check.self_pairs else None
         return path_self_clearance(checker, self.sphere_check, path, self.exact_resolution,
-                                   deadline)  # fmt: skip
+                                   deadline, self.sampling.aids.kinematics)  # fmt: skip
 
     def self_ok(self, clearance: float) -> bool:
         """Whether a path of that `self_check` value may be returned: not negative, and

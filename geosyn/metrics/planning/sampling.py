@@ -35,8 +35,13 @@ from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.exact_clearance import ExactClearance
 from geosyn.world.shapes import Shape
 
-__all__ = ["SAMPLING_RAMP", "SAMPLING_SLACK", "SELF_UNINFORMATIVE", "Sampling",
-           "uninformative_slack"]
+__all__ = [
+    "SAMPLING_RAMP",
+    "SAMPLING_SLACK",
+    "SELF_UNINFORMATIVE",
+    "Sampling",
+    "uninformative_slack",
+]
 
 SAMPLING_SLACK = 1e-6
 """[m] below an end's sphere clearance: the margin in force at that end."""
@@ -100,7 +105,9 @@ class Sampling:
         self.margin = margin
         self._obstacles: tuple[Shape, ...] = ()
         self._cover: NativeSphereCheck | None = None
-        self._cover_index: list[np.ndarray] = []
+        self._cover_group = np.zeros(0, dtype=np.int32)  # each fitted sphere's link
+        self._object_link = np.zeros(0, dtype=int)  # each file collision object's link
+        self._covered = np.zeros(0, dtype=int)  # the objects whose link has fitted spheres
         self.aids = PathAids()
         if exact is None:
             return
@@ -111,10 +118,11 @@ class Sampling:
         self.check.self_slack = uninformative_slack(self.check, fitted.links, fitted.reach)
         if isinstance(self.check, NativeSphereCheck):
             self._cover = NativeSphereCheck(robot, fitted.spheres)
-            self._cover_index = [
-                np.array([i for i, link in enumerate(fitted.links) if link == o.link], dtype=int)
-                for o in exact.objects
-            ]
+            links = sorted({o.link for o in exact.objects})
+            group = [links.index(link) if link in links else -1 for link in fitted.links]
+            self._cover_group = np.array(group, dtype=np.int32)
+            self._object_link = np.array([links.index(o.link) for o in exact.objects], dtype=int)
+            self._covered = np.flatnonzero(np.isin(self._object_link, self._cover_group))
             self.aids = PathAids(self.exact_bounds, self._cover.joint_frames)
 
     def start(self, obstacles: Sequence[Shape], q0: np.ndarray, q1: np.ndarray) -> None:
@@ -163,12 +171,16 @@ class Sampling:
         cover every point of the link's geometry, so no point is nearer; ``-inf`` for a
         link without spheres)."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
-        out = np.full((len(Q), len(self._cover_index), len(self._obstacles)), -math.inf)
-        if self._cover is None or not self._obstacles:
+        out = np.full((len(Q), len(self._object_link), len(self._obstacles)), -math.inf)
+        if self._cover is None or not self._obstacles or not self._covered.size:
             return out
         self._cover.set_obstacles(self._obstacles)
-        d = self._cover.obstacle_distances(Q)
-        for k, index in enumerate(self._cover_index):
-            if index.size:
-                out[:, k] = d[:, index].min(axis=1)
+        count = int(self._object_link.max()) + 1
+        per_link = self._cover.group_distances(Q, self._cover_group, count)  # (K, links, O)
+        out[:, self._covered] = per_link[:, self._object_link[self._covered]]
+        return out
+        self._cover.set_obstacles(self._obstacles)
+        d = self._cover.obstacle_distances(Q)  # (K, spheres, O)
+        out[:, self._covered] = np.minimum.reduceat(d[:, self._cover_order],
+                                                    self._cover_starts, axis=1)  # fmt: skip
         return out

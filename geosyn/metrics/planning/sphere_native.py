@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from geosyn.core.codegen import CodegenError, compile_shared
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.planning.sphere_check import Frames, SphereCheck
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere
@@ -61,6 +62,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_self_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_obstacle_distances": (None, [_P, _P, _I, _P]),
+        "geosyn_spheres_group_distances": (None, [_P, _P, _I, _P, _I, _P]),
         "geosyn_spheres_frames": (None, [_P, _P, _I, _P, _P]),
         "geosyn_spheres_set_ramp": (_I, [_P, _I, _P, _P, _D]),
         "geosyn_spheres_valid": (_I, [_P, _P, _I, _D, _I, _I, _P]),
@@ -258,6 +260,23 @@ class NativeSphereCheck(SphereCheck):
         if out.size:
             self._lib.geosyn_spheres_obstacle_distances(self._handle, _address(Q), len(Q),
                                                         _address(out))  # fmt: skip
+        return out
+
+    def group_distances(self, Q: np.ndarray, group: np.ndarray, count: int) -> np.ndarray:
+        """(K, count, O) per group of spheres the smallest clearance [m] of its spheres to
+        every obstacle (`obstacle_distances` reduced by ``group`` (S,), each sphere's
+        group in ``[0, count)`` or -1 for none; +inf for an empty group) at each
+        configuration of ``Q`` (K, n) [rad]."""
+        Q = self._configurations(Q)
+        group = np.ascontiguousarray(group, dtype=np.int32)
+        if group.shape != self._radius.shape or (group.size and group.max() >= count):
+            raise InvalidArgument(f"group: one index in [-1, {count}) per sphere "
+                                  f"({len(self._radius)}), got {group.shape} with max "
+                                  f"{group.max(initial=-1)}")  # fmt: skip
+        out = np.empty((len(Q), count, len(self.obstacles)))
+        if out.size:
+            self._lib.geosyn_spheres_group_distances(self._handle, _address(Q), len(Q),
+                                                     _address(group), count, _address(out))  # fmt: skip
         return out
 
     def self_clearances(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:

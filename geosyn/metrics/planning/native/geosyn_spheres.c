@@ -383,6 +383,29 @@ GS_API void geosyn_spheres_obstacle_distances(void *handle, const double *Q, int
     }
 }
 
+/* out (K, G, O): per group g of spheres (group[i] in [0, G) for sphere i of the obstacle
+ * set, -1: in none), the smallest clearance of its spheres to every obstacle [m] (+inf
+ * for a group without spheres). */
+GS_API void geosyn_spheres_group_distances(void *handle, const double *Q, int K,
+                                           const int *group, int G, double *out) {
+    gs_model *m = handle;
+    gs_spheres *s = &m->obs;
+    int O = m->n_obstacles;
+    for (size_t x = 0; x < (size_t)K * G * O; ++x) out[x] = INFINITY;
+    for (int k = 0; k < K; ++k) {
+        kinematics(m, Q + (size_t)m->nq * k);
+        place_spheres(m, s);
+        for (int i = 0; i < s->n; ++i) {
+            if (group[i] < 0) continue;
+            double *row = out + ((size_t)k * G + group[i]) * O;
+            for (int o = 0; o < O; ++o) {
+                double d = distance(m->okind[o], m->opar + GS_OBSTACLE * o, s->world + 3 * i) - s->radius[i];
+                if (d < row[o]) row[o] = d;
+            }
+        }
+    }
+}
+
 /* R (K, J, 9) row-major world rotations and p (K, J, 3) world positions of the J joints
  * at each configuration of Q (K, nq). */
 GS_API void geosyn_spheres_frames(void *handle, const double *Q, int K, double *R, double *p) {
