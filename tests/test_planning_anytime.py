@@ -256,6 +256,38 @@ def test_metric_relax_lowers_the_energy_and_keeps_validity() -> None:
     assert energy(taut) < 0.95 * energy(path)
 
 
+def test_tightening_with_valid_steps_comes_nearer_and_stays_clear() -> None:
+    """planar2 round the post: after the relaxation (penalty below 3 cm), a second one
+    with a 5 mm penalty and only valid steps (`stay_valid`) lowers the midpoint-rule
+    energy (summed here) further, brings the path nearer the post on the shaping term's
+    own clearance, 16x finer, and keeps it clear there; its every segment passes the
+    planner's check."""
+    metric = KineticEnergyMetric(ROBOT)
+    planner = Planner(metric, capacity=1, nodes=12, coarse_nodes=0)
+    planner.term.set_obstacles([POST])
+    planner.sphere_check.set_obstacles([POST])
+    q0, q1 = np.array([-0.8, 0.3]), np.array([0.8, -0.3])
+    path = densify(np.array([q0, [0.0, 2.6], q1]), 8)
+
+    def energy(p: np.ndarray) -> float:
+        dq, mid = np.diff(p, axis=0), 0.5 * (p[1:] + p[:-1])
+        return (len(p) - 1) * sum(d @ metric.G(m) @ d for d, m in zip(dq, mid, strict=True))
+
+    def nearest(p: np.ndarray) -> float:
+        return min(planner.term.min_clearance(q) for q in densify(p, 16))
+
+    relaxed = metric_relax(planner.segment_valid, planner.sphere_check.clearances, metric,
+                           path, budget=2.0)  # fmt: skip
+    tight = metric_relax(planner.segment_valid, planner.sphere_check.clearances, metric,
+                         relaxed, budget=2.0, delta=0.005, stay_valid=True)  # fmt: skip
+    assert energy(tight) < (1.0 - 1e-3) * energy(relaxed)
+    assert 0.0 < nearest(tight) < nearest(relaxed)
+    assert all(
+        planner.segment_valid(a, b, 0.02) for a, b in zip(tight[:-1], tight[1:], strict=True)
+    )
+    np.testing.assert_array_equal(tight[[0, -1]], path[[0, -1]])
+
+
 def test_metric_relax_of_a_free_straight_line_reaches_the_geodesic() -> None:
     """Panda, no obstacles: 24 straight segments relaxed in the metric have the length
     of the geodesic between their ends (geosyn's log map, shooting to 1e-10: an

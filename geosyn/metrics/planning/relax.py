@@ -117,6 +117,7 @@ def metric_relax(
     resolution: float = 0.02,
     tol: float = 1e-6,
     max_iter: int = 100,
+    stay_valid: bool = False,
 ) -> np.ndarray:
     """A path of lower cost (module docstring) with the samples and ends of ``path``.
 
@@ -132,6 +133,10 @@ def metric_relax(
         resolution: check step of the segments of an iterate (2-norm) [rad].
         tol: stop when a step lowers the cost by less than this fraction.
         max_iter: most Gauss-Newton steps.
+        stay_valid: halve a step also until the iterate's segments all pass
+            ``segment`` (every iterate valid: the samples may then come as near as the
+            check allows, with a small ``delta``), instead of only keeping the valid
+            ones.
 
     Returns:
         (T, n) the accepted iterate of lowest energy whose segments all passed
@@ -170,7 +175,9 @@ def metric_relax(
             trial[1:-1] += step
             t_energy, t_ge, t_Gs = _energy(metric, trial)
             t_pen, t_gp, t_gc = _penalty(clearances, trial, delta, weight)
-            if t_energy + t_pen < cost:
+            if t_energy + t_pen < cost and (not stay_valid or all(
+                segment(a, b, resolution) for a, b in zip(trial[:-1], trial[1:], strict=True)
+            )):  # fmt: skip
                 break
             step *= 0.5
         else:
