@@ -14,7 +14,8 @@ with ``c`` the smallest sphere-obstacle clearance (the planner's `SphereCheck`) 
 energy (`geosyn.metrics.base.Metric.quadratic_gradient`) and by central differences in
 the clearance; the Gauss-Newton Hessian is block tridiagonal (``2 N G(m_i)`` per
 segment, plus ``2 w g g^T`` per penalised sample, ``g`` the clearance gradient), solved
-as one dense system. A step is halved until the cost falls. Every accepted iterate whose
+as one banded Cholesky system. A step is halved until the cost falls (trial iterates
+cost their energy and clearances only; the gradients are taken once one is accepted). Every accepted iterate whose
 segments all pass the segment check and whose energy is the lowest so far becomes the
 returned path, so the result is valid wherever the input was checked and never of
 higher energy than the input.
@@ -32,6 +33,7 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+import scipy.linalg
 
 from geosyn.metrics.base import Metric
 from geosyn.metrics.planning.rrt import SegmentValidity
@@ -50,60 +52,70 @@ HALVINGS = 8
 """Most halvings of a Gauss-Newton step before the relaxation stops."""
 
 
-def _energy(metric: Metric, x: np.ndarray) -> tuple[float, np.ndarray, list[np.ndarray]]:
-    """(discrete energy, (T, n) its gradient, the N metrics at the midpoints)."""
+def _energy_value(metric: Metric, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
+    """(discrete energy, the N metrics at the midpoints) of the samples ``x`` (T, n)."""
     N = len(x) - 1
     d, m = np.diff(x, axis=0), 0.5 * (x[1:] + x[:-1])
+    Gs = [metric.G(mi) for mi in m]
+    return N * float(np.einsum("ia,iab,ib->", d, np.array(Gs), d)), Gs
+
+
+def _energy_gradient(metric: Metric, x: np.ndarray, Gs: list[np.ndarray]) -> np.ndarray:
+    """(T, n) gradient of the discrete energy at ``x`` (T, n), its midpoint metrics
+    ``Gs`` given (`_energy_value`)."""
+    N = len(x) - 1
+    d, m = np.diff(x, axis=0), 0.5 * (x[1:] + x[:-1])
+    Gd = np.einsum("iab,ib->ia", np.array(Gs), d)
+    half = 0.5 * np.array([metric.quadratic_gradient(mi, di) for mi, di in zip(m, d, strict=True)])
     grad = np.zeros_like(x)
-    Gs, energy = [], 0.0
-    for i in range(N):
-        G = metric.G(m[i])
-        Gd = G @ d[i]
-        energy += float(d[i] @ Gd)
-        half = 0.5 * metric.quadratic_gradient(m[i], d[i])
-        grad[i + 1] += N * (2.0 * Gd + half)
-        grad[i] += N * (-2.0 * Gd + half)
-        Gs.append(G)
-    return N * energy, grad, Gs
+    grad[1:] += N * (2.0 * Gd + half)
+    grad[:-1] += N * (-2.0 * Gd + half)
+    return grad
 
 
-def _penalty(clear: Clearances, x: np.ndarray, delta: float, weight: float,
-             h: float = 1e-6) -> tuple[float, np.ndarray, np.ndarray]:  # fmt: skip
-    """(penalty, (T, n) its gradient, (T, n) the clearance gradients of the penalised
-    interior samples, zero elsewhere) of ``x``: central differences of step ``h`` [rad]."""
-    T, n = x.shape
+def _penalty_value(clear: Clearances, x: np.ndarray, delta: float,
+                   weight: float) -> tuple[float, np.ndarray]:  # fmt: skip
+    """(penalty, (T - 2,) the clearances of the interior samples) of ``x`` (T, n)."""
     c = clear(x[1:-1])
+    return float(weight * np.sum(np.maximum(delta - c, 0.0) ** 2)), c
+
+
+def _penalty_gradient(clear: Clearances, x: np.ndarray, c: np.ndarray, delta: float,
+                      weight: float, h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """((T, n) the penalty's gradient, (T, n) the clearance gradients of the penalised
+    interior samples, zero elsewhere) of ``x`` with its interior clearances ``c``
+    (`_penalty_value`): central differences of step ``h`` [rad]."""
+    T, n = x.shape
     grad, g_all = np.zeros_like(x), np.zeros_like(x)
     hit = np.flatnonzero(c < delta)
     if not hit.size:
-        return 0.0, grad, g_all
+        return grad, g_all
     base = x[1:-1][hit]
     steps = h * np.eye(n)
     probes = np.concatenate([base[:, None] + steps, base[:, None] - steps], axis=1)
     values = clear(probes.reshape(-1, n)).reshape(len(hit), 2 * n)
     g = (values[:, :n] - values[:, n:]) / (2.0 * h)
-    depth = delta - c[hit]
-    grad[hit + 1] = -2.0 * weight * depth[:, None] * g
+    grad[hit + 1] = -2.0 * weight * (delta - c[hit])[:, None] * g
     g_all[hit + 1] = g
-    return float(weight * np.sum(depth**2)), grad, g_all
+    return grad, g_all
 
 
 def _block_tridiagonal_solve(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """(M, n) solution of the symmetric block-tridiagonal system with diagonal blocks
-    ``diag`` (M, n, n), blocks below the diagonal ``off`` (M - 1, n, n) and right-hand
-    side ``rhs`` (M, n), by block elimination (O(M n^3), small dense solves: no
-    multithreaded BLAS call)."""
-    M = len(diag)
-    D, r = diag.copy(), rhs.copy()
-    for k in range(1, M):  # eliminate the block below each pivot
-        W = np.linalg.solve(D[k - 1], np.column_stack([off[k - 1].T, r[k - 1]]))
-        D[k] -= off[k - 1] @ W[:, :-1]
-        r[k] -= off[k - 1] @ W[:, -1]
-    x = np.empty_like(r)
-    x[-1] = np.linalg.solve(D[-1], r[-1])
-    for k in range(M - 2, -1, -1):
-        x[k] = np.linalg.solve(D[k], r[k] - off[k].T @ x[k + 1])
-    return x
+    """(M, n) solution of the symmetric positive-definite block-tridiagonal system with
+    diagonal blocks ``diag`` (M, n, n), blocks below the diagonal ``off`` (M - 1, n, n)
+    and right-hand side ``rhs`` (M, n): one banded Cholesky solve (LAPACK ``pbsv``,
+    bandwidth 2 n - 1; O(M n^3), no multithreaded BLAS call)."""
+    M, n = rhs.shape
+    u = 2 * n - 1  # superdiagonals of the banded (M n, M n) matrix
+    A = np.zeros((M * n, M * n))
+    for k in range(M):
+        A[k * n : (k + 1) * n, k * n : (k + 1) * n] = diag[k]
+        if k + 1 < M:
+            A[k * n : (k + 1) * n, (k + 1) * n : (k + 2) * n] = off[k].T  # the block (k, k + 1)
+    band = np.zeros((u + 1, M * n))
+    for j in range(u + 1):  # upper form: band[u - j, i + j] = A[i, i + j]
+        band[u - j, j:] = np.diagonal(A, j)
+    return scipy.linalg.solveh_banded(band, rhs.ravel()).reshape(M, n)
 
 
 def metric_relax(
@@ -141,16 +153,18 @@ def metric_relax(
     Returns:
         (T, n) the accepted iterate of lowest energy whose segments all passed
         ``segment`` (``path`` itself when none did). O(T n) metric and O(T n) clearance evaluations per step,
-        and one dense ((T - 2) n)^2 solve.
+        and one banded ((T - 2) n)^2 solve of bandwidth 2 n - 1.
     """
     x = np.array(path, dtype=float)
     T, n = x.shape
     if T < 3:
         return x
     t_end = time.perf_counter() + budget
-    energy, g_e, Gs = _energy(metric, x)
+    energy, Gs = _energy_value(metric, x)
+    g_e = _energy_gradient(metric, x, Gs)
     weight = 100.0 * max(energy, 1e-9) / delta**2  # delta deep costs 100 times E
-    pen, g_p, g_c = _penalty(clearances, x, delta, weight)
+    pen, c = _penalty_value(clearances, x, delta, weight)
+    g_p, g_c = _penalty_gradient(clearances, x, c, delta, weight)
     cost, best, lowest, N = energy + pen, x.copy(), energy, T - 1
     last = 0.0  # the previous step's time: one that would end past the budget is not begun
     for _ in range(max_iter):
@@ -173,8 +187,8 @@ def metric_relax(
         for _ in range(HALVINGS):  # the Gauss-Newton step, halved until the cost falls
             trial = x.copy()
             trial[1:-1] += step
-            t_energy, t_ge, t_Gs = _energy(metric, trial)
-            t_pen, t_gp, t_gc = _penalty(clearances, trial, delta, weight)
+            t_energy, t_Gs = _energy_value(metric, trial)  # the gradients once accepted
+            t_pen, t_c = _penalty_value(clearances, trial, delta, weight)
             if t_energy + t_pen < cost and (not stay_valid or all(
                 segment(a, b, resolution) for a, b in zip(trial[:-1], trial[1:], strict=True)
             )):  # fmt: skip
@@ -183,10 +197,12 @@ def metric_relax(
         else:
             break  # no descent along it: a local minimum of the sampled problem
         fall = (cost - t_energy - t_pen) / max(cost, 1e-12)
-        x, cost, g_e, Gs, g_p, g_c = trial, t_energy + t_pen, t_ge, t_Gs, t_gp, t_gc
-        if t_energy < lowest and all(
+        x, cost, Gs = trial, t_energy + t_pen, t_Gs
+        g_e = _energy_gradient(metric, x, Gs)
+        g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight)
+        if t_energy < lowest and (stay_valid or all(  # stay_valid: checked above
             segment(a, b, resolution) for a, b in zip(x[:-1], x[1:], strict=True)
-        ):
+        )):  # fmt: skip
             best, lowest = x.copy(), t_energy
         if fall < tol:
             break
