@@ -12,6 +12,7 @@ mechanical energy, saturations, fallbacks, clearance, wall time), one row per co
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -64,6 +65,7 @@ class Tracking(Procedure):
         "reference_end": "s",
         "reference_coupling_residual": "rad",
         "planned_clearance": "m",
+        "planned_sphere_clearance": "m",
     }
 
     @classmethod
@@ -84,7 +86,13 @@ class Tracking(Procedure):
         elif isinstance(cfg.reference, PlannedReference):
             ref, plan = R.planned_reference(cfg.reference, metric, ctx.scene.obstacles, cfg.seed)
             out["reference__t"], out["reference__q"] = plan.result.t, plan.q
-            out["reference__planned_clearance"] = np.array(plan.check_clearance)
+            # the robot's own geometry where it has one (the plan's exact check), else
+            # the planner's spheres; the spheres' value kept beside it
+            exact = plan.exact_clearance
+            out["reference__planned_clearance"] = np.array(
+                exact if math.isfinite(exact) else plan.check_clearance
+            )
+            out["reference__planned_sphere_clearance"] = np.array(plan.check_clearance)
         else:
             synergies = B.build_synergies(cfg, metric, robot)
             ref, geo = R.build_reference(cfg, metric, synergies)
@@ -112,6 +120,8 @@ class Tracking(Procedure):
             out["reference_coupling_residual"] = residual
         if "reference__planned_clearance" in results:
             out["planned_clearance"] = float(results["reference__planned_clearance"])
+        if "reference__planned_sphere_clearance" in results:
+            out["planned_sphere_clearance"] = float(results["reference__planned_sphere_clearance"])
         return out
 
     def plot(

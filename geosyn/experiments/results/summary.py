@@ -128,6 +128,7 @@ KEPT_WHEN_FAILED = frozenset(
         "energy_shaped_metric",
         "energy_unshaped_metric",
         "planned_clearance",
+        "planned_sphere_clearance",
     }
 )
 

@@ -33,7 +33,14 @@ import pinocchio as pin
 from geosyn.world.distance import signed_distance
 from geosyn.world.exact_clearance import ExactClearance, PathClearance, checked_configurations
 
-__all__ = ["Bounds", "Kinematics", "PathAids", "checked_configurations", "path_clearance"]
+__all__ = [
+    "Bounds",
+    "Kinematics",
+    "PathAids",
+    "checked_configurations",
+    "configuration_clearances",
+    "path_clearance",
+]
 
 
 def _frames(exact: ExactClearance, Q: np.ndarray, joints: list[int],
@@ -91,6 +98,65 @@ def _lower_bounds(exact: ExactClearance, Q: np.ndarray, R: np.ndarray, p: np.nda
     return bound
 
 
+def _placements(exact: ExactClearance, Q: np.ndarray, aids: PathAids, deadline: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:  # fmt: skip
+    """(R, p, slot): the joints' world rotations (K, J, 3, 3) and positions (K, J, 3) at
+    the configurations ``Q`` (K, n) (``aids.kinematics`` when given, else Pinocchio)
+    and each collision object's joint's index into them; None once ``deadline``
+    passes."""
+    if aids.kinematics is not None:
+        R, p = aids.kinematics(Q)
+        return R, p, np.array(exact._joint)
+    joints = sorted(set(exact._joint))
+    frames = _frames(exact, Q, joints, deadline)
+    if frames is None:
+        return None
+    return frames[0], frames[1], np.array([joints.index(j) for j in exact._joint])
+
+
+def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
+                             aids: PathAids | None = None) -> np.ndarray:  # fmt: skip
+    """(K,) the smallest exact clearance [m] at each configuration of ``Q`` (K, n) [rad]
+    to the obstacles set on ``exact`` (``exact.near`` where no pair is nearer; inf
+    without obstacles): per configuration, coal's distance for its pairs in order of
+    their lower bounds (`path_clearance`'s), until the next bound is not below the
+    smallest found. GJK to 1e-9 (coal's default 1e-6 would dominate a finite
+    difference of 1e-4 rad)."""
+    import coal
+
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    obstacles = exact._obstacles
+    if not obstacles:
+        return np.full(len(Q), math.inf)
+    aids = aids if aids is not None else PathAids()
+    placed = _placements(exact, Q, aids, math.inf)
+    assert placed is not None  # no deadline
+    R, p, slot = placed
+    bound = _lower_bounds(exact, Q, R, p, slot, aids.bounds).reshape(len(Q), -1)
+    order = np.argsort(bound, axis=1, kind="stable")
+    ranked = np.take_along_axis(bound, order, axis=1)
+    R_place = np.array([pl.rotation for pl in exact._place])
+    t_place = np.array([pl.translation for pl in exact._place])
+    others = [(ob[0], coal.Transform3s(ob[2][:3, :3], ob[2][:3, 3])) for ob in obstacles]
+    request = coal.DistanceRequest()
+    request.gjk_tolerance = 1e-9
+    out = np.full(len(Q), exact.near)
+    for i in np.flatnonzero(ranked[:, 0] < exact.near):
+        low = exact.near
+        for index, b in zip(order[i], ranked[i], strict=True):
+            if b >= low:
+                break  # every pair left is at least this far
+            k, o = divmod(int(index), len(obstacles))
+            Rj = R[i, slot[k]]
+            tf = coal.Transform3s(Rj @ R_place[k], Rj @ t_place[k] + p[i, slot[k]])
+            geom, tf_o = others[o]
+            d = float(coal.distance(exact._geoms[k], tf, geom, tf_o, request,
+                                    coal.DistanceResult()))  # fmt: skip
+            low = min(low, d)
+        out[i] = low
+    return out
+
+
 CHUNK = 64
 """Pairs placed at once (numpy) before their coal distances, in order of their bounds."""
 
@@ -121,16 +187,10 @@ def path_clearance(
     if not obstacles:
         return best
     aids = aids if aids is not None else PathAids()
-    if aids.kinematics is not None:
-        R, p = aids.kinematics(Q)
-        slot = np.array(exact._joint)
-    else:
-        joints = sorted(set(exact._joint))
-        frames = _frames(exact, Q, joints, deadline)
-        if frames is None:
-            return best._replace(clearance=math.nan, checked=0)
-        R, p = frames
-        slot = np.array([joints.index(j) for j in exact._joint])
+    placed = _placements(exact, Q, aids, deadline)
+    if placed is None:
+        return best._replace(clearance=math.nan, checked=0)
+    R, p, slot = placed
     bound = _lower_bounds(exact, Q, R, p, slot, aids.bounds).ravel()
     near = np.flatnonzero(bound < exact.near)
     order = near[np.argsort(bound[near], kind="stable")]

@@ -42,6 +42,7 @@ from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.relax import metric_relax
 from geosyn.metrics.planning.rrt import shortcut, string_pull
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut
+from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
 from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check, feasible_result
 
 if TYPE_CHECKING:
@@ -289,30 +290,49 @@ class Query:
         """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
         the last one's): its path relaxed further, then new RRT-Connect paths (seeds
         ``seed + 1, 2, ...``, each sampled in at most a third of the time left) pulled
-        taut alike (`taut`; valid on the spheres), until `POLISH_PATIENCE` of them in a
+        taut alike (`taut`; valid on the spheres; `EXACT_KEEP` kept back when more than
+        twice that is left), until `POLISH_PATIENCE` of them in a
         row shorten the best by less than `POLISH_GAIN`; the shortest in the metric is
-        then verified once, and kept if it passes and is shorter than ``plan``."""
+        then tightened on the exact geometry when more than `EXACT_MIN_TIME` is left
+        (`exact_tighten`), verified once, and kept if it passes and is shorter than
+        ``plan`` (else the untightened one, verified in turn)."""
         p, path = self.p, self.sampled_path
         length = metric_length(p.metric, plan.q)
         shortest, how, stale = None, "", 0
         reserve = 1.5 * self.check_time + 0.005
+        ample = p.exact is not None and self.left() - 2.0 * reserve > 2.0 * EXACT_KEEP
+        keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
         for restart in range(1, 10**6):
             if path is not None:
-                if self.left() <= reserve:
+                if self.left() <= reserve + keep:
                     break
-                taut, _ = self.taut(path, 0.5 * (self.left() - reserve))
+                taut, _ = self.taut(path, 0.5 * (self.left() - reserve - keep))
                 new = metric_length(p.metric, taut)
                 stale = 0 if new < (1.0 - POLISH_GAIN) * length else stale + 1
                 if new < length:
                     shortest, length = taut, new
                     how = f"RRT-Connect path #{restart - 1} pulled taut in the metric"
-            if self.left() <= 2.0 * reserve or (path is not None and len(path) == 2):
+            if self.left() <= 2.0 * reserve + keep or (path is not None and len(path) == 2):
                 break  # no time left, or the straight line is free: no other way round
             if stale >= POLISH_PATIENCE:
                 self.attempts.append(f"polishing stopped: {stale} paths in a row no shorter "
                                      f"by {POLISH_GAIN:.1%}")  # fmt: skip
                 break
             path, _ = self._rrt(restart, (self.left() - reserve) / 3.0)
+        base = shortest if shortest is not None else np.asarray(plan.q)
+        if (
+            p.exact is not None
+            and len(base) > 2
+            and (spare := self.left() - 2.0 * reserve) > EXACT_MIN_TIME
+        ):  # nearer on the robot's own geometry
+            tight = exact_tighten(p, base, spare)
+            if (new := metric_length(p.metric, tight)) < length:
+                unt, shortest, length = shortest, tight, new
+                how = f"{how or 'the sampled plan'}, tightened on the exact geometry"
+                if (better := self.verified(shortest, how)) is not None:
+                    self.sampled_path = shortest
+                    return better
+                shortest, how = unt, how.rsplit(", tightened", 1)[0]
         if shortest is not None and (better := self.verified(shortest, how)) is not None:
             self.sampled_path = shortest
             return better

@@ -130,6 +130,8 @@ def metric_relax(
     tol: float = 1e-6,
     max_iter: int = 100,
     stay_valid: bool = False,
+    path_ok: Callable[[np.ndarray], bool] | None = None,
+    fd_step: float = 1e-6,
 ) -> np.ndarray:
     """A path of lower cost (module docstring) with the samples and ends of ``path``.
 
@@ -149,6 +151,9 @@ def metric_relax(
             ``segment`` (every iterate valid: the samples may then come as near as the
             check allows, with a small ``delta``), instead of only keeping the valid
             ones.
+        path_ok: whether a whole iterate (T, n) is valid, in place of ``segment`` on
+            each of its segments (e.g. an exact check of the path).
+        fd_step: central-difference step of the clearance gradients [rad].
 
     Returns:
         (T, n) the accepted iterate of lowest energy whose segments all passed
@@ -159,12 +164,18 @@ def metric_relax(
     T, n = x.shape
     if T < 3:
         return x
+
+    def valid(y: np.ndarray) -> bool:
+        if path_ok is not None:
+            return path_ok(y)
+        return all(segment(a, b, resolution) for a, b in zip(y[:-1], y[1:], strict=True))
+
     t_end = time.perf_counter() + budget
     energy, Gs = _energy_value(metric, x)
     g_e = _energy_gradient(metric, x, Gs)
     weight = 100.0 * max(energy, 1e-9) / delta**2  # delta deep costs 100 times E
     pen, c = _penalty_value(clearances, x, delta, weight)
-    g_p, g_c = _penalty_gradient(clearances, x, c, delta, weight)
+    g_p, g_c = _penalty_gradient(clearances, x, c, delta, weight, fd_step)
     cost, best, lowest, N = energy + pen, x.copy(), energy, T - 1
     last = 0.0  # the previous step's time: one that would end past the budget is not begun
     for _ in range(max_iter):
@@ -189,9 +200,7 @@ def metric_relax(
             trial[1:-1] += step
             t_energy, t_Gs = _energy_value(metric, trial)  # the gradients once accepted
             t_pen, t_c = _penalty_value(clearances, trial, delta, weight)
-            if t_energy + t_pen < cost and (not stay_valid or all(
-                segment(a, b, resolution) for a, b in zip(trial[:-1], trial[1:], strict=True)
-            )):  # fmt: skip
+            if t_energy + t_pen < cost and (not stay_valid or valid(trial)):
                 break
             step *= 0.5
         else:
@@ -199,10 +208,8 @@ def metric_relax(
         fall = (cost - t_energy - t_pen) / max(cost, 1e-12)
         x, cost, Gs = trial, t_energy + t_pen, t_Gs
         g_e = _energy_gradient(metric, x, Gs)
-        g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight)
-        if t_energy < lowest and (stay_valid or all(  # stay_valid: checked above
-            segment(a, b, resolution) for a, b in zip(x[:-1], x[1:], strict=True)
-        )):  # fmt: skip
+        g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight, fd_step)
+        if t_energy < lowest and (stay_valid or valid(x)):  # stay_valid: checked above
             best, lowest = x.copy(), t_energy
         if fall < tol:
             break

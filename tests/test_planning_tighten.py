@@ -1,0 +1,100 @@
+"""Sampled plans tightened on the robot's own collision geometry (issue 22):
+`geosyn.metrics.planning.exact_path.configuration_clearances` and
+`geosyn.metrics.planning.tighten.exact_tighten`.
+
+Referee: coal's distance between the convex hull of every collision object of the Panda
+URDF, placed by Pinocchio's own forward kinematics, and every obstacle, by brute force
+(no bounds, no pruning, coal's default request). Tolerance 1e-6 m (coal's default GJK
+tolerance in the referee).
+"""
+
+from __future__ import annotations
+
+import math
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning.exact_path import checked_configurations, configuration_clearances
+from geosyn.metrics.planning.query import metric_length
+from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_tighten
+from geosyn.robots import Robot, load_robot
+from geosyn.world import Box
+from geosyn.world.exact_clearance import ExactClearance, coal_shape
+
+HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+BLOCK = Box((0.36, 0.0, 0.52), (0.05, 0.05, 0.05))  # where the hand passes at joint 1 = 0
+
+
+@pytest.fixture(scope="module")
+def planner() -> Planner:
+    return Planner(KineticEnergyMetric(load_robot("panda")), capacity=1)
+
+
+def _brute(robot: Robot, exact: ExactClearance, q: np.ndarray) -> float:
+    """coal's smallest distance [m] at ``q`` over every (object, BLOCK) pair."""
+    box = coal.CollisionObject(coal.Box(*(2.0 * np.asarray(BLOCK.half_extents))),
+                               coal.Transform3s(np.eye(3), np.asarray(BLOCK.center)))  # fmt: skip
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, q)
+    best = math.inf
+    for o in exact.objects:
+        j = robot.joint_id(o.joint) if o.joint != "universe" else 0
+        M = data.oMi[j] * pin.SE3(o.placement)
+        obj = coal.CollisionObject(coal_shape(o), coal.Transform3s(M.rotation, M.translation))
+        best = min(best, coal.distance(obj, box, coal.DistanceRequest(), coal.DistanceResult()))
+    return best
+
+
+def test_configuration_clearances_are_coals_smallest_distance(planner: Planner) -> None:
+    """At 40 seeded configurations round the block (some in it): the smallest exact
+    distance per configuration is the brute-force one where below ``near`` (else
+    ``near``), to 1e-6 m; with the planner's aids too where clear, and negative where
+    the brute force finds a penetration."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    exact.set_obstacles([BLOCK])
+    planner.sampling.set_obstacles([BLOCK])
+    rng = np.random.default_rng(5)
+    Q = HOME + rng.normal(0.0, 0.25, size=(40, 7))
+    Q[:, 0] = rng.uniform(-0.3, 0.3, 40)  # the hand near the block
+    brute = np.minimum([_brute(robot, exact, q) for q in Q], exact.near)
+    clear = brute >= 0.0
+    assert np.sum(~clear) >= 3 and np.sum(clear & (brute < exact.near)) >= 5
+    plain = configuration_clearances(exact, Q)
+    aided = configuration_clearances(exact, Q, planner.sampling.aids)
+    assert np.abs(plain - brute).max() < 1e-6
+    # the aids' sphere bounds say nothing of penetration depths: there only the sign
+    assert np.abs(aided - brute)[clear].max() < 1e-6 and np.all(aided[~clear] < 0.0)
+
+
+def test_tightening_shortens_and_keeps_the_floor_on_the_meshes(planner: Planner) -> None:
+    """A plan round the block tightened on the exact geometry: shorter in the metric
+    (midpoint rule, ``metric_length``), nearer the block, and at least
+    ``EXACT_FLOOR * margin`` from it at every configuration of the exact check, all on
+    the brute-force referee."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.9, 0.9  # the straight line swings the hand through the block
+    path = np.asarray(planner.plan(q0, q1, [BLOCK], budget=0.2, seed=0).q)
+    planner.term.set_obstacles([BLOCK])
+    planner.sampling.start([BLOCK], q0, q1)
+    try:
+        tight = exact_tighten(planner, path, 2.0)
+    finally:
+        planner.sampling.finish()
+
+    def lowest(p: np.ndarray) -> float:
+        return min(_brute(robot, exact, q)
+                   for q in checked_configurations(p, planner.exact_resolution))  # fmt: skip
+
+    before, after = lowest(path), lowest(tight)
+    assert after >= EXACT_FLOOR * planner.margin - 1e-6
+    assert after < before - 1e-3  # it came nearer
+    assert metric_length(planner.metric, tight) < (1.0 - 1e-3) * metric_length(planner.metric, path)
+    np.testing.assert_array_equal(tight[[0, -1]], path[[0, -1]])
