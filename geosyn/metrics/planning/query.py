@@ -278,6 +278,9 @@ class Query:
         """The sampled plan of ``path`` (T, n) [rad] if it passes the checks (the exact
         one decides), else None; ``how`` it was made goes to its attempts and message."""
         p, t = self.p, time.perf_counter()
+        if t > self.t0 + ANYTIME_SLACK * self.budget:  # an unchecked path is not returned
+            self.attempts.append(f"sampled plan: {how}: no time left to check it")
+            return None
         path = even_in_metric(p.metric, path, p.nodes + 1)
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
