@@ -15,7 +15,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["SegmentValidity", "Validity", "rrt_connect", "shortcut", "string_pull"]
+__all__ = [
+    "SegmentValidity",
+    "Validity",
+    "rrt_connect",
+    "segment_points",
+    "shortcut",
+    "string_pull",
+]
 
 Validity = Callable[[np.ndarray], np.ndarray]
 """``valid(Q (K, n)) -> (K,) bool``: which configurations are collision-free."""
@@ -27,13 +34,21 @@ to ``b`` is collision-free every ``resolution`` [rad] (``a`` itself not checked)
 collision)."""
 
 
+def segment_points(a: np.ndarray, b: np.ndarray, resolution: float,
+                   first: bool = False) -> np.ndarray:  # fmt: skip
+    """(k, n) the points ``a + (i / k) (b - a)``, i = 1 .. k (0 .. k with ``first``), of
+    the joint segment ``a`` -> ``b`` (n,) [rad], ``k = max(1, ceil(|b - a| /
+    resolution))`` (2-norm, ``resolution`` [rad]): what every segment check of the
+    planner's sampling checks (in numpy; the C check the same)."""
+    k = max(1, int(np.ceil(float(np.linalg.norm(b - a)) / resolution)))
+    return a + (np.arange(0 if first else 1, k + 1) / k)[:, None] * (b - a)
+
+
 def _edge_valid(valid: Validity, a: np.ndarray, b: np.ndarray, resolution: float,
                 segment: SegmentValidity | None = None) -> bool:  # fmt: skip
     if segment is not None:
         return segment(a, b, resolution)
-    k = max(1, int(np.ceil(np.linalg.norm(b - a) / resolution)))
-    s = np.arange(1, k + 1)[:, None] / k
-    return bool(np.all(valid(a + s * (b - a))))
+    return bool(np.all(valid(segment_points(a, b, resolution))))
 
 
 class _Tree:

@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from geosyn.metrics.base import Metric
-from geosyn.metrics.planning.rrt import SegmentValidity, Validity
+from geosyn.metrics.planning.rrt import SegmentValidity, Validity, segment_points
 
 __all__ = ["PIECES", "even_in_metric", "metric_shortcut", "segment_lengths"]
 
@@ -111,8 +111,7 @@ def _segment_ok(valid: Validity, segment: SegmentValidity | None, a: np.ndarray,
     ``a`` included (by ``segment`` when given)."""
     if segment is not None:
         return bool(valid(a[None])[0]) and segment(a, b, resolution)
-    k = max(1, int(math.ceil(float(np.linalg.norm(b - a)) / resolution)))
-    return bool(np.all(valid(a + (np.arange(k + 1) / k)[:, None] * (b - a))))
+    return bool(np.all(valid(segment_points(a, b, resolution, first=True))))
 
 
 def even_in_metric(metric: Metric, path: np.ndarray, samples: int) -> np.ndarray:

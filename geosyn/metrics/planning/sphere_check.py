@@ -24,6 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from geosyn.metrics.planning.rrt import segment_points
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.distance import signed_distance
 from geosyn.world.shapes import Box, Shape
@@ -172,8 +173,7 @@ class SphereCheck:
                       margin: float) -> bool:  # fmt: skip
         """Whether the segment ``a`` -> ``b`` (n,) [rad] is valid at the points
         ``a + (i / k) (b - a)``, i = 1 .. k, ``k = max(1, ceil(|b - a| / resolution))``."""
-        k = max(1, math.ceil(float(np.linalg.norm(b - a)) / resolution))
-        return self.all_valid(a + (np.arange(1, k + 1) / k)[:, None] * (b - a), margin)
+        return self.all_valid(segment_points(a, b, resolution), margin)
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Replace the obstacles (shapes of `geosyn.world`, already checked)."""
