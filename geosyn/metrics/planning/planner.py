@@ -7,10 +7,11 @@ One query, within a stated time budget:
    ``capacity`` obstacles (else `geosyn.metrics.shaping.CapacityExceeded`);
    then a sampled first plan without an NLP, for the anytime return (RRT-Connect on the
    spheres, in C: `geosyn.metrics.planning.sampling`; pulled taut in the metric,
-   verified as in 4.: `geosyn.metrics.planning.query`), whose path is also
-   RRT-Connect's first seed in 3.; with less than `query.MIN_COLLOCATION` left after
-   it, the rest of the budget relaxes it further and tries other RRT-Connect paths
-   instead of 2.-3.;
+   `geosyn.metrics.planning.sampled`, and on the exact geometry,
+   `geosyn.metrics.planning.tighten`; verified as in 4.:
+   `geosyn.metrics.planning.query`), whose path is also RRT-Connect's first seed in 3.;
+   with less than `query.MIN_COLLOCATION` left after it, the rest of the budget relaxes
+   it further and tries other RRT-Connect paths instead of 2.-3.;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
    (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the
@@ -118,7 +119,9 @@ class Planner:
             built in code.
         exact_resolution: joint-space step (max-norm) [rad] of the exact verification of
             every returned plan against the file's geometry, > 0.
-        margin: node clearance of the collocation [m], >= 0.
+        margin: node clearance of the collocation [m], >= 0 (on the spheres); a sampled
+            plan is tightened to it on the spheres, then on the robot's own geometry
+            (`geosyn.metrics.planning.tighten`: penalised below it, never below half).
         nodes: segments of the collocation, >= 2.
         check_factor: refinement of the between-node check, >= 1.
         check_step: largest joint-space distance (2-norm) between two checked
