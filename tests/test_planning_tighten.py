@@ -98,3 +98,20 @@ def test_tightening_shortens_and_keeps_the_floor_on_the_meshes(planner: Planner)
     assert after < before - 1e-3  # it came nearer
     assert metric_length(planner.metric, tight) < (1.0 - 1e-3) * metric_length(planner.metric, path)
     np.testing.assert_array_equal(tight[[0, -1]], path[[0, -1]])
+
+
+def test_a_tightened_plan_keeps_the_floor_it_was_checked_at(planner: Planner) -> None:
+    """The default planner at a 1 s budget round the block: its plan is tightened on the
+    meshes (its message says so), and both its reported exact clearance and the
+    brute-force referee at every configuration of its exact check keep
+    ``EXACT_FLOOR * margin`` (the returned samples are those the tightening checked)."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.9, 0.9
+    plan = planner.plan(q0, q1, [BLOCK], budget=1.0, seed=0)
+    assert plan.seed == "sampled" and "tightened on the exact geometry" in plan.result.message
+    floor = EXACT_FLOOR * planner.margin
+    assert plan.exact_clearance >= floor
+    Q = checked_configurations(plan.q, planner.exact_resolution)
+    assert min(_brute(robot, exact, q) for q in Q) >= floor - 1e-6

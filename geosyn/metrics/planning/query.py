@@ -265,7 +265,8 @@ class Query:
             if (new := metric_length(p.metric, tight)) < length:
                 unt, shortest, length = shortest, tight, new
                 how = f"{how or 'the sampled plan'}, tightened on the exact geometry"
-                if (better := self.verified(shortest, how)) is not None:
+                # its own samples: the path whose every checked configuration kept the floor
+                if (better := self.verified(shortest, how, resample=False)) is not None:
                     self.sampled_path = shortest
                     return better
                 shortest, how = unt, how.rsplit(", tightened", 1)[0]
@@ -274,14 +275,15 @@ class Query:
             return better
         return plan
 
-    def verified(self, path: np.ndarray, how: str) -> Plan | None:
-        """The sampled plan of ``path`` (T, n) [rad] if it passes the checks (the exact
-        one decides), else None; ``how`` it was made goes to its attempts and message."""
+    def verified(self, path: np.ndarray, how: str, resample: bool = True) -> Plan | None:
+        """The sampled plan of ``path`` (T, n) [rad] (``resample``: ``nodes + 1`` samples
+        even in the metric, else its own) if it passes the checks (the exact one
+        decides), else None; ``how`` it was made goes to its attempts and message."""
         p, t = self.p, time.perf_counter()
         if t > self.t0 + ANYTIME_SLACK * self.budget:  # an unchecked path is not returned
             self.attempts.append(f"sampled plan: {how}: no time left to check it")
             return None
-        path = even_in_metric(p.metric, path, p.nodes + 1)
+        path = even_in_metric(p.metric, path, p.nodes + 1) if resample else path
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
                             self.t0 + ANYTIME_SLACK * self.budget, p.sampling.aids)  # fmt: skip
