@@ -62,10 +62,10 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
+from geosyn.metrics.planning.anytime import ANYTIME_CHECKS, anytime_plan
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import (
-    ANYTIME_CHECKS,
     ANYTIME_SLACK,
     COARSE_TO_FINE,
     REFINEMENTS,
@@ -79,8 +79,6 @@ from geosyn.metrics.planning.self_collision import (
 )
 from geosyn.metrics.planning.verify import (
     check_end,
-    exact_check,
-    feasible_result,
     planning_geometry,
 )
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
@@ -373,30 +371,8 @@ class Planner:
 
     def _anytime(self, unfinished: list[tuple[np.ndarray, str]], t0: float,
                  attempts: list[str], end: float = math.inf) -> Plan | None:  # fmt: skip
-        """The lowest-energy path among ``unfinished`` (interrupted IPOPT iterates and
-        seeds, (T, n) each) that passes the fine and exact checks before ``end``
-        (perf_counter [s]), as a ``"feasible"`` plan."""
-        results = [feasible_result(self.metric, q, how) for q, how in unfinished
-                   if np.all(np.isfinite(q))]  # fmt: skip
-        for res in sorted(results, key=lambda r: r.energy)[:ANYTIME_CHECKS]:
-            if time.perf_counter() > end:
-                attempts.append("no time left to check the unfinished paths")
-                break
-            coarse, fine = self.check(res.q)
-            exact = exact_check(self.exact, res.q, self.term.obstacles, self.exact_resolution,
-                                end, self.sampling.aids)  # fmt: skip
-            ok = exact.clearance >= 0.0 if self.exact is not None else min(coarse, fine) >= 0.0
-            own = self.self_check(res.q, end) if ok else math.nan
-            if ok and self.self_ok(own):
-                wall = time.perf_counter() - t0
-                attempts.append(f"returned {res.message.split(': ', 1)[1]} (not converged)")
-                return Plan(res, "anytime", coarse, wall, tuple(attempts), fine,
-                            exact.clearance, self.exact_resolution, wall,
-                            self_clearance=own)  # fmt: skip
-            if ok:
-                attempts.append(f"{res.message.split(': ', 1)[1]}: self-collision check "
-                                f"fails (self-clearance {own:.4f} m)")  # fmt: skip
-        return None
+        """`geosyn.metrics.planning.anytime.anytime_plan` of this planner."""
+        return anytime_plan(self, unfinished, t0, attempts, end)
 
     def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
                         attempts: list[str]) -> tuple[CollocationResult, np.ndarray]:  # fmt: skip

@@ -58,7 +58,6 @@ if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
 
 __all__ = [
-    "ANYTIME_CHECKS",
     "ANYTIME_SLACK",
     "COARSE_TO_FINE",
     "MIN_COLLOCATION",
@@ -68,9 +67,6 @@ __all__ = [
     "Query",
     "metric_length",
 ]
-
-ANYTIME_CHECKS = 3
-"""Most unfinished paths checked when a budget ends without a converged plan."""
 
 ANYTIME_SLACK = 1.05
 """Those checks stop at this multiple of the budget (an unchecked path is not returned)."""
