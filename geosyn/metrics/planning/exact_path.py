@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -114,6 +114,18 @@ def _placements(exact: ExactClearance, Q: np.ndarray, aids: PathAids, deadline: 
     return frames[0], frames[1], np.array([joints.index(j) for j in exact._joint])
 
 
+def _coal_parts(exact: ExactClearance) -> tuple[np.ndarray, np.ndarray, list[tuple[Any, Any]]]:
+    """((L, 3, 3), (L, 3), [(geometry, transform)] per obstacle): each collision object's
+    placement in its joint's frame, and the obstacles as coal geometries placed in the
+    world (what coal's geometry-level ``distance`` takes)."""
+    import coal
+
+    R_place = np.array([pl.rotation for pl in exact._place])
+    t_place = np.array([pl.translation for pl in exact._place])
+    others = [(ob[0], coal.Transform3s(ob[2][:3, :3], ob[2][:3, 3])) for ob in exact._obstacles]
+    return R_place, t_place, others
+
+
 def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
                              aids: PathAids | None = None) -> np.ndarray:  # fmt: skip
     """(K,) the smallest exact clearance [m] at each configuration of ``Q`` (K, n) [rad]
@@ -130,14 +142,13 @@ def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
         return np.full(len(Q), math.inf)
     aids = aids if aids is not None else PathAids()
     placed = _placements(exact, Q, aids, math.inf)
-    assert placed is not None  # no deadline
+    if placed is None:  # only a deadline stops `_placements`, and none is set
+        raise RuntimeError("configuration_clearances: the joint placements were not computed")
     R, p, slot = placed
     bound = _lower_bounds(exact, Q, R, p, slot, aids.bounds).reshape(len(Q), -1)
     order = np.argsort(bound, axis=1, kind="stable")
     ranked = np.take_along_axis(bound, order, axis=1)
-    R_place = np.array([pl.rotation for pl in exact._place])
-    t_place = np.array([pl.translation for pl in exact._place])
-    others = [(ob[0], coal.Transform3s(ob[2][:3, :3], ob[2][:3, 3])) for ob in obstacles]
+    R_place, t_place, others = _coal_parts(exact)
     request = coal.DistanceRequest()
     request.gjk_tolerance = 1e-9
     out = np.full(len(Q), exact.near)
@@ -196,9 +207,7 @@ def path_clearance(
     order = near[np.argsort(bound[near], kind="stable")]
     sorted_bound = bound[order]
     at, obj, obs = np.unravel_index(order, (len(Q), len(exact._geoms), len(obstacles)))
-    R_place = np.array([pl.rotation for pl in exact._place])  # (L, 3, 3) in the joints
-    t_place = np.array([pl.translation for pl in exact._place])
-    others = [(ob[0], coal.Transform3s(ob[2][:3, :3], ob[2][:3, 3])) for ob in obstacles]
+    R_place, t_place, others = _coal_parts(exact)
     low, request = math.inf, exact._request
     hit: tuple[int, int, int] | None = None
     for start in range(0, len(order), CHUNK):

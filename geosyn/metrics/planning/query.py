@@ -258,14 +258,12 @@ class Query:
             and (spare := self.left() - 2.0 * reserve) > EXACT_MIN_TIME
         ):  # nearer on the robot's own geometry
             tight = exact_tighten(p, base, spare)
-            if (new := metric_length(p.metric, tight)) < length:
-                unt, shortest, length = shortest, tight, new
-                how = f"{how or 'the sampled plan'}, tightened on the exact geometry"
+            if metric_length(p.metric, tight) < length:
+                told = f"{how or 'the sampled plan'}, tightened on the exact geometry"
                 # its own samples: the path whose every checked configuration kept the floor
-                if (better := self.verified(shortest, how, resample=False)) is not None:
-                    self.sampled_path = shortest
+                if (better := self.verified(tight, told, resample=False)) is not None:
+                    self.sampled_path = tight
                     return better
-                shortest, how = unt, how.rsplit(", tightened", 1)[0]
         if shortest is not None and (better := self.verified(shortest, how)) is not None:
             self.sampled_path = shortest
             return better

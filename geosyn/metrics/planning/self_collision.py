@@ -25,14 +25,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from geosyn.metrics.planning.errors import InCollision
-from geosyn.metrics.planning.exact_path import checked_configurations
+from geosyn.metrics.planning.exact_path import Kinematics, checked_configurations
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.robots.collision_geometry import CollisionObject, collision_objects
 from geosyn.robots.errors import RobotFileError
@@ -118,31 +117,12 @@ class SelfCollision:
         """(smallest signed distance [m], link a, link b) over the pairs (or only
         ``pair``, one of them) at ``q`` (n,) [rad] (`INTERSECTING` for intersecting
         triangle meshes); ``(inf, "", "")`` without pairs."""
-        import coal
-
-        checks = self._checks if pair is None else self._of_pair.get(pair, [])
-        model, data = self.robot.model, self._data
-        pin.forwardKinematics(model, data, np.asarray(q, dtype=float))
-        poses: dict[int, Any] = {}
-
-        def placed(k: int) -> Any:
-            if k not in poses:
-                j = self._joint[k]
-                M = (data.oMi[j] if j else pin.SE3.Identity()) * self._place[k]
-                poses[k] = coal.CollisionObject(
-                    self._geoms[k], coal.Transform3s(M.rotation, M.translation)
-                )
-            return poses[k]
-
+        pin.forwardKinematics(self.robot.model, self._data, np.asarray(q, dtype=float))
+        R = np.array([M.rotation for M in self._data.oMi])  # oMi[0]: the universe
+        p = np.array([M.translation for M in self._data.oMi])
         best: tuple[float, str, str] = (math.inf, "", "")
-        for a, b, i, j in checks:
-            if (self._bvh[i] or self._bvh[j]) and coal.collide(
-                placed(i), placed(j), coal.CollisionRequest(), coal.CollisionResult()
-            ):
-                d = INTERSECTING
-            else:
-                d = float(coal.distance(placed(i), placed(j), self._request, coal.DistanceResult()))
-            if d < best[0]:
+        for a, b in self.pairs if pair is None else (pair,):
+            if (d := self.placed_clearance(R, p, (a, b))) < best[0]:
                 best = (d, a, b)
         return best
 
@@ -163,26 +143,21 @@ class SelfCollision:
                                    R[self._joint[k]] @ self._place[k].translation
                                    + p[self._joint[k]]) for k in (i, j)]  # fmt: skip
             gi, gj = self._geoms[i], self._geoms[j]
-            if self._bvh[i] or self._bvh[j]:  # the hulls first: a lower bound
+            mesh = self._bvh[i] or self._bvh[j]
+            if mesh and above < math.inf:  # the hulls first: a lower bound
                 hull = float(coal.distance(self._hulls[i], tf[0], self._hulls[j], tf[1],
                                            self._request, coal.DistanceResult()))  # fmt: skip
                 if hull >= above:
                     best = min(best, hull)
                     continue
-            if (self._bvh[i] or self._bvh[j]) and coal.collide(
-                gi, tf[0], gj, tf[1], coal.CollisionRequest(), coal.CollisionResult()
-            ):
+            if mesh and coal.collide(gi, tf[0], gj, tf[1], coal.CollisionRequest(),
+                                     coal.CollisionResult()):  # fmt: skip
                 d = INTERSECTING
             else:
                 d = float(coal.distance(gi, tf[0], gj, tf[1], self._request,
                                         coal.DistanceResult()))  # fmt: skip
             best = min(best, d)
         return best
-
-
-Kinematics = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-"""``kinematics(Q (K, n)) -> ((K, J + 1, 3, 3), (K, J + 1, 3))``: the joints' world
-placements (`geosyn.metrics.planning.exact_path.Kinematics`)."""
 
 
 def path_self_clearance(
