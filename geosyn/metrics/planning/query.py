@@ -3,12 +3,14 @@
 Anytime: a query first makes a plan without an NLP (`Query.sampled`): RRT-Connect on
 the planner's spheres (in C, `geosyn.metrics.planning.sphere_native`, within
 `SAMPLED_SEARCH`; the straight line when it is free on them), pulled taut in the metric
-(`Query.taut`: string pulling, partial shortcuts, then `geosyn.metrics.planning.relax`,
-first with its penalty below 3 cm, then tightened to the margin with valid steps only,
-within `SAMPLED_RELAX` of the budget) and verified like every plan (the exact check
-decides, self-collision included); the collocation stages then get the time left (none when less than
-`MIN_COLLOCATION` is left: the sampled path, if any, is then relaxed further, and
-other RRT-Connect paths are tried and pulled taut, each verified: `Query.polish`), and the
+(`geosyn.metrics.planning.sampled.pull_taut`: string pulling, partial shortcuts, then
+`geosyn.metrics.planning.relax`, first with its penalty below 3 cm, then tightened to
+the margin with valid steps only, within `SAMPLED_RELAX` of the budget) and verified
+like every plan (the exact check decides, self-collision included); the collocation
+stages then get the time left (none when less than `MIN_COLLOCATION` is left: the sampled path, if any, is then relaxed further, and
+other seeds are pulled taut by turns, straight lines bent by a random bump
+(`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
+then verified: `Query.polish`), and the
 kept plan is the best verified one by the homotopy rule below (the
 sampled plan is one of the "other seeds": never kept when longer than the straight
 line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
@@ -49,6 +51,7 @@ from geosyn.metrics.planning.sampled import (
     SAMPLED_SEARCH,
     SAMPLED_SMALL,
     pull_taut,
+    relaxed_line,
 )
 from geosyn.metrics.planning.smoothing import even_in_metric
 from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
@@ -78,7 +81,7 @@ seed: (node count as a multiple of ``nodes``, constrained points inside each seg
 
 MIN_COLLOCATION = 2.5
 """Time left [s] below which no collocation is started once a sampled plan is verified:
-the time goes to relaxing it and to other RRT-Connect paths (`Query.polish`). A Panda
+the time goes to relaxing it and to other seeds (`Query.polish`). A Panda
 collocation among obstacles takes 0.5-2.5 s (`benchmarks/RESULTS.md`: at 1-2 s budgets
 it finished on fewer than half of the 14 benchmark scenes), where a relaxed sampled
 plan comes within a few per cent of its length in 0.1-0.3 s."""
@@ -207,50 +210,55 @@ class Query:
         left = max(self.left(), 0.0)  # the exact check needs its share of it
         budget = SAMPLED_CHECK_SHARE * left if small else min(
             SAMPLED_RELAX * self.budget, SAMPLED_RELAX_MAX, SAMPLED_CHECK_SHARE * left)  # fmt: skip
-        self.sampled_path, rough = self.taut(path, budget)
+        self.sampled_path, rough = pull_taut(self.p, path, budget, self.seed)
         plan = self.verified(self.sampled_path, f"{how} pulled taut in the metric")
         if plan is None and self.exact_failed:  # it cut a corner of the exact geometry
             self.sampled_path = rough
             plan = self.verified(rough, f"{how} shortened in the metric")
         return plan
 
-    def taut(self, path: np.ndarray, budget: float) -> tuple[np.ndarray, np.ndarray]:
-        """(taut, rough) of ``path`` within ``budget`` [s] (`pull_taut`, the query's seed)."""
-        return pull_taut(self.p, path, budget, self.seed)
-
     def polish(self, plan: Plan) -> Plan:
         """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
-        the last one's): its path relaxed further, then new RRT-Connect paths (seeds
-        ``seed + 1, 2, ...``, each sampled in at most a third of the time left) pulled
-        taut alike (`taut`; valid on the spheres; `EXACT_KEEP` kept back when more than
-        twice that is left), until `POLISH_PATIENCE` of them in a
-        row shorten the best by less than `POLISH_GAIN`; the shortest in the metric is
-        then tightened on the exact geometry when more than `EXACT_MIN_TIME` is left
-        (`exact_tighten`), verified once, and kept if it passes and is shorter than
-        ``plan`` (else the untightened one, verified in turn)."""
+        the last one's): its path relaxed further, then other seeds in turn, each
+        pulled taut in at most half the time left (valid on the spheres; `EXACT_KEEP`
+        kept back when more than twice that is left): a bumped straight line
+        (`relaxed_line` #1, 2, ...) and a new RRT-Connect path (seeds ``seed + 1, 2,
+        ...``, each sampled in at most a third of the time left, `pull_taut`) by turns,
+        until `POLISH_PATIENCE` of them in a row shorten the best by less than
+        `POLISH_GAIN`; the shortest in the metric is then tightened on the exact
+        geometry when more than `EXACT_MIN_TIME` is left (`exact_tighten`), verified
+        once, and kept if it passes and is shorter than ``plan`` (else the untightened
+        one, verified in turn)."""
         p, path = self.p, self.sampled_path
         length = metric_length(p.metric, plan.q)
-        shortest, how, stale = None, "", 0
+        shortest, how, stale, name = None, "", 0, "RRT-Connect path #0"
+        bump = 0  # a bumped line's index, instead of ``path``, when > 0
         reserve = 1.5 * self.check_time + 0.005
         ample = p.exact is not None and self.left() - 2.0 * reserve > 2.0 * EXACT_KEEP
         keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
         for restart in range(1, 10**6):
-            if path is not None:
+            if path is not None or bump:
                 if self.left() <= reserve + keep:
                     break
-                taut, _ = self.taut(path, 0.5 * (self.left() - reserve - keep))
-                new = metric_length(p.metric, taut)
+                budget = 0.5 * (self.left() - reserve - keep)
+                taut = (relaxed_line(p, self.q0, self.q1, self.seed, bump, budget)
+                        if path is None else pull_taut(p, path, budget, self.seed)[0])  # fmt: skip
+                new = metric_length(p.metric, taut) if taut is not None else math.inf
                 stale = 0 if new < (1.0 - POLISH_GAIN) * length else stale + 1
                 if new < length:
-                    shortest, length = taut, new
-                    how = f"RRT-Connect path #{restart - 1} pulled taut in the metric"
+                    shortest, length, how = taut, new, f"{name} pulled taut in the metric"
             if self.left() <= 2.0 * reserve + keep or (path is not None and len(path) == 2):
                 break  # no time left, or the straight line is free: no other way round
             if stale >= POLISH_PATIENCE:
-                self.attempts.append(f"polishing stopped: {stale} paths in a row no shorter "
+                self.attempts.append(f"polishing stopped: {stale} seeds in a row no shorter "
                                      f"by {POLISH_GAIN:.1%}")  # fmt: skip
                 break
-            path, _ = self._rrt(restart, (self.left() - reserve) / 3.0)
+            if restart % 2:  # a bumped straight line
+                path, bump = None, (restart + 1) // 2
+                name = f"the straight line bumped #{bump}"
+            else:
+                path, _ = self._rrt(restart // 2, (self.left() - reserve) / 3.0)
+                bump, name = 0, f"RRT-Connect path #{restart // 2}"
         base = shortest if shortest is not None else np.asarray(plan.q)
         if (
             p.exact is not None

@@ -29,12 +29,14 @@ length on most benchmark scenes within 0.05-0.3 s (`benchmarks/RESULTS.md`).
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
 import numpy as np
 import scipy.linalg
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.base import Metric
 from geosyn.metrics.planning.rrt import SegmentValidity
 
@@ -132,6 +134,7 @@ def metric_relax(
     stay_valid: bool = False,
     path_ok: Callable[[np.ndarray], bool] | None = None,
     fd_step: float = 1e-6,
+    seed_valid: bool = True,
 ) -> np.ndarray:
     """A path of lower cost (module docstring) with the samples and ends of ``path``.
 
@@ -154,10 +157,14 @@ def metric_relax(
         path_ok: whether a whole iterate (T, n) is valid, in place of ``segment`` on
             each of its segments (e.g. an exact check of the path).
         fd_step: central-difference step of the clearance gradients [rad].
+        seed_valid: whether ``path`` is valid. False (a seed through the obstacles,
+            pushed out by the penalty): the first valid iterate is kept whatever its
+            energy, then lower ones (never with ``stay_valid``).
 
     Returns:
         (T, n) the accepted iterate of lowest energy whose segments all passed
-        ``segment`` (``path`` itself when none did). O(T n) metric and O(T n) clearance evaluations per step,
+        ``segment`` (``path`` itself when none did: with ``seed_valid`` False, the
+        caller checks). O(T n) metric and O(T n) clearance evaluations per step,
         and one banded ((T - 2) n)^2 solve of bandwidth 2 n - 1.
     """
     x = np.array(path, dtype=float)
@@ -176,7 +183,10 @@ def metric_relax(
     weight = 100.0 * max(energy, 1e-9) / delta**2  # delta deep costs 100 times E
     pen, c = _penalty_value(clearances, x, delta, weight)
     g_p, g_c = _penalty_gradient(clearances, x, c, delta, weight, fd_step)
-    cost, best, lowest, N = energy + pen, x.copy(), energy, T - 1
+    if not seed_valid and stay_valid:
+        raise InvalidArgument("metric_relax: stay_valid needs a valid path (seed_valid)")
+    cost, best, N = energy + pen, x.copy(), T - 1
+    lowest = energy if seed_valid else math.inf  # the energy to beat by a valid iterate
     last = 0.0  # the previous step's time: one that would end past the budget is not begun
     for _ in range(max_iter):
         begun = time.perf_counter()

@@ -4,8 +4,15 @@ query's budget its stages take (`geosyn.metrics.planning.query.Query.sampled` an
 
 `pull_taut`: string pulling of an RRT-Connect path (`geosyn.metrics.planning.rrt`),
 `SAMPLED_TRIES` partial shortcuts in the metric (`geosyn.metrics.planning.smoothing`),
-then `geosyn.metrics.planning.relax.metric_relax` twice: with its penalty below 3 cm,
-then below the planner's margin with only valid steps (segments checked at the margin).
+then `geosyn.metrics.planning.relax.metric_relax` twice (`relax_taut`): with its
+penalty below 3 cm, then below the planner's margin with only valid steps (segments
+checked at the margin).
+
+`relaxed_line`: the other seeds of a sampled plan's polishing. The straight joint line
+bent by a random bump (`bumped_line`) crosses the obstacles; the same relaxation,
+started there, pushes its samples out (the penalty) and pulls it taut: trajectory
+optimisation from random restarts, as CHOMP (Ratliff et al., ICRA 2009) and TrajOpt
+(Schulman et al., RSS 2013) do, where RRT-Connect's paths are the other seeds.
 """
 
 from __future__ import annotations
@@ -25,6 +32,8 @@ if TYPE_CHECKING:
 __all__ = [
     "POLISH_GAIN",
     "POLISH_PATIENCE",
+    "BUMP_SIGMA",
+    "RELAX_RESOLUTION",
     "SAMPLED_CHECK_SHARE",
     "SAMPLED_RELAX",
     "SAMPLED_RELAX_MAX",
@@ -32,7 +41,10 @@ __all__ = [
     "SAMPLED_SMALL",
     "SAMPLED_TRIES",
     "TIGHTEN_AFTER",
+    "bumped_line",
     "pull_taut",
+    "relax_taut",
+    "relaxed_line",
 ]
 
 SAMPLED_SEARCH = (0.7, 0.3, 0.1)
@@ -52,7 +64,7 @@ POLISH_GAIN = 0.005
 """Relative shortening that counts as progress in `Query.polish`."""
 
 SAMPLED_TRIES = 30
-"""Partial shortcuts in the metric of a sampled path before it is relaxed (`Query.taut`):
+"""Partial shortcuts in the metric of a sampled path before it is relaxed (`pull_taut`):
 they straighten RRT-Connect's detours, which the relaxation (a local method) keeps."""
 
 SAMPLED_RELAX = 0.15
@@ -73,8 +85,21 @@ SAMPLED_SMALL = 0.8
 """Share of a budget too small for collocation (less than `MIN_COLLOCATION` would be
 left after `SAMPLED_SEARCH`) that RRT-Connect may take for the sampled plan."""
 
+BUMP_SIGMA = 0.5
+"""Standard deviation [rad] per joint of a `bumped_line`'s bump. Relaxed, such lines
+reach other local minima than RRT-Connect's paths (which come round the obstacles
+with detours that the relaxation keeps). On the 14 Panda benchmark scenes, of 6 lines
+per scene relaxed for 0.1 s each, at least one came out valid on 13 (none through
+shelf_compartments' openings), the shortest 0.77-1.05x geodex's 1 s length before the
+exact tightening; on pillar_pipe_panel 1.025x, where 8 RRT-Connect paths pulled taut
+alike gave 1.31-3.2x. 0.3 and 1.0 gave longer shortest paths on 5 and 6 of the scenes,
+shorter ones on 3 and 1 (measured)."""
+
+RELAX_RESOLUTION = 0.02
+"""Segment check step [rad] of the relaxations (`metric_relax`'s default)."""
+
 TIGHTEN_AFTER = 0.7
-"""Share of the relaxation's time for its first stage (`Query.taut`; penalty below
+"""Share of the relaxation's time for its first stage (`pull_taut`; penalty below
 `geosyn.metrics.planning.relax.RELAX_DELTA`). The second starts from its result with
 the penalty below the planner's margin and only steps whose segments all pass the
 sampling check (`metric_relax`'s ``stay_valid``), in the rest of the time: on the Panda
@@ -86,9 +111,8 @@ def pull_taut(planner: Planner, path: np.ndarray, budget: float,
               seed: int) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """(taut, rough): ``path`` (T, n) [rad] with its vertices skipped (`string_pull`),
     shortened by `SAMPLED_TRIES` partial shortcuts in the metric (rough), then
-    relaxed (`metric_relax` on ``nodes + 1`` samples even in the metric, in
-    `TIGHTEN_AFTER` of the time left) and tightened (penalty below the planner's
-    margin, every step valid) within ``budget`` [s] in all."""
+    relaxed and tightened (`relax_taut` on ``nodes + 1`` samples even in the metric)
+    within ``budget`` [s] in all."""
     p, end = planner, time.perf_counter() + budget
     check = p.sampling  # the query's obstacles and ends set (`Sampling.start`)
     rough = string_pull(check.segment_valid, path)
@@ -96,9 +120,25 @@ def pull_taut(planner: Planner, path: np.ndarray, budget: float,
                             tries=SAMPLED_TRIES, seed=seed, segment=check.segment_valid)  # fmt: skip
     if time.perf_counter() >= end:  # no time for the relaxation
         return rough, rough
-    taut = metric_relax(check.segment_valid, check.check.clearances, p.metric,
-                        even_in_metric(p.metric, rough, p.nodes + 1),
-                        budget=TIGHTEN_AFTER * max(end - time.perf_counter(), 0.0))  # fmt: skip
+    x = even_in_metric(p.metric, rough, p.nodes + 1)
+    return relax_taut(p, x, max(end - time.perf_counter(), 0.0)), rough
+
+
+def relax_taut(planner: Planner, x: np.ndarray, budget: float,
+               seed_valid: bool = True) -> np.ndarray:  # fmt: skip
+    """The samples ``x`` (T, n) [rad] relaxed (`metric_relax`, penalty below
+    `geosyn.metrics.planning.relax.RELAX_DELTA`, in `TIGHTEN_AFTER` of ``budget`` [s])
+    and tightened (penalty below the planner's margin, every step valid at it) in the
+    rest. ``seed_valid`` False: ``x`` may cross the obstacles (`relaxed_line`); the
+    tightening then runs only when the relaxation ended valid, and the result may be
+    ``x`` itself, invalid (the caller checks)."""
+    p, end = planner, time.perf_counter() + budget
+    check = p.sampling
+    taut = metric_relax(check.segment_valid, check.check.clearances, p.metric, x,
+                        budget=TIGHTEN_AFTER * budget, resolution=RELAX_RESOLUTION,
+                        seed_valid=seed_valid)  # fmt: skip
+    if not seed_valid and not _valid(p, taut):
+        return taut
     if p.margin > 0.0 and time.perf_counter() < end:  # nearer, valid steps, to the margin
 
         def at_margin(a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
@@ -106,5 +146,35 @@ def pull_taut(planner: Planner, path: np.ndarray, budget: float,
 
         taut = metric_relax(at_margin, check.check.clearances, p.metric, taut,
                             budget=max(end - time.perf_counter(), 0.0), delta=p.margin,
-                            stay_valid=True)  # fmt: skip
-    return taut, rough
+                            resolution=RELAX_RESOLUTION, stay_valid=True)  # fmt: skip
+    return taut
+
+
+def _valid(planner: Planner, x: np.ndarray) -> bool:
+    """Whether every segment of ``x`` (T, n) passes the sampling check at the
+    relaxation's resolution."""
+    seg = planner.sampling.segment_valid
+    return all(seg(a, b, RELAX_RESOLUTION) for a, b in zip(x[:-1], x[1:], strict=True))
+
+
+def bumped_line(q0: np.ndarray, q1: np.ndarray, samples: int, q_min: np.ndarray,
+                q_max: np.ndarray, seed: int, index: int) -> np.ndarray:  # fmt: skip
+    """(samples, n) [rad] the straight joint line from ``q0`` to ``q1`` (n,) plus the
+    bump ``sin(pi s) v`` (s in [0, 1] evenly), ``v ~ N(0, BUMP_SIGMA^2 I)`` drawn
+    from the generator seeded ``(seed, index)``, clipped to the limits."""
+    v = BUMP_SIGMA * np.random.default_rng((seed, index)).standard_normal(q0.size)
+    s = np.linspace(0.0, 1.0, samples)[:, None]
+    x = np.clip(q0 + s * (q1 - q0) + np.sin(np.pi * s) * v, q_min, q_max)
+    x[0], x[-1] = q0, q1  # exactly (sin(pi) is not 0 in floating point)
+    return x
+
+
+def relaxed_line(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
+                 index: int, budget: float) -> np.ndarray | None:  # fmt: skip
+    """`bumped_line` ``index`` (``nodes + 1`` samples) pushed out of the obstacles and
+    pulled taut (`relax_taut`) within ``budget`` [s]: (nodes + 1, n) [rad] valid on the
+    spheres, or None when it did not come out."""
+    p = planner
+    x = bumped_line(q0, q1, p.nodes + 1, p.robot.q_min, p.robot.q_max, seed, index)
+    taut = relax_taut(p, x, budget, seed_valid=False)
+    return taut if _valid(p, taut) else None

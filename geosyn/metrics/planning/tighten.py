@@ -3,7 +3,7 @@ collision geometry, where the covering spheres keep it farther than it needs to 
 
 The planner's spheres cover every mesh point with up to 2 cm to spare
 (`geosyn.robots.collision_spheres`), so a path tightened on them
-(`geosyn.metrics.planning.query.Query.taut`) keeps 1.5-3 cm of exact clearance on the
+(`geosyn.metrics.planning.sampled.pull_taut`) keeps 1.5-3 cm of exact clearance on the
 Panda scenes where the margin asks for 1 cm. This last stage relaxes the path once more
 (`geosyn.metrics.planning.relax.metric_relax`) with the clearance of every sample taken
 exactly (coal, `geosyn.metrics.planning.exact_path.configuration_clearances`; the
