@@ -179,8 +179,3 @@ class Sampling:
         per_link = self._cover.group_distances(Q, self._cover_group, count)  # (K, links, O)
         out[:, self._covered] = per_link[:, self._object_link[self._covered]]
         return out
-        self._cover.set_obstacles(self._obstacles)
-        d = self._cover.obstacle_distances(Q)  # (K, spheres, O)
-        out[:, self._covered] = np.minimum.reduceat(d[:, self._cover_order],
-                                                    self._cover_starts, axis=1)  # fmt: skip
-        return out
