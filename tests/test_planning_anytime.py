@@ -28,9 +28,8 @@ from geosyn.metrics.geodesic.energy import distance
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.exact_path import checked_configurations, path_clearance
 from geosyn.metrics.planning.planner import ANYTIME_SLACK, densify
-from geosyn.metrics.planning.query import metric_length
 from geosyn.metrics.planning.relax import metric_relax
-from geosyn.metrics.planning.smoothing import metric_shortcut, segment_lengths
+from geosyn.metrics.planning.smoothing import metric_length, metric_shortcut, segment_lengths
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.robots import Robot, load_robot
 from geosyn.world import Box, HalfSpace, Sphere

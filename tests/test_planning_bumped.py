@@ -19,9 +19,9 @@ from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.geodesic.energy import distance
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.planner import densify
-from geosyn.metrics.planning.query import metric_length
 from geosyn.metrics.planning.relax import metric_relax
 from geosyn.metrics.planning.sampled import BUMP_SIGMA, bumped_line, relaxed_line
+from geosyn.metrics.planning.smoothing import metric_length
 from geosyn.robots import load_robot
 from geosyn.world import Box
 

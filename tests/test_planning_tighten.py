@@ -20,7 +20,7 @@ import pytest
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.exact_path import checked_configurations, configuration_clearances
-from geosyn.metrics.planning.query import metric_length
+from geosyn.metrics.planning.smoothing import metric_length
 from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_tighten
 from geosyn.robots import Robot, load_robot
 from geosyn.world import Box

@@ -12,7 +12,7 @@ One query, within a stated time budget:
    `geosyn.metrics.planning.query`), whose path is also RRT-Connect's first seed in 3.;
    with less than `query.MIN_COLLOCATION` left after it, the rest of the budget relaxes
    it further and tries other seeds (bumped straight lines and RRT-Connect paths, by
-   turns) instead of 2.-3.;
+   turns) instead of 2.-3.; with more, the same for `query.POLISH_FIRST` of it first;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
    (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the

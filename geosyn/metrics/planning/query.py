@@ -10,7 +10,8 @@ like every plan (the exact check decides, self-collision included); the collocat
 stages then get the time left (none when less than `MIN_COLLOCATION` is left: the sampled path, if any, is then relaxed further, and
 other seeds are pulled taut by turns, straight lines bent by a random bump
 (`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
-then verified: `Query.polish`), and the
+then verified: `Query.polish`; with more, it is polished so for `POLISH_FIRST` of the
+budget before the collocations start), and the
 kept plan is the best verified one by the homotopy rule below (the
 sampled plan is one of the "other seeds": never kept when longer than the straight
 line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
@@ -37,23 +38,20 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
+from geosyn.metrics.planning.polish import taut_seeds
 from geosyn.metrics.planning.rrt import shortcut
 from geosyn.metrics.planning.sampled import (
-    POLISH_GAIN,
-    POLISH_PATIENCE,
     SAMPLED_CHECK_SHARE,
     SAMPLED_RELAX,
     SAMPLED_RELAX_MAX,
     SAMPLED_SEARCH,
     SAMPLED_SMALL,
     pull_taut,
-    relaxed_line,
 )
-from geosyn.metrics.planning.smoothing import even_in_metric
+from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
 from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
 from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check, feasible_result
 
@@ -70,7 +68,6 @@ __all__ = [
     "SAME",
     "SAME_SAMPLED",
     "Query",
-    "metric_length",
 ]
 
 ANYTIME_SLACK = 1.05
@@ -97,9 +94,9 @@ POLISH_FIRST = 0.2
 """Share of a budget that leaves time for collocation (at most `POLISH_FIRST_MAX`) in
 which the sampled plan is polished (`Query.polish`) before the collocations start: a
 larger budget then keeps the sampled plan a smaller one returns, where the covering
-spheres keep a collocated path up to 2 cm farther from the meshes than needed (at the
-default 5 s budget the collocated plans were 1.4-3.3 % longer than the sampled plans of
-a 1 s budget on 6 of the 14 Panda benchmark scenes, measured)."""
+spheres keep a collocated path up to 2 cm farther from the meshes than needed (without
+it, the default 5 s budget's plans were 1.1-3.2 % longer than a 1 s budget's on 5 of
+the 14 Panda benchmark scenes, measured)."""
 
 POLISH_FIRST_MAX = 1.0
 """Longest polishing [s] of the sampled plan before the collocations."""
@@ -115,16 +112,6 @@ than a collocation's (its own quadrature) to be kept instead: below it the two a
 same path within their discretisations (a sampled path tightened to the margin reaches
 the collocation's optimum to 6e-5 on planar2 round a ball, measured), and the solved
 one is kept."""
-
-
-def metric_length(metric: Metric, path: np.ndarray) -> float:
-    """Metric length of the piecewise-linear ``path`` (T, n) [rad]: the sum over segments
-    of ``sqrt(dq^T G(q_mid) dq)`` (midpoint rule)."""
-    path = np.asarray(path, dtype=float)
-    dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
-    return float(
-        sum(math.sqrt(max(d @ metric.G(m) @ d, 0.0)) for d, m in zip(dq, mid, strict=True))
-    )
 
 
 class Query:
@@ -234,50 +221,28 @@ class Query:
 
     def polish(self, plan: Plan, budget: float = math.inf) -> Plan:
         """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
-        the last one's): its path relaxed further, then other seeds in turn, each
-        pulled taut in at most half the time left (valid on the spheres; `EXACT_KEEP`
-        kept back when more than twice that is left): a bumped straight line
-        (`relaxed_line` #1, 2, ...) and a new RRT-Connect path (seeds ``seed + 1, 2,
-        ...``, each sampled in at most a third of the time left, `pull_taut`) by turns,
-        until `POLISH_PATIENCE` of them in a row shorten the best by less than
-        `POLISH_GAIN`; the shortest in the metric is then tightened on the exact
+        the last one's; `EXACT_KEEP` more kept back when more than twice that is left):
+        the shortest of its path relaxed further and other seeds pulled taut
+        (`geosyn.metrics.planning.polish.taut_seeds`: bumped straight lines and
+        RRT-Connect paths by turns, valid on the spheres) is tightened on the exact
         geometry when more than `EXACT_MIN_TIME` is left (`exact_tighten`), verified
         once, and kept if it passes and is shorter than ``plan`` (else the untightened
         one, verified in turn). All within ``budget`` [s] when less than the time left."""
-        p, path, end = self.p, self.sampled_path, time.perf_counter() + budget
+        p, end = self.p, time.perf_counter() + budget
 
         def left() -> float:
             return min(self.left(), end - time.perf_counter())
 
-        length = metric_length(p.metric, plan.q)
-        shortest, how, stale, name = None, "", 0, "RRT-Connect path #0"
-        bump = 0  # a bumped line's index, instead of ``path``, when > 0
+        def rrt(index: int, seconds: float) -> np.ndarray | None:
+            return self._rrt(index, seconds)[0]
+
         reserve = 1.5 * self.check_time + 0.005
         ample = p.exact is not None and left() - 2.0 * reserve > 2.0 * EXACT_KEEP
         keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
-        for restart in range(1, 10**6):
-            if path is not None or bump:
-                if left() <= reserve + keep:
-                    break
-                budget = 0.5 * (left() - reserve - keep)
-                taut = (relaxed_line(p, self.q0, self.q1, self.seed, bump, budget)
-                        if path is None else pull_taut(p, path, budget, self.seed)[0])  # fmt: skip
-                new = metric_length(p.metric, taut) if taut is not None else math.inf
-                stale = 0 if new < (1.0 - POLISH_GAIN) * length else stale + 1
-                if new < length:
-                    shortest, length, how = taut, new, f"{name} pulled taut in the metric"
-            if left() <= 2.0 * reserve + keep or (path is not None and len(path) == 2):
-                break  # no time left, or the straight line is free: no other way round
-            if stale >= POLISH_PATIENCE:
-                self.attempts.append(f"polishing stopped: {stale} seeds in a row no shorter "
-                                     f"by {POLISH_GAIN:.1%}")  # fmt: skip
-                break
-            if restart % 2:  # a bumped straight line
-                path, bump = None, (restart + 1) // 2
-                name = f"the straight line bumped #{bump}"
-            else:
-                path, _ = self._rrt(restart // 2, (left() - reserve) / 3.0)
-                bump, name = 0, f"RRT-Connect path #{restart // 2}"
+        shortest, length, how = taut_seeds(
+            p, self.q0, self.q1, self.seed, self.sampled_path, metric_length(p.metric, plan.q),
+            lambda: left() - keep, reserve, rrt, self.attempts,
+        )  # fmt: skip
         base = shortest if shortest is not None else np.asarray(plan.q)
         if (
             p.exact is not None

@@ -21,10 +21,20 @@ import numpy as np
 from geosyn.metrics.base import Metric
 from geosyn.metrics.planning.rrt import SegmentValidity, Validity, segment_points
 
-__all__ = ["PIECES", "even_in_metric", "metric_shortcut", "segment_lengths"]
+__all__ = ["PIECES", "even_in_metric", "metric_length", "metric_shortcut", "segment_lengths"]
 
 PIECES = 4
 """Midpoint-rule pieces per segment of the metric length of a joint segment."""
+
+
+def metric_length(metric: Metric, path: np.ndarray) -> float:
+    """Metric length of the piecewise-linear ``path`` (T, n) [rad]: the sum over segments
+    of ``sqrt(dq^T G(q_mid) dq)`` (midpoint rule, one piece per segment)."""
+    path = np.asarray(path, dtype=float)
+    dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
+    return float(
+        sum(math.sqrt(max(d @ metric.G(m) @ d, 0.0)) for d, m in zip(dq, mid, strict=True))
+    )
 
 
 def segment_lengths(metric: Metric, path: np.ndarray, pieces: int = PIECES) -> np.ndarray:

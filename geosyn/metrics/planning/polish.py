@@ -1,0 +1,76 @@
+"""`taut_seeds`: the search of a sampled plan's polishing (`geosyn.metrics.planning.query.Query.polish`):
+the shortest path in the metric among seeds pulled taut by turns, until the time is
+spent or the seeds stop paying.
+
+The seeds, in turn: the sampled plan's own path (relaxed further), then a straight
+joint line bent by a random bump (`geosyn.metrics.planning.sampled.relaxed_line` #1,
+2, ...) and a new RRT-Connect path (seeds ``seed + 1, 2, ...``,
+`geosyn.metrics.planning.sampled.pull_taut`) by turns. Each is pulled taut in at most
+half the time left; the search stops after `POLISH_PATIENCE` seeds in a row that
+shorten the best by less than `POLISH_GAIN`, or when the straight line is free.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geosyn.metrics.planning.sampled import POLISH_GAIN, POLISH_PATIENCE, pull_taut, relaxed_line
+from geosyn.metrics.planning.smoothing import metric_length
+
+if TYPE_CHECKING:
+    from geosyn.metrics.planning.planner import Planner
+
+__all__ = ["taut_seeds"]
+
+
+def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
+               path: np.ndarray | None, length: float, left: Callable[[], float],
+               reserve: float, rrt: Callable[[int, float], np.ndarray | None],
+               attempts: list[str]) -> tuple[np.ndarray | None, float, str]:  # fmt: skip
+    """(shortest, its metric length, how it was made) of the seeds (module docstring)
+    from ``q0`` to ``q1`` (n,) [rad] shorter than ``length``, or (None, ``length``, "").
+
+    Args:
+        planner: the planner, its query set (obstacles, ends: `Sampling.start`).
+        q0: (n,) start [rad].
+        q1: (n,) goal [rad].
+        seed: the query's seed (the bumps' and the RRT-Connect paths').
+        path: (T, n) the sampled plan's path [rad] (the first seed), or None.
+        length: the sampled plan's metric length (what a seed must beat).
+        left: time left to the search [s] (the polishing's, one exact check kept back).
+        reserve: time kept back for the final checks [s] (a seed is begun only while
+            more than twice that is left).
+        rrt: ``rrt(index, budget)``: RRT-Connect path of seed ``seed + index`` within
+            ``budget`` [s], or None.
+        attempts: the query's list of what was tried (the stop is added to it).
+    """
+    p, shortest, how, stale, name = planner, None, "", 0, "RRT-Connect path #0"
+    bump = 0  # a bumped line's index, instead of ``path``, when > 0
+    for restart in range(1, 10**6):
+        if path is not None or bump:
+            if left() <= reserve:
+                break
+            budget = 0.5 * (left() - reserve)
+            taut = (relaxed_line(p, q0, q1, seed, bump, budget)
+                    if path is None else pull_taut(p, path, budget, seed)[0])  # fmt: skip
+            new = metric_length(p.metric, taut) if taut is not None else math.inf
+            stale = 0 if new < (1.0 - POLISH_GAIN) * length else stale + 1
+            if new < length:
+                shortest, length, how = taut, new, f"{name} pulled taut in the metric"
+        if left() <= 2.0 * reserve or (path is not None and len(path) == 2):
+            break  # no time left, or the straight line is free: no other way round
+        if stale >= POLISH_PATIENCE:
+            attempts.append(f"polishing stopped: {stale} seeds in a row no shorter "
+                            f"by {POLISH_GAIN:.1%}")  # fmt: skip
+            break
+        if restart % 2:  # a bumped straight line
+            path, bump = None, (restart + 1) // 2
+            name = f"the straight line bumped #{bump}"
+        else:
+            path = rrt(restart // 2, (left() - reserve) / 3.0)
+            bump, name = 0, f"RRT-Connect path #{restart // 2}"
+    return shortest, length, how
