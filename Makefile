@@ -46,7 +46,7 @@ run: $(STAMP)
 	$(VENV)/bin/geosyn run panda_push_recovery
 
 test: $(TSTAMP) browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q --durations=30
 
 # The suite against the newest releases the registry offers (not the lock), in its own venv:
 # an upstream change is seen here before `make lock` takes it. Not run by CI.
