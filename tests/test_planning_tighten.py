@@ -1,6 +1,7 @@
 """Sampled plans tightened on the robot's own collision geometry (issue 22):
 `geosyn.metrics.planning.exact_path.configuration_clearances` and
-`geosyn.metrics.planning.tighten.exact_tighten`.
+`geosyn.metrics.planning.tighten.exact_tighten`, and the deadline of
+`geosyn.metrics.planning.exact_path.path_clearance`.
 
 Referee: coal's distance between the convex hull of every collision object of the Panda
 URDF, placed by Pinocchio's own forward kinematics, and every obstacle, by brute force
@@ -11,6 +12,7 @@ tolerance in the referee).
 from __future__ import annotations
 
 import math
+import time
 
 import coal
 import numpy as np
@@ -19,7 +21,11 @@ import pytest
 
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
-from geosyn.metrics.planning.exact_path import checked_configurations, configuration_clearances
+from geosyn.metrics.planning.exact_path import (
+    checked_configurations,
+    configuration_clearances,
+    path_clearance,
+)
 from geosyn.metrics.planning.smoothing import metric_length
 from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_tighten
 from geosyn.robots import Robot, load_robot
@@ -115,3 +121,21 @@ def test_a_tightened_plan_keeps_the_floor_it_was_checked_at(planner: Planner) ->
     assert plan.exact_clearance >= floor
     Q = checked_configurations(plan.q, planner.exact_resolution)
     assert min(_brute(robot, exact, q) for q in Q) >= floor - 1e-6
+
+
+def test_a_passed_deadline_leaves_the_exact_check_undecided(planner: Planner) -> None:
+    """The batched exact check of a path through the block: with no deadline, the
+    brute-force referee's smallest distance over its checked configurations (to 1e-6
+    m); with a deadline already passed, NaN (undecided, nothing checked), never a
+    number."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    exact.set_obstacles([BLOCK])
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.9, 0.9  # the hand swings through the block
+    path = np.array([q0, q1])
+    full = path_clearance(exact, path, 0.05, aids=planner.sampling.aids)
+    brute = min(_brute(robot, exact, q) for q in checked_configurations(path, 0.05))
+    assert abs(full.clearance - brute) < 1e-6 and full.clearance < 0.0
+    late = path_clearance(exact, path, 0.05, time.perf_counter() - 1.0, planner.sampling.aids)
+    assert math.isnan(late.clearance) and late.checked == 0

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pinocchio as pin
@@ -203,6 +204,26 @@ def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> Non
     np.testing.assert_array_equal(pulled[[0, -1]], path[[0, -1]])
     for x, y in zip(pulled[:-1], pulled[1:], strict=True):
         assert slow.segment_valid(x, y, 0.005, 0.0)
+    # a deadline that passes mid-way (after 3 segment checks): a prefix pulled, the
+    # vertices left kept as they are; every edge still valid, no longer in joint space
+    calls = [0]
+
+    def counted(a: np.ndarray, b: np.ndarray, r: float) -> bool:
+        calls[0] += 1
+        return native.segment_valid(a, b, r, 0.0)
+
+    def clock() -> float:
+        return 0.0 if calls[0] < 3 else 2.0  # past the deadline 1.0 from then on
+
+    with mock.patch("geosyn.metrics.planning.rrt.time.perf_counter", clock):
+        cut = string_pull(counted, path, deadline=1.0)
+    assert calls[0] == 3 and len(pulled) <= len(cut) <= len(path)
+    at = [next(i for i, v in enumerate(path) if np.array_equal(v, c)) for c in cut]
+    assert at[0] == 0 and at[-1] == len(path) - 1 and all(np.diff(at) > 0)  # a subsequence
+    assert at[-4:] == list(range(len(path) - 4, len(path)))  # its tail kept as it was
+    for x, y in zip(cut[:-1], cut[1:], strict=True):
+        assert slow.segment_valid(x, y, 0.005, 0.0)
+    assert np.linalg.norm(np.diff(cut, axis=0), axis=1).sum() <= joint[0] + 1e-12
 
 
 def test_a_robot_the_c_kinematics_cannot_model_falls_back_to_numpy_and_says_so() -> None:

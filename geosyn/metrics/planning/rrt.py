@@ -10,6 +10,7 @@ which makes it minimum-energy.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -168,17 +169,27 @@ def shortcut(
 
 
 def string_pull(
-    segment: SegmentValidity, path: np.ndarray, *, resolution: float = 0.05
+    segment: SegmentValidity,
+    path: np.ndarray,
+    *,
+    resolution: float = 0.05,
+    deadline: float = math.inf,
 ) -> np.ndarray:
     """``path`` (T, n) [rad] with its vertices skipped greedily: from each kept vertex,
     the straight segment to the farthest later vertex that ``segment`` accepts (the next
     vertex's is valid already). Deterministic; O(T^2) segment checks at most, in
-    practice about T; the same ends, never longer in joint space."""
+    practice about T; the same ends, never longer in joint space. Once
+    ``time.perf_counter()`` passes ``deadline`` [s], the vertices left are kept as they
+    are."""
     path = np.asarray(path, dtype=float)
     kept, i = [path[0]], 0
     while i < len(path) - 1:
         j = len(path) - 1
-        while j > i + 1 and not segment(path[i], path[j], resolution):
+        while j > i + 1:
+            if time.perf_counter() > deadline:  # the vertices left as they are
+                return np.array(kept + list(path[i + 1 :]))
+            if segment(path[i], path[j], resolution):
+                break
             j -= 1
         kept.append(path[j])
         i = j

@@ -112,10 +112,12 @@ def pull_taut(planner: Planner, path: np.ndarray, budget: float,
     """(taut, rough): ``path`` (T, n) [rad] with its vertices skipped (`string_pull`),
     shortened by `SAMPLED_TRIES` partial shortcuts in the metric (rough), then
     relaxed and tightened (`relax_taut` on ``nodes + 1`` samples even in the metric)
-    within ``budget`` [s] in all."""
+    within ``budget`` [s] in all (a stage is not begun once it is spent)."""
     p, end = planner, time.perf_counter() + budget
     check = p.sampling  # the query's obstacles and ends set (`Sampling.start`)
-    rough = string_pull(check.segment_valid, path)
+    rough = string_pull(check.segment_valid, path, deadline=end)
+    if time.perf_counter() >= end:  # no time for the shortcuts (their set-up: 1-6 ms)
+        return rough, rough
     rough = metric_shortcut(check.valid, p.metric, rough, budget=0.3 * budget,
                             tries=SAMPLED_TRIES, seed=seed, segment=check.segment_valid)  # fmt: skip
     if time.perf_counter() >= end:  # no time for the relaxation
