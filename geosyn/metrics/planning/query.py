@@ -7,14 +7,14 @@ the planner's spheres (in C, `geosyn.metrics.planning.sphere_native`, within
 `geosyn.metrics.planning.relax`, first with its penalty below 3 cm, then tightened to
 the margin with valid steps only, within `SAMPLED_RELAX` of the budget) and verified
 like every plan (the exact check decides, self-collision included); the collocation
-stages then get the time left (none when less than `MIN_COLLOCATION` is left: the sampled path, if any, is then relaxed further, and
-other seeds are pulled taut by turns, straight lines bent by a random bump
+stages then get the time left (none when less than `MIN_COLLOCATION` is left: the
+sampled path, if any, is then relaxed further, and other seeds are pulled taut by
+turns, straight lines bent by a random bump
 (`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
 then verified: `Query.polish`; with more, it is polished so for `POLISH_FIRST` of the
-budget before the collocations start), and the
-kept plan is the best verified one by the homotopy rule below (the
-sampled plan is one of the "other seeds": never kept when longer than the straight
-line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
+budget before the collocations start), and the kept plan is the best verified one by
+the homotopy rule below (the sampled plan is one of the "other seeds": never kept when
+longer than the straight line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
 found.
 
 The query's clock, the list of what was tried and the unfinished paths kept for an
