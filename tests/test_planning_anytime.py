@@ -26,6 +26,7 @@ from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.energy import distance
 from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.exact_path import checked_configurations, path_clearance
 from geosyn.metrics.planning.planner import ANYTIME_SLACK, densify
 from geosyn.metrics.planning.relax import metric_relax
@@ -51,7 +52,7 @@ def test_anytime_keeps_the_lowest_energy_path_that_passes_the_checks() -> None:
     bend = np.array([q0, [0.0, 1.6], q1])  # the outer link folded away from the post
     detour = densify(bend, 6)
     far = densify(np.array([q0, [0.0, 2.6], q1]), 6)  # free too, but more energy
-    plan = planner._anytime([(line, "line"), (far, "far"), (detour, "detour")], 0.0, [])
+    plan = anytime_plan(planner, [(line, "line"), (far, "far"), (detour, "detour")], 0.0, [])
     assert plan is not None and plan.seed == "anytime"
     assert plan.result.kind == "feasible" and "detour" in plan.result.message
     np.testing.assert_array_equal(plan.q, detour)
@@ -60,7 +61,7 @@ def test_anytime_keeps_the_lowest_energy_path_that_passes_the_checks() -> None:
     dq, mid = np.diff(detour, axis=0), 0.5 * (detour[1:] + detour[:-1])
     energy = (len(detour) - 1) * sum(d @ metric.G(m) @ d for d, m in zip(dq, mid, strict=True))
     assert abs(plan.result.energy - energy) < 1e-12 * energy
-    assert planner._anytime([(line, "line")], 0.0, []) is None  # nothing passes: none
+    assert anytime_plan(planner, [(line, "line")], 0.0, []) is None  # nothing passes: none
 
 
 # --- anytime at small budgets: a sampled, verified first plan (issue 22) ---------------

@@ -63,7 +63,7 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.geodesic.collocation_parts import interpolate_path
-from geosyn.metrics.planning.anytime import ANYTIME_CHECKS, anytime_plan
+from geosyn.metrics.planning.anytime import ANYTIME_CHECKS
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import (
@@ -369,11 +369,6 @@ class Planner:
         if "lower" not in options:
             options["lower"] = self.bounds(col, q0, q1, self.margin)
         return col.solve(q0, q1, **options)  # type: ignore[arg-type]
-
-    def _anytime(self, unfinished: list[tuple[np.ndarray, str]], t0: float,
-                 attempts: list[str], end: float = math.inf) -> Plan | None:  # fmt: skip
-        """`geosyn.metrics.planning.anytime.anytime_plan` of this planner."""
-        return anytime_plan(self, unfinished, t0, attempts, end)
 
     def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
                         attempts: list[str]) -> tuple[CollocationResult, np.ndarray]:  # fmt: skip

@@ -30,9 +30,11 @@ __all__ = ["taut_seeds"]
 def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
                path: np.ndarray | None, length: float, left: Callable[[], float],
                reserve: float, rrt: Callable[[int, float], np.ndarray | None],
-               attempts: list[str]) -> tuple[np.ndarray | None, float, str]:  # fmt: skip
-    """(shortest, its metric length, how it was made) of the seeds (module docstring)
-    from ``q0`` to ``q1`` (n,) [rad] shorter than ``length``, or (None, ``length``, "").
+               attempts: list[str], start: int = 1,
+               ) -> tuple[np.ndarray | None, float, str, int]:  # fmt: skip
+    """(shortest, its metric length, how it was made, the next seed's number) of the
+    seeds (module docstring) from ``q0`` to ``q1`` (n,) [rad] shorter than ``length``,
+    or (None, ``length``, "", the next seed's number).
 
     Args:
         planner: the planner, its query set (obstacles, ends: `Sampling.start`).
@@ -47,10 +49,14 @@ def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
         rrt: ``rrt(index, budget)``: RRT-Connect path of seed ``seed + index`` within
             ``budget`` [s], or None.
         attempts: the query's list of what was tried (the stop is added to it).
+        start: the number of the first seed after ``path`` (1: bumped line #1; 2: the
+            RRT-Connect path of ``seed + 1``; ...): a later search goes on from where
+            an earlier one stopped instead of pulling the same seeds taut again.
     """
     p, shortest, how, stale, name = planner, None, "", 0, "RRT-Connect path #0"
     bump = 0  # a bumped line's index, instead of ``path``, when > 0
-    for restart in range(1, 10**6):
+    restart = start
+    for restart in range(start, 10**6):
         if path is not None or bump:
             if left() <= reserve:
                 break
@@ -73,4 +79,4 @@ def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
         else:
             path = rrt(restart // 2, (left() - reserve) / 3.0)
             bump, name = 0, f"RRT-Connect path #{restart // 2}"
-    return shortest, length, how
+    return shortest, length, how, restart  # seed ``restart`` not made yet

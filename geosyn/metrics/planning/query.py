@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geosyn.metrics.geodesic.collocation import CollocationResult
+from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.polish import taut_seeds
@@ -128,6 +129,7 @@ class Query:
         self.sampled_path: np.ndarray | None = None  # the sampled plan's path
         self.first_path: np.ndarray | None = None  # the first one (RRT-Connect seed 0)
         self.check_time = 0.0  # the last sampled plan's checks took [s]
+        self.restart = 1  # the polishing's next seed (`taut_seeds`): a second one goes on
         self.exact_failed = False  # the last sampled plan crossed the exact geometry
 
     def left(self) -> float:
@@ -239,9 +241,9 @@ class Query:
         reserve = 1.5 * self.check_time + 0.005
         ample = p.exact is not None and left() - 2.0 * reserve > 2.0 * EXACT_KEEP
         keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
-        shortest, length, how = taut_seeds(
+        shortest, length, how, self.restart = taut_seeds(
             p, self.q0, self.q1, self.seed, self.sampled_path, metric_length(p.metric, plan.q),
-            lambda: left() - keep, reserve, rrt, self.attempts,
+            lambda: left() - keep, reserve, rrt, self.attempts, self.restart,
         )  # fmt: skip
         base = shortest if shortest is not None else np.asarray(plan.q)
         if (
@@ -415,7 +417,7 @@ class Query:
             others += self.alternatives(line)
         if line is None and not others and self.unfinished:  # anytime: the lowest-energy
             end = self.t0 + ANYTIME_SLACK * self.budget  # path that passes the checks
-            plan = self.p._anytime(self.unfinished, self.t0, self.attempts, end)
+            plan = anytime_plan(self.p, self.unfinished, self.t0, self.attempts, end)
             others += [plan] if plan is not None else []
         if line is not None or others:
             best = self.keep(line, others)

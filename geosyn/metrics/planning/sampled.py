@@ -123,24 +123,24 @@ def pull_taut(planner: Planner, path: np.ndarray, budget: float,
     if time.perf_counter() >= end:  # no time for the relaxation
         return rough, rough
     x = even_in_metric(p.metric, rough, p.nodes + 1)
-    return relax_taut(p, x, max(end - time.perf_counter(), 0.0)), rough
+    taut = relax_taut(p, x, max(end - time.perf_counter(), 0.0))
+    return (taut if taut is not None else x), rough  # None only for an invalid seed
 
 
 def relax_taut(planner: Planner, x: np.ndarray, budget: float,
-               seed_valid: bool = True) -> np.ndarray:  # fmt: skip
+               seed_valid: bool = True) -> np.ndarray | None:  # fmt: skip
     """The samples ``x`` (T, n) [rad] relaxed (`metric_relax`, penalty below
     `geosyn.metrics.planning.relax.RELAX_DELTA`, in `TIGHTEN_AFTER` of ``budget`` [s])
     and tightened (penalty below the planner's margin, every step valid at it) in the
-    rest. ``seed_valid`` False: ``x`` may cross the obstacles (`relaxed_line`); the
-    tightening then runs only when the relaxation ended valid, and the result may be
-    ``x`` itself, invalid (the caller checks)."""
+    rest: valid on the spheres. ``seed_valid`` False: ``x`` may cross the obstacles
+    (`relaxed_line`); None when the relaxation did not bring it out (no tightening)."""
     p, end = planner, time.perf_counter() + budget
     check = p.sampling
     taut = metric_relax(check.segment_valid, check.check.clearances, p.metric, x,
                         budget=TIGHTEN_AFTER * budget, resolution=RELAX_RESOLUTION,
                         seed_valid=seed_valid)  # fmt: skip
     if not seed_valid and not _valid(p, taut):
-        return taut
+        return None
     if p.margin > 0.0 and time.perf_counter() < end:  # nearer, valid steps, to the margin
 
         def at_margin(a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
@@ -178,5 +178,4 @@ def relaxed_line(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
     spheres, or None when it did not come out."""
     p = planner
     x = bumped_line(q0, q1, p.nodes + 1, p.robot.q_min, p.robot.q_max, seed, index)
-    taut = relax_taut(p, x, budget, seed_valid=False)
-    return taut if _valid(p, taut) else None
+    return relax_taut(p, x, budget, seed_valid=False)
