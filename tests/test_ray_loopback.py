@@ -14,6 +14,10 @@ import textwrap
 
 import pytest
 
+# Ray clusters on one machine find each other (/tmp/ray): with `pytest -n`, one worker
+# runs every test that starts one.
+pytestmark = pytest.mark.xdist_group("ray")
+
 _PROBE = textwrap.dedent(
     """
     import json, os, re

@@ -17,6 +17,10 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.experiments.errors import ConfigError, RunDirectoryExists
 from geosyn.experiments.sweep import parse_grid, point_name, sweep
 
+# Ray clusters on one machine find each other (/tmp/ray): with `pytest -n`, one worker
+# runs every test that starts one.
+pytestmark = pytest.mark.xdist_group("ray")
+
 SRC = "planar2_geodesic_vs_euclidean"
 BASE = [
     "outputs.plots=false",
