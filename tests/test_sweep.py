@@ -476,6 +476,10 @@ def ray_head():
     from geosyn.experiments.sweep import executors
 
     port = _free_port()
+    # Loopback only, in the head and in this process's client whatever ran before here
+    # (else Ray maps the client's 127.0.0.1 to the machine's address, which the head
+    # does not listen on); `--ray local` sets the same switch.
+    executors._loopback_only_local_cluster()
     # the default token (~/.ray/auth_token, created by the head if missing): a process
     # caches the token it loaded first, so an in-process client cannot switch tokens
     env = {**os.environ, "RAY_AUTH_MODE": "token"}

@@ -220,13 +220,13 @@ def _loopback_only_local_cluster() -> None:
     before the import; a value the user exported is kept and reported.
     """
     value = os.environ.get(_RAY_CLUSTER_ENV)
-    if value is None:
-        os.environ[_RAY_CLUSTER_ENV] = "0"
-        if "ray" in sys.modules:  # imported earlier in this process: read at call time
-            constants = sys.modules.get("ray._private.ray_constants")
-            if constants is not None:
-                setattr(constants, "ENABLE_RAY_CLUSTER", False)  # noqa: B010
-    elif value.strip().lower() not in ("0", "false"):
+    if value is None or value.strip().lower() in ("0", "false"):
+        os.environ[_RAY_CLUSTER_ENV] = "0" if value is None else value
+        # Ray imported earlier in this process read the switch then: set what it read
+        constants = sys.modules.get("ray._private.ray_constants")
+        if constants is not None:
+            setattr(constants, "ENABLE_RAY_CLUSTER", False)  # noqa: B010
+    else:
         warnings.warn(
             f"--ray local: {_RAY_CLUSTER_ENV}={value} is set, so the local Ray cluster"
             " listens on every network interface, not only 127.0.0.1",
