@@ -125,6 +125,31 @@ def test_flags_are_part_of_the_key(tmp_path: Path, compile_counter: list[Path]) 
     assert len(_cached(tmp_path)) == 2
 
 
+def test_long_sources_compile_with_the_large_source_flags(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """compile_function without flags: -O2, or -O1 from LARGE_SOURCE_CHARS characters of
+    C on (here lowered below the tiny function's source); the numbers are the uncompiled
+    function's either way."""
+    used: list[tuple[str, ...]] = []
+    real = codegen._compile
+
+    def recording(compiler, flags, source, output):
+        used.append(tuple(flags))
+        return real(compiler, flags, source, output)
+
+    monkeypatch.setattr(codegen, "_compile", recording)
+    fun = _tiny()
+    x, y = np.array([0.3, -1.2, 2.0]), 0.7
+    short = compile_function(fun, tmp_path / "short")
+    monkeypatch.setattr(codegen, "LARGE_SOURCE_CHARS", 10)
+    long = compile_function(fun, tmp_path / "long")
+    assert used == [codegen.DEFAULT_FLAGS, codegen.LARGE_SOURCE_FLAGS] == [("-O2",), ("-O1",)]
+    for compiled in (short, long):
+        for a, b in zip(compiled(x, y), fun(x, y), strict=True):
+            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
 def test_damaged_library_is_rebuilt(tmp_path: Path, compile_counter: list[Path]) -> None:
     good = tmp_path / "good"
     compile_function(_tiny(), good)
