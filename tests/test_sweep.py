@@ -453,6 +453,25 @@ KILL_CHAINS = {
 _ANNOUNCE = re.compile(r"running (\d+) of (\d+) run\(s\) .*; (\d+) already complete\)")
 
 
+def test_an_exported_loopback_switch_reaches_a_ray_imported_before(monkeypatch) -> None:
+    """RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0 exported after Ray read it (its constant still
+    on): Ray's own address resolution then still maps 127.0.0.1 to the machine's address;
+    after the switch is applied it keeps 127.0.0.1 (referee: ray's resolve_ip_for_localhost)."""
+    import ray._private.ray_constants as constants
+    import ray._private.services as services
+
+    from geosyn.experiments.sweep import executors
+
+    monkeypatch.setattr(constants, "ENABLE_RAY_CLUSTER", True)
+    monkeypatch.setenv("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+    before = services.resolve_ip_for_localhost("127.0.0.1")
+    executors._loopback_only_local_cluster()
+    assert constants.ENABLE_RAY_CLUSTER is False
+    assert services.resolve_ip_for_localhost("127.0.0.1") == "127.0.0.1"
+    assert os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] == "0"
+    print(f"\n127.0.0.1 resolved to {before} before the switch")
+
+
 def _free_port() -> int:
     import socket
 
