@@ -31,6 +31,8 @@ from geosyn.sim import Push, Simulation
 pytestmark = [
     pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler"),
     pytest.mark.slow,
+    # with `pytest -n`, one worker: the module's export is built once (~15 s cold)
+    pytest.mark.xdist_group("export_mpc"),
 ]
 
 Q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])

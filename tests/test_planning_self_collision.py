@@ -29,6 +29,9 @@ from geosyn.metrics.planning.self_collision import INTERSECTING, SELF_NEAR, Self
 from geosyn.robots import load_robot
 from geosyn.robots.collision_geometry import CollisionObject
 
+# with `pytest -n`, one worker: the module's Panda planner is built once (~8 s cold)
+pytestmark = pytest.mark.xdist_group("planning_self_collision")
+
 PAIRS = (
     ("forearm_link", "wrist_3_link"),
     ("upper_arm_link", "wrist_2_link"),
