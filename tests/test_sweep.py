@@ -615,23 +615,29 @@ def test_sweep_killed_at_three_points_resumes_without_loss_or_duplicates(
         complete = now
         counts.append(len(now))
 
-    # the last re-run, in this process, completes exactly the missing runs
-    res = sweep(
-        SRC,
-        {"controllers.0.kp": ["100", "200", "300", "400", "500"]},
-        seeds=2,
-        out=out,
-        overrides=[*BASE, "simulation.duration=0.6", "params.duration=0.6"],
-        progress=False,
-        workers=2,
-        ray_address=None if executor == "local" else address,
-    )
-    assert (res.ran, res.skipped) == (total - len(complete), len(complete))
+    # the last re-run, through the Python API, completes exactly the missing runs. In a
+    # fresh process: a Ray client caches the first token and address mode it saw, and a
+    # pytest worker may have seen other clusters' before.
+    call = f"""
+import json
+from geosyn.experiments.sweep import sweep
+res = sweep({SRC!r}, {{"controllers.0.kp": ["100", "200", "300", "400", "500"]}}, seeds=2,
+            out={str(out)!r}, overrides={[*BASE, "simulation.duration=0.6", "params.duration=0.6"]!r},
+            progress=False, workers=2, ray_address={None if executor == "local" else address!r})
+print(json.dumps([res.ran, res.skipped, [row["n_runs"] for row in res.aggregate]]))
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", call], env=env, cwd=tmp_path, capture_output=True, text=True,
+        timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    ran, skipped, n_runs = json.loads(done.stdout.splitlines()[-1])
+    assert (ran, skipped) == (total - len(complete), len(complete))
     final = _timestamps(out)
     assert len(final) == total
     for run, stamp in complete.items():
         assert final[run] == stamp
-    assert [row["n_runs"] for row in res.aggregate] == [2, 2, 2, 2, 2]
+    assert n_runs == [2, 2, 2, 2, 2]
     assert not list(out.glob("*/.*partial*")) and not list(out.glob("*/.*.lock"))
     print(
         f"\n{executor}: kills {KILL_CHAINS[executor]} left {counts} of {total} runs complete; orphans gone after"
