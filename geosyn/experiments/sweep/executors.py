@@ -217,7 +217,9 @@ def _loopback_only_local_cluster() -> None:
     """Make a ``--ray local`` cluster listen on 127.0.0.1 only (said once if overridden).
 
     Ray reads the switch when it is imported and its processes inherit it, so it is set
-    before the import; a value the user exported is kept and reported.
+    before the import (and applied to a Ray imported earlier in this process). An
+    exported value is kept: off ("0", "false") it is applied the same way, on it is
+    reported.
     """
     value = os.environ.get(_RAY_CLUSTER_ENV)
     if value is None or value.strip().lower() in ("0", "false"):
