@@ -66,6 +66,14 @@ LARGE_SOURCE_CHARS = 500_000
 :func:`compile_library` use LARGE_SOURCE_FLAGS (unless given flags)."""
 _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
+
+def _flags_for(source: str, flags: Sequence[str] | None) -> tuple[str, ...]:
+    """``flags``, or when None the default for a source of this length."""
+    if flags is not None:
+        return tuple(flags)
+    return LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
+
+
 # Salts of the keys: bumped when what a recipe index or a library carries changes, so
 # older files are never looked up (no warning about them; clear_cache removes them).
 _RECIPE_FORMAT = "geosyn-recipe-v2"
@@ -211,9 +219,8 @@ def _compile_cached(
 ) -> ca.Function:
     name = fun.name()
     source = generate_source(name, [fun])
-    if flags is None:
-        flags = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
-    return _build_cached(name, source, [name], cache_dir, tuple(flags), compiler)[name]
+    used = _flags_for(source, flags)
+    return _build_cached(name, source, [name], cache_dir, used, compiler)[name]
 
 
 def _library_key(source: str, cc: str, flags: Sequence[str], recipe_key: str | None) -> str:
@@ -424,10 +431,8 @@ def compile_library(
     if unknown:
         raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
     source = generate_source(name, funs)
-    if flags is None:
-        flags = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
     return _build_cached(
-        name, source, wanted, _resolve_cache_dir(cache_dir), tuple(flags), compiler
+        name, source, wanted, _resolve_cache_dir(cache_dir), _flags_for(source, flags), compiler
     )
 
 
@@ -488,9 +493,7 @@ def compile_recipe(
     report(f"{name}: building the symbolic functions (first use; cached afterwards)")
     funs = list(make_functions())
     source = generate_source(name, funs)
-    used = tuple(flags) if flags is not None else None
-    if used is None:
-        used = LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
+    used = _flags_for(source, flags)
     report(
         f"{name}: {time.perf_counter() - start:.1f} s; compiling {len(source) / 1e6:.1f} MB "
         f"of C with {' '.join(used)} (skipped if already compiled)"
