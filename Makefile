@@ -13,6 +13,7 @@ LATEST  := .venv-latest
 EXTRAS  := test dev distributed video viewer
 # pytest-xdist workers of `make test` (CI's machine has 2 cores): `make test TEST_WORKERS=8`
 TEST_WORKERS ?= 2
+XDIST   = -n $(TEST_WORKERS) --dist loadgroup
 COMMA   := ,
 COMMA_EXTRAS := $(subst $(eval) ,$(COMMA),$(EXTRAS))
 # uv uses this machine's Python and never downloads an interpreter of its own, and compiles
@@ -48,7 +49,7 @@ run: $(STAMP)
 	$(VENV)/bin/geosyn run panda_push_recovery
 
 test: $(TSTAMP) browser
-	$(PY) -m pytest -q --durations=30 -n $(TEST_WORKERS) --dist loadgroup
+	$(PY) -m pytest -q --durations=30 $(XDIST)
 
 # The suite against the newest releases the registry offers (not the lock), in its own venv:
 # an upstream change is seen here before `make lock` takes it. Not run by CI.
@@ -60,7 +61,7 @@ test-latest: $(UV) browser
 	  | sort > $(LATEST)/versions.txt; $(UV) export --frozen --all-extras --no-hashes \
 	  --no-emit-project --no-header --no-annotate | sed 's/ ;.*//' | sort \
 	  | diff - $(LATEST)/versions.txt | sed -n 's/^> /  /p' || true
-	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider -n $(TEST_WORKERS) --dist loadgroup
+	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider $(XDIST)
 
 # Re-resolve uv.lock to the newest releases within pyproject.toml's bounds.
 lock: $(UV)

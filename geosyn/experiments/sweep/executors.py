@@ -223,7 +223,7 @@ def _loopback_only_local_cluster() -> None:
     """
     value = os.environ.get(_RAY_CLUSTER_ENV)
     if value is None or value.strip().lower() in ("0", "false"):
-        os.environ[_RAY_CLUSTER_ENV] = "0" if value is None else value
+        os.environ.setdefault(_RAY_CLUSTER_ENV, "0")
         # Ray imported earlier in this process read the switch then: set what it read
         constants = sys.modules.get("ray._private.ray_constants")
         if constants is not None:

@@ -55,8 +55,7 @@ def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
     """
     p, shortest, how, stale, name = planner, None, "", 0, "RRT-Connect path #0"
     bump = 0  # a bumped line's index, instead of ``path``, when > 0
-    restart = start
-    for restart in range(start, 10**6):
+    for restart in range(start, 10**6):  # the last one is returned
         if path is not None or bump:
             if left() <= reserve:
                 break

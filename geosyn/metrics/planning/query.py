@@ -14,8 +14,8 @@ turns, straight lines bent by a random bump
 then verified: `Query.polish`; with more, it is polished so for `POLISH_FIRST` of the
 budget before the collocations start), and the kept plan is the best verified one by
 the homotopy rule below (the sampled plan is one of the "other seeds": never kept when
-longer than the straight line's solution). ``Plan.first_feasible_time`` says when the first verified plan was
-found.
+longer than the straight line's solution). ``Plan.first_feasible_time`` says when the
+first verified plan was found.
 
 The query's clock, the list of what was tried and the unfinished paths kept for an
 anytime return live here; the planner (its NLPs, checks and clearance bounds) is shared
