@@ -39,6 +39,7 @@ import planning_scenes as ps  # noqa: E402
 from planning_geodex import check_mass_matrix, geodex_run, geodex_sphere_model  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric, shaping  # noqa: E402
+from geosyn.metrics.planning.verify import outside_limits  # noqa: E402
 from geosyn.robots import CollisionSphere, Robot, load_robot  # noqa: E402
 from geosyn.world.exact_clearance import ExactClearance  # noqa: E402
 
@@ -180,6 +181,7 @@ class PathScore(NamedTuple):
     clearance_mesh: float  # min exact distance to the URDF collision meshes (coal) [m]
     geodex_collision_free: bool | None  # geodex's checker on the resampled path
     points: int
+    outside_limits: str  # why a sample leaves the URDF's position limits, "" when none does
 
 
 def metric_length(metric: KineticEnergyMetric, path: np.ndarray) -> float:
@@ -386,6 +388,7 @@ def main(argv: list[str] | None = None) -> None:
             mesh.path_clearance(path, args.check_step).clearance,
             gcheck[key]["collision_free"],
             int(path.shape[0]),
+            outside_limits(metric.robot, path),
         )
 
     print(
@@ -401,7 +404,7 @@ def main(argv: list[str] | None = None) -> None:
     hdr = (
         f"{'scene':18s} {'planner':7s} {'solved':6s} {'wall [s]':>8s} {'length':>8s} "
         f"{'own cost':>8s} {'clr geosyn':>10s} {'clr geodex':>10s} {'clr mesh':>9s} "
-        f"{'geodex chk':>10s}"
+        f"{'geodex chk':>10s} {'limits':>6s}"
     )
     print(hdr)
     print("-" * len(hdr))
@@ -415,7 +418,8 @@ def main(argv: list[str] | None = None) -> None:
                 f"{_fmt(r.extra.get('geodex_cost'), '8.4f'):>8s} "
                 f"{_fmt(s and s.clearance_geosyn, '10.4f'):>10s} "
                 f"{_fmt(s and s.clearance_geodex, '10.4f'):>10s} "
-                f"{_fmt(s and s.clearance_mesh, '9.4f'):>9s} {chk:>10s}"
+                f"{_fmt(s and s.clearance_mesh, '9.4f'):>9s} {chk:>10s} "
+                f"{'-' if s is None else ('OUT' if s.outside_limits else 'ok'):>6s}"
             )
 
     out = Path(args.out)

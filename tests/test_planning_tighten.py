@@ -131,6 +131,7 @@ def test_a_passed_deadline_leaves_the_exact_check_undecided(planner: Planner) ->
     robot, exact = planner.robot, planner.exact
     assert exact is not None
     exact.set_obstacles([BLOCK])
+    planner.sampling.set_obstacles([BLOCK])  # its aids' bounds: not the last query's
     q0, q1 = HOME.copy(), HOME.copy()
     q0[0], q1[0] = -0.9, 0.9  # the hand swings through the block
     path = np.array([q0, q1])

@@ -54,7 +54,12 @@ from geosyn.metrics.planning.sampled import (
 )
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
 from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
-from geosyn.metrics.planning.verify import REPAIR_STEP, exact_check, feasible_result
+from geosyn.metrics.planning.verify import (
+    REPAIR_STEP,
+    exact_check,
+    feasible_result,
+    outside_limits,
+)
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
@@ -144,6 +149,9 @@ class Query:
         constrained points, a finer NLP started there keeps the crossing (measured)."""
         p, previous, extra = self.p, -math.inf, 0.0
         for level, (_, sub) in enumerate(((1, 1), *REFINEMENTS)):
+            if why := outside_limits(p.robot, res.q):  # the NLP's bounds: not expected
+                self.attempts.append(f"{res.kind} path leaves the joint limits ({why}): refused")
+                return None
             coarse, fine = p.check(res.q)
             check, what = min(coarse, fine), "the fine check"
             exact = exact_check(
@@ -272,6 +280,9 @@ class Query:
             self.attempts.append(f"sampled plan: {how}: no time left to check it")
             return None
         path = even_in_metric(p.metric, path, p.nodes + 1) if resample else path
+        if why := outside_limits(p.robot, path):
+            self.attempts.append(f"sampled plan: {how} leaves the joint limits ({why})")
+            return None
         coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
                             self.t0 + ANYTIME_SLACK * self.budget, p.sampling.aids)  # fmt: skip

@@ -132,13 +132,14 @@ def relax_taut(planner: Planner, x: np.ndarray, budget: float,
     """The samples ``x`` (T, n) [rad] relaxed (`metric_relax`, penalty below
     `geosyn.metrics.planning.relax.RELAX_DELTA`, in `TIGHTEN_AFTER` of ``budget`` [s])
     and tightened (penalty below the planner's margin, every step valid at it) in the
-    rest: valid on the spheres. ``seed_valid`` False: ``x`` may cross the obstacles
-    (`relaxed_line`); None when the relaxation did not bring it out (no tightening)."""
+    rest: valid on the spheres and within the joint limits. ``seed_valid`` False: ``x``
+    may cross the obstacles (`relaxed_line`); None when the relaxation did not bring it
+    out (no tightening)."""
     p, end = planner, time.perf_counter() + budget
-    check = p.sampling
+    check, box = p.sampling, (p.robot.q_min, p.robot.q_max)  # every iterate within the limits
     taut = metric_relax(check.segment_valid, check.check.clearances, p.metric, x,
                         budget=TIGHTEN_AFTER * budget, resolution=RELAX_RESOLUTION,
-                        seed_valid=seed_valid)  # fmt: skip
+                        seed_valid=seed_valid, bounds=box)  # fmt: skip
     if not seed_valid and not _valid(p, taut):
         return None
     if p.margin > 0.0 and time.perf_counter() < end:  # nearer, valid steps, to the margin
@@ -148,7 +149,7 @@ def relax_taut(planner: Planner, x: np.ndarray, budget: float,
 
         taut = metric_relax(at_margin, check.check.clearances, p.metric, taut,
                             budget=max(end - time.perf_counter(), 0.0), delta=p.margin,
-                            resolution=RELAX_RESOLUTION, stay_valid=True)  # fmt: skip
+                            resolution=RELAX_RESOLUTION, stay_valid=True, bounds=box)  # fmt: skip
     return taut
 
 

@@ -10,7 +10,7 @@ exactly (coal, `geosyn.metrics.planning.exact_path.configuration_clearances`; th
 penalty acts below the planner's margin) and only steps whose whole path keeps at least
 `EXACT_FLOOR` times the margin at every configuration of the exact check
 (`geosyn.metrics.planning.exact_path.path_clearance`, the verification's own
-resolution). Self-collision is left to the verification that follows, as for every plan.
+resolution), within the joint limits. Self-collision is left to the verification that follows, as for every plan.
 """
 
 from __future__ import annotations
@@ -81,4 +81,5 @@ def exact_tighten(planner: Planner, path: np.ndarray, budget: float) -> np.ndarr
     return metric_relax(
         lambda a, b, r: True, clearances, planner.metric, path, budget=budget,
         delta=planner.margin, stay_valid=True, path_ok=path_ok, fd_step=EXACT_FD_STEP,
+        bounds=(planner.robot.q_min, planner.robot.q_max),
     )  # fmt: skip

@@ -25,7 +25,19 @@ from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.exact_clearance import ExactClearance, PathClearance
 from geosyn.world.shapes import Shape
 
-__all__ = ["REPAIR_STEP", "check_end", "exact_check", "feasible_result", "planning_geometry"]
+__all__ = [
+    "LIMIT_TOL",
+    "REPAIR_STEP",
+    "check_end",
+    "exact_check",
+    "feasible_result",
+    "outside_limits",
+    "planning_geometry",
+]
+
+LIMIT_TOL = 1e-9
+"""Distance [rad] beyond a joint limit that a sample of a plan (or a query's end) may
+lie (an NLP's bound tolerance), no more."""
 
 REPAIR_STEP = 0.005
 """Added to the sphere margin [m], beyond the exact penetration, when a plan fails the
@@ -81,13 +93,28 @@ def exact_check(
     return path_clearance(exact, path, resolution, deadline, aids)
 
 
+def outside_limits(robot: Robot, path: np.ndarray) -> str:
+    """Why ``path`` (T, n) [rad], linear between its samples, leaves the joint limits
+    (the first sample and joint beyond them by more than `LIMIT_TOL`), or "" when it
+    keeps them (the limits are a box: a segment between two samples inside is inside)."""
+    path = np.asarray(path, dtype=float)
+    out = np.maximum(robot.q_min - path, path - robot.q_max)  # (T, n) > 0 outside
+    if not np.any(out > LIMIT_TOL):
+        return ""
+    k, j = np.unravel_index(int(np.argmax(out)), out.shape)
+    return (
+        f"sample {k} has joint {j} ({robot.joint_names[j]}) = {path[k, j]:.4f} rad, outside "
+        f"its limits [{robot.q_min[j]:.4f}, {robot.q_max[j]:.4f}] rad"
+    )
+
+
 def check_end(
     robot: Robot, term: ObstacleTerm, exact: ExactClearance | None, q: np.ndarray, which: str
 ) -> None:
     """Raise if ``q`` (n,) [rad], the ``which`` end of a query, is outside the joint
     limits or in collision (the exact geometry decides when there is one, else the
     spheres of ``term``, whose obstacles are set)."""
-    bad = np.flatnonzero((q < robot.q_min - 1e-9) | (q > robot.q_max + 1e-9))
+    bad = np.flatnonzero((q < robot.q_min - LIMIT_TOL) | (q > robot.q_max + LIMIT_TOL))
     if bad.size:
         j = int(bad[0])
         raise OutsideJointLimits(
