@@ -6,7 +6,8 @@ Each scene of ``planning_scenes.py`` (start, goal, obstacles) is solved by geode
 judged the same way:
 
 - metric length ``L = integral sqrt(qdot^T M(q) qdot)`` under ONE metric, geosyn's
-  `KineticEnergyMetric` of ``load_robot("panda", armature=0.0)`` (sqrt(kg) m), on the path
+  `KineticEnergyMetric` of ``load_robot("panda", armature=0.0)`` with the gripper open as
+  geodex's (`benchmark_robot`, ``--gripper``) (sqrt(kg) m), on the path
   resampled every ``--check-step`` rad (midpoint rule); the energy of its constant-speed,
   unit-duration parameterisation is ``L^2 / 2``. Before the suite, M(q) is compared with
   geodex's ``robots.Panda().mass_matrix(q)`` at 20 seeded configurations;
@@ -171,6 +172,25 @@ def solve_geosyn(scene: ps.Scene, setup: GeosynSetup, budget: float) -> PlannerR
     )
 
 
+GRIPPERS: dict[str, dict[str, float]] = {
+    "open": {"panda_finger_joint1": 0.04, "panda_finger_joint2": 0.04},
+    "closed": {},
+}
+"""Finger positions [m] at which the benchmark's Panda is locked (``--gripper``).
+geodex's (VAMP's) Panda has its gripper open: its finger spheres sit 0.073-0.08 m off
+the hand's axis, where geosyn's ``load_robot("panda")`` (fingers locked closed) has no
+geometry, so a path clear of the closed gripper's meshes by centimetres "collides" for
+geodex's checker (measured: the deepest of them, 5-15 mm into a box, were all finger
+spheres). Both planners plan for the same robot by default: "open"."""
+
+
+def benchmark_robot(gripper: str = "open") -> Robot:
+    """The benchmark's Panda: ``load_robot("panda", armature=0.0)`` with its fingers
+    locked at `GRIPPERS` ``[gripper]``."""
+    lock = GRIPPERS[gripper]
+    return load_robot("panda", armature=0.0, **({"lock_q": lock} if lock else {}))
+
+
 # -- judging both paths the same way ----------------------------------------------------
 
 
@@ -254,12 +274,14 @@ def main(argv: list[str] | None = None) -> None:
         "the full collocation from the straight line)",
     )
     p.add_argument("--skip-geosyn", action="store_true", help="geodex only (no geosyn build)")
+    p.add_argument("--gripper", choices=sorted(GRIPPERS), default="open",
+                   help="the Panda's fingers (GRIPPERS; geodex's Panda is open)")  # fmt: skip
     p.add_argument("--out", default=str(ROOT / "runs" / "planning" / "planning.json"))
     args = p.parse_args(argv)
     scenes = (
         [ps.scene_by_name(n) for n in args.scenes.split(",")] if args.scenes else list(ps.SCENES)
     )
-    robot = load_robot("panda", armature=0.0)
+    robot = benchmark_robot(args.gripper)
     metric = KineticEnergyMetric(robot)
     work = Path(tempfile.mkdtemp(prefix="geosyn-planning-"))
     print(
