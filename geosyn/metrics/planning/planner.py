@@ -37,7 +37,11 @@ One query, within a stated time budget:
    passes, or refused; and for self-collision on the file's self pairs
    (`geosyn.metrics.planning.self_collision.path_self_clearance`, same resolution): a
    self-colliding path is refused (the sampled plans avoid it: their validity includes
-   the self pairs' sphere distances), never returned.
+   the self pairs' sphere distances), never returned. Every plan keeps the joint
+   limits at every sample (the box is convex, so between them too): the collocation has
+   them as bounds, the relaxations of the sampled plans take projected steps
+   (`geosyn.metrics.planning.relax.metric_relax`'s ``bounds``), and the verification
+   refuses a path that leaves them (`geosyn.metrics.planning.verify.outside_limits`).
 
 Default spheres: fitted to the file's meshes (`geosyn.robots.collision_spheres`); they
 and the NLP's per-node functions are cached on disk (`collocation_nlp`).
