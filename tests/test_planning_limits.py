@@ -2,9 +2,9 @@
 Gauss-Newton steps) and the planner's refusal of a path that leaves the limits.
 
 The relaxations of a sampled plan once took no account of the limits: on five of the
-benchmark's 14 Panda scenes the returned path left them by up to 0.79 rad (joint 6 of
-the shelf scene at 4.48 rad, its upper limit 3.7525), found by geodex's checker, which
-tests the limits too.
+benchmark's 14 Panda scenes the returned path left them by up to 0.81 rad (joint 6 of
+the shelf scene at 4.48 rad at a 1 s budget, its upper limit 3.7525), found by geodex's
+checker, which tests the limits too.
 
 Referees: the box itself (every sample within it, the held samples exactly on it); a
 point robot among a disk in the plane, whose clearance is the closed form ``|x - c| -
