@@ -10,7 +10,8 @@ exactly (coal, `geosyn.metrics.planning.exact_path.configuration_clearances`; th
 penalty acts below the planner's margin) and only steps whose whole path keeps at least
 `EXACT_FLOOR` times the margin at every configuration of the exact check
 (`geosyn.metrics.planning.exact_path.path_clearance`, the verification's own
-resolution), within the joint limits. Self-collision is left to the verification that follows, as for every plan.
+resolution), within the joint limits. Self-collision is left to the verification that
+follows, as for every plan.
 """
 
 from __future__ import annotations
