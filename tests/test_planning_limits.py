@@ -127,9 +127,10 @@ def _urdf_limits(planner: Planner) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_relaxed_bumped_lines_keep_the_urdf_limits(panda: Planner) -> None:
-    """On the benchmark's slot scene (`SLOT`, `ENDS`), bumped straight lines relaxed and tightened (`relax_taut`, indices 1-6) keep every
-    sample within the URDF's position limits (Pinocchio's reading of the file), while
-    the same relaxation without the bounds takes at least one of them outside."""
+    """On the benchmark's slot scene (`SLOT`, `ENDS`), bumped straight lines relaxed and
+    tightened (`relax_taut`, indices 1-6) keep every sample within the URDF's position
+    limits (Pinocchio's reading of the file), while the same relaxation without the
+    bounds takes at least one of them outside."""
     lo, hi = _urdf_limits(panda)
     q0, q1 = ENDS
     panda.term.set_obstacles(SLOT)
@@ -150,13 +151,13 @@ def test_relaxed_bumped_lines_keep_the_urdf_limits(panda: Planner) -> None:
 
 
 def test_plans_keep_the_urdf_limits_and_a_planted_excursion_is_named(panda: Planner) -> None:
-    """The default planner's plans on the slot scene at 0.3 and 1 s keep every sample
+    """The default planner's plans on the slot scene at 0.5 and 1 s keep every sample
     within the URDF's limits; a path with one sample 0.1 rad past joint 6's upper limit
     is named by `outside_limits` (sample, joint, value, limits) and refused by the
     planner's verification, which says so in its attempts."""
     lo, hi = _urdf_limits(panda)
     q0, q1 = ENDS
-    for budget in (0.3, 1.0):
+    for budget in (0.5, 1.0):
         plan = panda.plan(q0, q1, SLOT, budget=budget, seed=0)
         q = np.asarray(plan.q)
         assert np.all(q >= lo) and np.all(q <= hi), budget
