@@ -103,6 +103,18 @@ def test_bounds_are_checked_by_name() -> None:
             metric_relax(_clear, _disk, Flat(), seed, bounds=bounds)
 
 
+def test_ends_within_the_tolerance_are_kept_as_given() -> None:
+    """A seed whose start lies 5e-10 rad below the lower bound (inside `OUTSIDE_TOL`, an
+    NLP's bound tolerance): relaxed with those bounds, its ends are returned bit for bit
+    and every interior sample keeps the bound."""
+    seed = _seed()
+    seed[0, 1] = FLOOR - 5e-10
+    lo, hi = np.array([-2.0, FLOOR]), np.array([2.0, 2.0])
+    out = metric_relax(_clear, _disk, Flat(), seed, bounds=(lo, hi), budget=5.0, delta=0.05)
+    np.testing.assert_array_equal(out[[0, -1]], seed[[0, -1]])
+    assert out[1:-1, 1].min() >= FLOOR
+
+
 SLOT = [  # the benchmark's slot scene: a 0.17 m slot between two blocks, into it
     Box((0.65, 0.0, 0.25), (0.15, 0.30, 0.10)),
     Box((0.65, 0.0, 0.62), (0.15, 0.30, 0.10)),

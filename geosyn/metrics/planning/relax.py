@@ -64,7 +64,8 @@ BOUND_TOL = 1e-12
 
 OUTSIDE_TOL = 1e-9
 """Largest distance [rad] of a sample of ``path`` outside `metric_relax`'s ``bounds``
-(e.g. an NLP's bound tolerance; such a sample is clipped onto the box first)."""
+(e.g. an NLP's bound tolerance; such an interior sample is clipped onto the box first,
+the ends are kept as given)."""
 
 
 def _energy_value(metric: Metric, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
@@ -228,7 +229,7 @@ def metric_relax(
     if T < 3:
         return x
     lo, hi = _box(bounds, x)
-    x = np.clip(x, lo, hi)
+    x[1:-1] = np.clip(x[1:-1], lo, hi)  # the ends stay as given (checked by the caller)
 
     def valid(y: np.ndarray) -> bool:
         if path_ok is not None:
