@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 from geosyn.robots import load_robot
-from geosyn.robots.collision_spheres import SphereModel, file_spheres
+from geosyn.robots.collision_spheres import SphereModel, _reach, file_spheres, subdivide
 from geosyn.robots.files import example_robot_data_dir
 from geosyn.robots.robot import Robot
 
@@ -152,3 +152,49 @@ def test_mjcf_primitives_are_covered(tmp_path, monkeypatch) -> None:
             local = np.vstack([mesh.vertices, pts])
             world = local @ d.geom_xmat[g].reshape(3, 3).T + d.geom_xpos[g]
             assert _depth_inside(world, C, R).min() >= model.margin - 1e-9
+
+
+def test_subdivide_tiles_each_triangle_in_order() -> None:
+    """Seeded triangles of 1 mm to 9 cm: each is cut into k^2 sub-triangles (k = its
+    longest edge / spacing, rounded up), in the order of the triangles, that lie in its
+    plane and inside it (barycentric coordinates in [0, 1] to 1e-12), have edges <= the
+    spacing (to 1e-12 m) and areas that sum to its own (to 1e-12 relative)."""
+    rng = np.random.default_rng(3)
+    tris = rng.normal(size=(40, 3, 3)) * rng.uniform(0.001, 0.05, size=(40, 1, 1))
+    spacing = 0.02
+    out = subdivide(tris, spacing)
+    edges = np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2).max(axis=1)
+    ks = np.maximum(1, np.ceil(edges / spacing)).astype(int)
+    assert len(out) == int(np.sum(ks**2)) and ks.max() >= 3
+
+    def area(t: np.ndarray) -> np.ndarray:
+        return 0.5 * np.linalg.norm(
+            np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :]), axis=-1
+        )
+
+    start = 0
+    for tri, k in zip(tris, ks, strict=True):
+        sub = out[start : start + k * k]
+        start += k * k
+        basis = np.stack([tri[1] - tri[0], tri[2] - tri[0]], axis=1)  # (3, 2)
+        coef, *_ = np.linalg.lstsq(basis, (sub.reshape(-1, 3) - tri[0]).T, rcond=None)
+        assert np.abs(basis @ coef - (sub.reshape(-1, 3) - tri[0]).T).max() < 1e-12
+        assert coef.min() > -1e-12 and coef.sum(axis=0).max() < 1.0 + 1e-12
+        assert np.linalg.norm(sub - np.roll(sub, 1, axis=1), axis=2).max() <= spacing + 1e-12
+        assert abs(area(sub).sum() - area(tri)) <= 1e-12 * area(tri)
+
+
+def test_reach_is_the_farthest_outside_point_not_an_inside_one() -> None:
+    """A unit cube's surface (12 triangles), its samples every 1 cm: for points at 3, 7
+    and 11 cm outside the face centres and the cube's centre (inside, 0.5 m from every
+    sample), the reach is 0.11 m (closed form; the centre is not counted); with only
+    inside points it is 0."""
+    from scipy.spatial import cKDTree
+
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    tris = np.asarray(box.vertices)[np.asarray(box.faces)]
+    tree = cKDTree(subdivide(tris, 0.01).reshape(-1, 3))
+    X = np.array([[0.53, 0.0, 0.0], [0.0, -0.57, 0.0], [0.0, 0.0, 0.61], [0.0, 0.0, 0.0]])
+    assert abs(_reach(tris, tree, X, chunk=1) - 0.11) < 1e-12
+    assert abs(_reach(tris, tree, X) - 0.11) < 1e-12
+    assert _reach(tris, tree, np.array([[0.0, 0.0, 0.0], [0.1, 0.2, -0.3]])) == 0.0

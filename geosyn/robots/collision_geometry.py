@@ -200,13 +200,26 @@ def geometry_digest(objects: tuple[CollisionObject, ...]) -> str:
     return h.hexdigest()
 
 
-def _triangle_samples(tri: np.ndarray, spacing: float) -> np.ndarray:
-    """Points on a triangle (3, 3) on a barycentric grid with edges <= ``spacing``."""
-    k = max(1, int(np.ceil(max(np.linalg.norm(tri[i] - tri[i - 1]) for i in range(3)) / spacing)))
-    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
-    keep = i + j <= k
-    a, b = i[keep] / k, j[keep] / k
-    return tri[0] + a[:, None] * (tri[1] - tri[0]) + b[:, None] * (tri[2] - tri[0])
+def _triangle_samples(tris: np.ndarray, spacing: float) -> np.ndarray:
+    """(P, 3) points on the triangles ``tris`` (F, 3, 3), each on a barycentric grid with
+    edges <= ``spacing`` (``k`` cuts per edge), for all the triangles of one ``k`` at
+    once."""
+    tris = np.asarray(tris, dtype=np.float64)
+    longest = np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2).max(axis=1)
+    ks = np.maximum(1, np.ceil(longest / spacing).astype(np.int64))
+    out = []
+    for k in np.unique(ks):
+        t = tris[ks == k]
+        i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+        keep = i + j <= k
+        a, b = (i[keep] / k)[None, :, None], (j[keep] / k)[None, :, None]
+        t0 = t[:, 0][:, None, :]
+        out.append(
+            (
+                t0 + a * (t[:, 1] - t[:, 0])[:, None, :] + b * (t[:, 2] - t[:, 0])[:, None, :]
+            ).reshape(-1, 3)
+        )
+    return np.concatenate(out) if out else np.zeros((0, 3))
 
 
 def _primitive_mesh(obj: CollisionObject) -> tuple[np.ndarray, np.ndarray]:
@@ -247,6 +260,6 @@ def surface_points(obj: CollisionObject, spacing: float) -> np.ndarray:
     within ``spacing / sqrt(3)`` of a sample. A primitive is sampled on a polyhedron
     that encloses it."""
     verts, faces = (obj.vertices, obj.faces) if obj.kind == "mesh" else _primitive_mesh(obj)
-    pts = [verts] + [_triangle_samples(verts[f], spacing) for f in faces]
+    pts = [verts, _triangle_samples(verts[faces], spacing)]
     P = np.unique(np.round(np.vstack(pts), 12), axis=0)
     return P @ obj.placement[:3, :3].T + obj.placement[:3, 3]

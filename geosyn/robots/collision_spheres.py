@@ -178,18 +178,42 @@ def _cells(points: np.ndarray, seeds: np.ndarray, k: int, rng: np.random.Generat
 
 def subdivide(tris: np.ndarray, spacing: float) -> np.ndarray:
     """(M, 3, 3) the triangles ``tris`` (T, 3, 3) cut into sub-triangles with edges <=
-    ``spacing`` [m] (a barycentric grid per triangle)."""
-    out = []
-    for tri in tris:
-        k = max(1, math.ceil(max(np.linalg.norm(tri[i] - tri[i - 1]) for i in range(3)) / spacing))
-        e1, e2 = (tri[1] - tri[0]) / k, (tri[2] - tri[0]) / k
+    ``spacing`` [m] (a barycentric grid per triangle, ``k`` cuts per edge: the ``k^2``
+    sub-triangles of triangle ``t`` follow those of ``t - 1``), computed for all the
+    triangles of one ``k`` at once."""
+    tris = np.asarray(tris, dtype=np.float64)
+    longest = np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2).max(axis=1)
+    ks = np.maximum(1, np.ceil(longest / spacing).astype(np.int64))
+    start = np.concatenate([[0], np.cumsum(ks**2)])
+    out = np.empty((int(start[-1]), 3, 3))
+    for k in np.unique(ks):
+        sel = np.flatnonzero(ks == k)
+        t0 = tris[sel, 0][:, None, :]  # (m, 1, 3)
+        e1, e2 = ((tris[sel, j] - tris[sel, 0]) / k for j in (1, 2))
+        e1, e2 = e1[:, None, :], e2[:, None, :]
         i, j = (a.ravel() for a in np.meshgrid(np.arange(k), np.arange(k), indexing="ij"))
         up, down = i + j < k, i + j < k - 1
-        base = tri[0] + i[:, None] * e1 + j[:, None] * e2
-        out.append(np.stack([base[up], base[up] + e1, base[up] + e2], axis=1))
-        b2 = base[down] + e1 + e2
-        out.append(np.stack([b2, b2 - e1, b2 - e2], axis=1))
-    return np.concatenate(out)
+        base = t0 + i[None, :, None] * e1 + j[None, :, None] * e2  # (m, k^2, 3)
+        b_up, b2 = base[:, up], base[:, down] + e1 + e2
+        block = np.concatenate([np.stack([b_up, b_up + e1, b_up + e2], axis=2),
+                                np.stack([b2, b2 - e1, b2 - e2], axis=2)], axis=1)  # fmt: skip
+        out[start[sel][:, None] + np.arange(k * k)[None]] = block
+    return out
+
+
+def _reach(tris: np.ndarray, tree: object, X: np.ndarray, chunk: int = 64) -> float:
+    """The largest distance [m] from a point of ``X`` (K, 3) outside the closed surface
+    ``tris`` to its nearest surface sample (``tree``, a cKDTree of them); 0 when every
+    point is inside. The points are tested (`_inside`) farthest first, ``chunk`` at a
+    time, up to the first one outside: the same number as testing them all."""
+    d = tree.query(X)[0]  # type: ignore[attr-defined]
+    order = np.argsort(-d, kind="stable")
+    for i in range(0, len(order), chunk):
+        block = order[i : i + chunk]
+        outside = ~_inside(tris, X[block])
+        if np.any(outside):
+            return float(d[block[outside]].max())
+    return 0.0
 
 
 def fit_link_spheres(
@@ -244,7 +268,7 @@ def fit_link_spheres(
         R = np.array([float(need[owner == i, i].max()) + margin for i in keep])
         C = C[keep]
         X = (C[:, None, :] + R[:, None, None] * dirs[None]).reshape(-1, 3)
-        reach = float(tree.query(X[~_inside(tris, X)])[0].max(initial=0.0))
+        reach = _reach(tris, tree, X)
         if reach < best[2] - 1e-3:
             best = (C, R, reach)
         if reach <= excess:
