@@ -28,6 +28,7 @@ __all__ = [
     "KINDS",
     "CollisionObject",
     "collision_objects",
+    "edge_cuts",
     "geometry_digest",
     "surface_points",
     "surface_triangles",
@@ -200,13 +201,20 @@ def geometry_digest(objects: tuple[CollisionObject, ...]) -> str:
     return h.hexdigest()
 
 
-def _triangle_samples(tris: np.ndarray, spacing: float) -> np.ndarray:
-    """(P, 3) points on the triangles ``tris`` (F, 3, 3), each on a barycentric grid with
-    edges <= ``spacing`` (``k`` cuts per edge), for all the triangles of one ``k`` at
-    once."""
+def edge_cuts(tris: np.ndarray, spacing: float) -> np.ndarray:
+    """(F,) int: the cuts ``k`` per edge that make a barycentric grid on each triangle of
+    ``tris`` (F, 3, 3) [m] have edges <= ``spacing`` [m] (its longest edge / spacing,
+    rounded up, at least 1)."""
     tris = np.asarray(tris, dtype=np.float64)
     longest = np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2).max(axis=1)
-    ks = np.maximum(1, np.ceil(longest / spacing).astype(np.int64))
+    return np.maximum(1, np.ceil(longest / spacing).astype(np.int64))
+
+
+def _triangle_samples(tris: np.ndarray, spacing: float) -> np.ndarray:
+    """(P, 3) points on the triangles ``tris`` (F, 3, 3), each on a barycentric grid with
+    edges <= ``spacing`` (`edge_cuts`), for all the triangles of one ``k`` at once."""
+    tris = np.asarray(tris, dtype=np.float64)
+    ks = edge_cuts(tris, spacing)
     out = []
     for k in np.unique(ks):
         t = tris[ks == k]

@@ -31,6 +31,7 @@ import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -40,11 +41,15 @@ from geosyn.core.validation import check_float
 from geosyn.robots.collision_geometry import (
     CollisionObject,
     collision_objects,
+    edge_cuts,
     geometry_digest,
     surface_points,
     surface_triangles,
 )
 from geosyn.robots.robot import CollisionSphere, Robot
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = [
     "FIT_SPACING",
@@ -178,12 +183,11 @@ def _cells(points: np.ndarray, seeds: np.ndarray, k: int, rng: np.random.Generat
 
 def subdivide(tris: np.ndarray, spacing: float) -> np.ndarray:
     """(M, 3, 3) the triangles ``tris`` (T, 3, 3) cut into sub-triangles with edges <=
-    ``spacing`` [m] (a barycentric grid per triangle, ``k`` cuts per edge: the ``k^2``
+    ``spacing`` [m] (a barycentric grid per triangle, `edge_cuts` ``k`` per edge: the ``k^2``
     sub-triangles of triangle ``t`` follow those of ``t - 1``), computed for all the
     triangles of one ``k`` at once."""
     tris = np.asarray(tris, dtype=np.float64)
-    longest = np.linalg.norm(tris - np.roll(tris, 1, axis=1), axis=2).max(axis=1)
-    ks = np.maximum(1, np.ceil(longest / spacing).astype(np.int64))
+    ks = edge_cuts(tris, spacing)
     start = np.concatenate([[0], np.cumsum(ks**2)])
     out = np.empty((int(start[-1]), 3, 3))
     for k in np.unique(ks):
@@ -201,12 +205,12 @@ def subdivide(tris: np.ndarray, spacing: float) -> np.ndarray:
     return out
 
 
-def _reach(tris: np.ndarray, tree: object, X: np.ndarray, chunk: int = 64) -> float:
+def _reach(tris: np.ndarray, tree: cKDTree, X: np.ndarray, chunk: int = 64) -> float:
     """The largest distance [m] from a point of ``X`` (K, 3) outside the closed surface
     ``tris`` to its nearest surface sample (``tree``, a cKDTree of them); 0 when every
     point is inside. The points are tested (`_inside`) farthest first, ``chunk`` at a
     time, up to the first one outside: the same number as testing them all."""
-    d = tree.query(X)[0]  # type: ignore[attr-defined]
+    d = tree.query(X)[0]
     order = np.argsort(-d, kind="stable")
     for i in range(0, len(order), chunk):
         block = order[i : i + chunk]

@@ -163,15 +163,14 @@ def _hold_active(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray, y: np.ndarr
     descent direction ``rhs`` pointing outside: their rows and columns become the
     identity's, their right-hand side 0 (their step is 0)."""
     held = ((y <= lo + BOUND_TOL) & (rhs < 0.0)) | ((y >= hi - BOUND_TOL) & (rhs > 0.0))
-    for k, a in zip(*np.nonzero(held), strict=True):
-        diag[k, a, :] = 0.0
-        diag[k, :, a] = 0.0
-        diag[k, a, a] = 1.0
-        rhs[k, a] = 0.0
-        if k >= 1:
-            off[k - 1, a, :] = 0.0  # the block (k, k - 1): row a of sample k
-        if k + 1 < len(diag):
-            off[k, :, a] = 0.0  # the block (k + 1, k): column a of sample k
+    k, a = np.nonzero(held)
+    diag[k, a, :] = 0.0
+    diag[k, :, a] = 0.0
+    diag[k, a, a] = 1.0
+    rhs[k, a] = 0.0
+    below, above = k >= 1, k + 1 < len(diag)
+    off[k[below] - 1, a[below], :] = 0.0  # the block (k, k - 1): row a of sample k
+    off[k[above], :, a[above]] = 0.0  # the block (k + 1, k): column a of sample k
 
 
 def metric_relax(

@@ -93,12 +93,18 @@ def exact_check(
     return path_clearance(exact, path, resolution, deadline, aids)
 
 
+def _beyond(robot: Robot, Q: np.ndarray) -> np.ndarray:
+    """(T, n) how far [rad] each joint of the configurations ``Q`` (T, n) lies beyond its
+    limits (positive outside, negative inside)."""
+    return np.maximum(robot.q_min - Q, Q - robot.q_max)
+
+
 def outside_limits(robot: Robot, path: np.ndarray) -> str:
     """Why ``path`` (T, n) [rad], linear between its samples, leaves the joint limits
-    (the first sample and joint beyond them by more than `LIMIT_TOL`), or "" when it
+    (the sample and joint farthest beyond them, by more than `LIMIT_TOL`), or "" when it
     keeps them (the limits are a box: a segment between two samples inside is inside)."""
-    path = np.asarray(path, dtype=float)
-    out = np.maximum(robot.q_min - path, path - robot.q_max)  # (T, n) > 0 outside
+    path = np.atleast_2d(np.asarray(path, dtype=float))
+    out = _beyond(robot, path)
     if not np.any(out > LIMIT_TOL):
         return ""
     k, j = np.unravel_index(int(np.argmax(out)), out.shape)
@@ -114,7 +120,7 @@ def check_end(
     """Raise if ``q`` (n,) [rad], the ``which`` end of a query, is outside the joint
     limits or in collision (the exact geometry decides when there is one, else the
     spheres of ``term``, whose obstacles are set)."""
-    bad = np.flatnonzero((q < robot.q_min - LIMIT_TOL) | (q > robot.q_max + LIMIT_TOL))
+    bad = np.flatnonzero(_beyond(robot, q) > LIMIT_TOL)
     if bad.size:
         j = int(bad[0])
         raise OutsideJointLimits(
