@@ -122,8 +122,9 @@ def test_alternative_seeds_find_both_sides_and_keep_the_lowest_energy() -> None:
     assert single.seed == "straight line" and single.result.kind == "constrained"
     planner = Planner(metric, capacity=2, nodes=24, margin=0.01, alternatives=2)
     # a seed whose RRT-Connect samples (the C sampler's sequence) go round the far side
-    # too: 6 of seeds 12-39 do, the others all reach the near side
-    plan = planner.plan(q0, q1, obstacles, budget=20.0, seed=16)
+    # too: 10 of seeds 0-39 do (13, 14, 18, 19, 26, 27, 29, 30, 35, 36), the others all
+    # reach the near side
+    plan = planner.plan(q0, q1, obstacles, budget=20.0, seed=13)
     # the sampled first plan, the straight line's and two alternatives
     assert plan.attempts[-1].startswith("kept the lowest-energy of 4 plans")
     energies = [float(e) for e in plan.attempts[-1].split("energies ")[1].rstrip(")").split(", ")]

@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 from geosyn.core.errors import InvalidArgument
-from geosyn.metrics.planning.rrt import string_pull
+from geosyn.metrics.planning.rrt import RRT_STEP, string_pull
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.metrics.planning.sphere_native import NativeSphereCheck, joint_table, sphere_check
 from geosyn.robots import load_robot
@@ -192,7 +192,7 @@ def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> Non
     assert path is not None and grown > 2
     np.testing.assert_array_equal(path[0], q0)
     np.testing.assert_array_equal(path[-1], q1)
-    assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= 0.3 + 1e-12)
+    assert np.all(np.linalg.norm(np.diff(path, axis=0), axis=1) <= RRT_STEP + 1e-12)
     for x, y in zip(path[:-1], path[1:], strict=True):
         assert slow.segment_valid(x, y, 0.005, 0.0)
     again, _ = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=7)

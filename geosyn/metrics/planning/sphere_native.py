@@ -30,6 +30,7 @@ import numpy as np
 
 from geosyn.core.codegen import CodegenError, compile_shared
 from geosyn.core.errors import InvalidArgument
+from geosyn.metrics.planning.rrt import DYNAMIC_DOMAIN, RRT_STEP, check_domain
 from geosyn.metrics.planning.sphere_check import Frames, SphereCheck
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere
@@ -69,7 +70,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_segment_valid": (_I, [_P, _P, _P, _D, _D, _I]),
         "geosyn_spheres_rrt_connect": (
             _I,
-            [_P, _P, _P, _D, _D, _D, _I, _P, _P, _P, _P, _P, _I, _P, _P, _D, _P],
+            [_P, _P, _P, _D, _D, _D, _I, _P, _P, _P, _P, _P, _P, _P, _I, _P, _P, _D, _P, _I, _P],
         ),
     }
     for name, (res, args) in signatures.items():
@@ -326,12 +327,15 @@ class NativeSphereCheck(SphereCheck):
             int(bool(self._n_pairs))))  # fmt: skip
 
     def rrt_connect(self, q0: np.ndarray, q1: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,
-                    margin: float, step: float = 0.3, resolution: float = 0.05,
-                    budget: float = 2.0, seed: int = 0,
-                    max_nodes: int = 20000) -> tuple[np.ndarray | None, int]:  # fmt: skip
+                    margin: float, step: float = RRT_STEP, resolution: float = 0.05,
+                    budget: float = 2.0, seed: int = 0, max_nodes: int = 20000,
+                    domain: tuple[float, float, float] | None = DYNAMIC_DOMAIN,
+                    balance: bool = True) -> tuple[np.ndarray | None, int]:  # fmt: skip
         """RRT-Connect in C: `geosyn.metrics.planning.rrt.rrt_connect`'s search (the
-        same arguments and result) on `valid` at ``margin`` [m], with its own seeded
-        sampler (xorshift128+), in calls of at most `RRT_SLICE` s."""
+        same arguments and result; balanced trees, the dynamic domain) on `valid` at
+        ``margin`` [m], with its own seeded sampler (xorshift128+), in calls of at most
+        `RRT_SLICE` s."""
+        domain = check_domain(domain)
         n = self.robot.model.nq
         q0, q1 = (np.ascontiguousarray(x, dtype=float) for x in (q0, q1))
         lo, hi = (np.ascontiguousarray(x, dtype=float) for x in (lo, hi))
@@ -339,7 +343,9 @@ class NativeSphereCheck(SphereCheck):
             return np.array([q0, q1]), 2
         trees = [np.empty((max_nodes, n)) for _ in range(2)]
         parents = [np.full(max_nodes, -1, dtype=np.intc) for _ in range(2)]
+        radii = [np.full(max_nodes, np.inf) for _ in range(2)]
         trees[0][0], trees[1][0] = q0, q1
+        dd = np.array(domain if domain is not None else (0.0, 0.0, 0.0), dtype=float)
         size, turn, ends = (np.array(x, dtype=np.intc) for x in ([1, 1], [0], [0, 0]))
         state = np.random.default_rng(seed).integers(1, 2**63, size=2, dtype=np.uint64)
         end = time.perf_counter() + budget
@@ -348,9 +354,10 @@ class NativeSphereCheck(SphereCheck):
             status = self._lib.geosyn_spheres_rrt_connect(
                 self._handle, _address(lo), _address(hi), float(step), float(resolution),
                 float(margin), int(bool(self._n_pairs)), _address(trees[0]),
-                _address(parents[0]), _address(trees[1]), _address(parents[1]),
-                _address(size), int(max_nodes), _address(turn), _address(state),
-                min(left, RRT_SLICE), _address(ends))  # fmt: skip
+                _address(parents[0]), _address(radii[0]), _address(trees[1]),
+                _address(parents[1]), _address(radii[1]), _address(size), int(max_nodes),
+                _address(turn), _address(state), min(left, RRT_SLICE), _address(dd),
+                int(bool(balance)), _address(ends))  # fmt: skip
         grown = int(size.sum())
         if status != 1:
             return None, grown

@@ -500,15 +500,20 @@ static double uniform(uint64_t *s) { /* xorshift128+, in [0, 1) */
 }
 
 typedef struct {
-    double *q;
+    double *q, *radius;
     int *parent, *size;
 } gs_tree;
 
 /* Extend tree t towards target by at most step: the new node's index, or -1 (the
- * segment from the nearest node is invalid, or the tree is full); *reached: the new
- * node is the target. */
+ * segment from the nearest node is invalid, or the tree is full), or -2 (dynamic domain
+ * on, dd[0] > 0: the target lies beyond the nearest node's radius, nothing checked);
+ * *reached: the new node is the target. With the domain on, a node's radius (r, per
+ * node; infinite when new) becomes dd[0] at its first failed extension, then shrinks by
+ * the factor 1 - dd[2] at each failure (to at least dd[1]) and grows by 1 + dd[2] at
+ * each success (Yershova et al. 2005's dynamic-domain RRT). */
 static int extend(gs_model *m, gs_tree *t, const double *target, double step, double resolution,
-                  double margin, int self, int max_nodes, int *reached, double *work) {
+                  double margin, int self, int max_nodes, int *reached, double *work,
+                  const double *dd) {
     int n = m->nq, best = 0;
     double bd = INFINITY;
     for (int i = 0; i < *t->size; ++i) {
@@ -520,43 +525,53 @@ static int extend(gs_model *m, gs_tree *t, const double *target, double step, do
     if (*t->size >= max_nodes) return -1;
     const double *near = t->q + (size_t)n * best;
     double dist = sqrt(bd), *fresh = t->q + (size_t)n * *t->size;
+    double *r = t->radius + best;
+    if (dd && dd[0] > 0.0 && dist > *r) return -2;
     *reached = dist <= step;
     for (int a = 0; a < n; ++a)
         fresh[a] = *reached ? target[a] : near[a] + (target[a] - near[a]) * (step / dist);
-    if (!segment_valid(m, near, fresh, resolution, margin, self, work)) return -1;
+    if (!segment_valid(m, near, fresh, resolution, margin, self, work)) {
+        if (dd && dd[0] > 0.0) *r = isinf(*r) ? dd[0] : fmax(*r * (1.0 - dd[2]), dd[1]);
+        return -1;
+    }
+    if (dd && dd[0] > 0.0 && !isinf(*r)) *r *= 1.0 + dd[2];
     t->parent[*t->size] = best;
+    t->radius[*t->size] = INFINITY;
     return (*t->size)++;
 }
 
 /* RRT-Connect (Kuffner & LaValle) on trees 0 (rooted at the start) and 1 (the goal),
- * resumable: the trees (q (max_nodes, n), parent (max_nodes,), size[2]), whose turn it
- * is (*turn: the tree that grows towards the next sample) and the sampler's state
- * (rng[2]) live in the caller's arrays. Grows them towards uniform samples of the box
- * [lo, hi] for at most `seconds`; returns 1 when they connect (ends[0] in tree 0,
- * ends[1] in tree 1 are the same configuration), 0 when the time is spent, -1 when a
- * tree is full. */
+ * resumable: the trees (q (max_nodes, n), parent (max_nodes,), radius (max_nodes,),
+ * size[2]), whose turn it is (*turn: the tree that grows towards the next sample) and
+ * the sampler's state (rng[2]) live in the caller's arrays. Grows them towards uniform
+ * samples of the box [lo, hi] for at most `seconds`; the sampled tree's extension has a
+ * dynamic domain when dd[0] > 0 (`extend`); balance: the turn passes to the other tree
+ * unless that one has at least twice the nodes. Returns 1 when they connect (ends[0] in
+ * tree 0, ends[1] in tree 1 are the same configuration), 0 when the time is spent, -1
+ * when a tree is full. */
 GS_API int geosyn_spheres_rrt_connect(void *handle, const double *lo, const double *hi,
                                       double step, double resolution, double margin, int self,
-                                      double *q0, int *p0, double *q1, int *p1, int *size,
-                                      int max_nodes, int *turn, uint64_t *rng, double seconds,
-                                      int *ends) {
+                                      double *q0, int *p0, double *r0, double *q1, int *p1,
+                                      double *r1, int *size, int max_nodes, int *turn,
+                                      uint64_t *rng, double seconds, const double *dd,
+                                      int balance, int *ends) {
     gs_model *m = handle;
     int n = m->nq;
     double sample[64], work[64];
     if (n > 64) return -2;
-    gs_tree trees[2] = {{q0, p0, size}, {q1, p1, size + 1}};
+    gs_tree trees[2] = {{q0, r0, p0, size}, {q1, r1, p1, size + 1}};
     double end = seconds_now() + seconds;
     while (seconds_now() < end) {
         gs_tree *a = &trees[*turn], *b = &trees[1 - *turn];
         if (*a->size >= max_nodes || *b->size >= max_nodes) return -1;
         for (int i = 0; i < n; ++i) sample[i] = lo[i] + uniform(rng) * (hi[i] - lo[i]);
         int reached = 0, j = extend(m, a, sample, step, resolution, margin, self, max_nodes,
-                                    &reached, work);
+                                    &reached, work, dd);
         if (j >= 0) {
             const double *target = a->q + (size_t)n * j;
             for (;;) {
                 int k = extend(m, b, target, step, resolution, margin, self, max_nodes,
-                               &reached, work);
+                               &reached, work, NULL);
                 if (k < 0) break;
                 if (reached) {
                     ends[*turn] = j;
@@ -566,7 +581,7 @@ GS_API int geosyn_spheres_rrt_connect(void *handle, const double *lo, const doub
                 if (seconds_now() >= end) break;
             }
         }
-        *turn = 1 - *turn;
+        if (!balance || *b->size < 2 * *a->size) *turn = 1 - *turn;
     }
     return 0;
 }
