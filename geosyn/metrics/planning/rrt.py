@@ -162,17 +162,17 @@ def rrt_connect(
         i = tree.nearest(target)
         d = target - tree.q[i]
         dist = float(np.linalg.norm(d))
-        if sampled and domain is not None and dist > tree.radius[i]:
+        dd, r = (domain if sampled else None), tree.radius[i]  # the connection has none
+        if dd is not None and dist > r:
             return -1, False  # outside the nearest node's domain: nothing checked
         reached = dist <= step
         new = target if reached else tree.q[i] + d * (step / dist)
         if not _edge_valid(valid, tree.q[i], new, resolution):
-            if sampled and domain is not None:
-                r = tree.radius[i]
-                tree.radius[i] = domain[0] if math.isinf(r) else max(r * (1 - domain[2]), domain[1])
+            if dd is not None:
+                tree.radius[i] = dd[0] if math.isinf(r) else max(r * (1 - dd[2]), dd[1])
             return -1, False
-        if sampled and domain is not None and not math.isinf(tree.radius[i]):
-            tree.radius[i] *= 1 + domain[2]
+        if dd is not None and not math.isinf(r):
+            tree.radius[i] = r * (1 + dd[2])
         return tree.add(new, i), reached
 
     while time.perf_counter() < t_end and max(t.size for t in trees) < max_nodes - 1:

@@ -526,15 +526,16 @@ static int extend(gs_model *m, gs_tree *t, const double *target, double step, do
     const double *near = t->q + (size_t)n * best;
     double dist = sqrt(bd), *fresh = t->q + (size_t)n * *t->size;
     double *r = t->radius + best;
-    if (dd && dd[0] > 0.0 && dist > *r) return -2;
+    const int domain = dd && dd[0] > 0.0;
+    if (domain && dist > *r) return -2;
     *reached = dist <= step;
     for (int a = 0; a < n; ++a)
         fresh[a] = *reached ? target[a] : near[a] + (target[a] - near[a]) * (step / dist);
     if (!segment_valid(m, near, fresh, resolution, margin, self, work)) {
-        if (dd && dd[0] > 0.0) *r = isinf(*r) ? dd[0] : fmax(*r * (1.0 - dd[2]), dd[1]);
+        if (domain) *r = isinf(*r) ? dd[0] : fmax(*r * (1.0 - dd[2]), dd[1]);
         return -1;
     }
-    if (dd && dd[0] > 0.0 && !isinf(*r)) *r *= 1.0 + dd[2];
+    if (domain && !isinf(*r)) *r *= 1.0 + dd[2];
     t->parent[*t->size] = best;
     t->radius[*t->size] = INFINITY;
     return (*t->size)++;
