@@ -20,8 +20,9 @@ One query, within a stated time budget:
    its widely spaced points do not straddle thin obstacles; lowered near start and goal
    to their own clearances), then the full collocation from its path, interpolated, with
    a small initial barrier parameter (``seeded_mu_init``), within the first
-   `COARSE_TO_FINE` of the budget; if the coarse-to-fine plan fails (other than by
-   running out of that time), the full collocation from the straight line itself;
+   `COARSE_TO_FINE` of the budget (`geosyn.metrics.planning.coarse`); if the
+   coarse-to-fine plan fails (other than by running out of that time), the full
+   collocation from the straight line itself;
 3. if that fails, RRT-Connect (`geosyn.metrics.planning.rrt`) for a global seed around
    the obstacles, then collocation from it; after a constrained straight-line result,
    up to ``alternatives`` RRT-Connect seeds (other homotopy classes round the
@@ -66,8 +67,8 @@ from geosyn.core.types import Vector
 from geosyn.core.validation import check_float, check_int, check_positive, check_vector
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
-from geosyn.metrics.geodesic.collocation_parts import interpolate_path
 from geosyn.metrics.planning.anytime import ANYTIME_CHECKS
+from geosyn.metrics.planning.coarse import COARSE_RAMP, clearance_bounds
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import (
@@ -331,34 +332,13 @@ class Planner:
             return True
         return clearance >= 0.0
 
-    COARSE_RAMP = 0.25
-    """Fraction of the path over which the coarse clearance bound rises from the start's
-    (goal's) own clearance to ``coarse_margin``."""
+    COARSE_RAMP = COARSE_RAMP
+    """Fraction of the path over which the coarse clearance bound rises (`coarse.COARSE_RAMP`)."""
 
     def bounds(self, col: Collocation, q0: np.ndarray, q1: np.ndarray, level: float) -> np.ndarray:
-        """(P, m) clearance bounds [m] of the collocation ``col`` at its points.
-
-        Per constraint, ``level``, lowered near the ends to the start's (goal's)
-        clearance plus ``level`` times the fraction of `COARSE_RAMP` travelled (the
-        sphere model is conservative: an end may sit inside it while clear of the
-        robot's exact geometry, which `verify` checks), and capped (never below
-        ``margin``) where a robot sphere keeps the same clearance to an obstacle at
-        start, goal and halfway (e.g. a base sphere above a floor: no path could raise it).
-        """
-        t = col.point_times[:, None]
-        c0, c1 = col.slot_clearances(q0)[None], col.slot_clearances(q1)[None]
-        k = max(level, self.margin) / self.COARSE_RAMP
-        bounds = np.minimum(np.minimum(c0 + k * t, c1 + k * (1.0 - t)), level)
-        n_obs, cap = len(self.term.obstacles), self.term.capacity
-        if n_obs:
-            C = np.stack([self.term.clearances(q) for q in (q0, q1, 0.5 * (q0 + q1))])
-            slack = 0.0 if self.softmin is None else math.log(C.shape[1]) / self.softmin
-            fixed = np.ptp(C, axis=0) < 1e-9  # (spheres, obstacles)
-            caps = np.full((C.shape[1], cap), math.inf)
-            caps[:, :n_obs] = np.where(fixed, np.maximum(self.margin, C[0] - slack), math.inf)
-            per_row = caps.min(axis=0) if self.softmin is not None else caps.ravel()
-            bounds = np.minimum(bounds, np.maximum(per_row[None], self.margin))
-        return bounds
+        """(P, m) clearance bounds [m] of the collocation ``col`` at its points, at
+        ``level`` [m] (`geosyn.metrics.planning.coarse.clearance_bounds`)."""
+        return clearance_bounds(self, col, q0, q1, level)
 
     def coarse_bounds(self, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
         """(P, m) clearance bounds [m] of the coarse collocation (`bounds` at
@@ -373,28 +353,6 @@ class Planner:
         if "lower" not in options:
             options["lower"] = self.bounds(col, q0, q1, self.margin)
         return col.solve(q0, q1, **options)  # type: ignore[arg-type]
-
-    def _coarse_to_fine(self, q0: np.ndarray, q1: np.ndarray, budget: float,
-                        attempts: list[str]) -> tuple[CollocationResult, np.ndarray]:  # fmt: skip
-        """The full collocation from the coarse one's path (see the module docstring),
-        and that path (its nodes, interpolated to the full node count)."""
-        t0 = time.perf_counter()
-        coarse = self.collocation(self.coarse_nodes, self.coarse_subdivisions)
-        seed = coarse.solve(q0, q1, budget=0.5 * budget, refine=False,
-                            lower=self.coarse_bounds(q0, q1))  # fmt: skip
-        # a failed coarse solve still leaves a path round the obstacles (its last iterate):
-        # only a seed, the full collocation and the checks decide
-        attempts.append(f"coarse collocation ({self.coarse_nodes} segments, "
-                        f"{self.coarse_subdivisions} constrained point(s) inside each, "
-                        f"clearance {self.coarse_margin:g} m) from the straight line: "
-                        f"{seed.message}")  # fmt: skip
-        times = np.linspace(0.0, 1.0, len(seed.nodes))
-        init = interpolate_path(seed.nodes, times, self.nodes, self.metric.n)
-        left = max(budget - (time.perf_counter() - t0), 1e-3)
-        res = self.solve(self.collocation(self.nodes), q0, q1, init=init, budget=left,
-                         mu_init=self.seeded_mu_init)  # fmt: skip
-        attempts.append(f"collocation from the coarse path: {res.message}")
-        return res, init
 
     def _check_end(self, q: np.ndarray, which: str) -> None:
         check_end(self.robot, self.term, self.exact, q, which)

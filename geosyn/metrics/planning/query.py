@@ -40,6 +40,7 @@ import numpy as np
 
 from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.anytime import anytime_plan
+from geosyn.metrics.planning.coarse import coarse_to_fine
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.polish import taut_seeds
@@ -343,7 +344,7 @@ class Query:
         p, q0, q1 = self.p, self.q0, self.q1
         if p.coarse_nodes and p.term.obstacles:
             share = COARSE_TO_FINE * max(self.left(), 1e-3)
-            res, init = p._coarse_to_fine(q0, q1, share, self.attempts)
+            res, init = coarse_to_fine(p, q0, q1, share, self.attempts)
             if not res.success:
                 self.unfinished += [
                     (res.nodes, "the interrupted collocation from the coarse path"),
