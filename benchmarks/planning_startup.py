@@ -1,7 +1,9 @@
 """Benchmark: what a user waits for before the first plan (issue 22, deliver 3).
 
 Runs, each in a fresh Python process, ``Planner(KineticEnergyMetric(load_robot("panda")))``
-(every default) and its first query (a scene of ``planning_scenes.py``): first with an
+(every default; ``--gripper open``: the fingers locked open, as the planning benchmarks'
+`planning.benchmark_robot`, whose finger meshes the spheres are then fitted to as well)
+and its first query (a scene of ``planning_scenes.py``): first with an
 empty cache folder (``GEOSYN_CACHE_DIR`` a new temporary folder: the spheres are fitted
 to the URDF meshes and the per-node functions built), then ``--repeat`` times with that
 cache warm. Prints wall and CPU time of the import, the planner's creation and the first
@@ -9,7 +11,8 @@ plan, and when the first plan's first feasible path was found after the creation
 query builds the NLPs of its own obstacle slot count first, `Plan.nlp_build_time`; with
 the default ``alternatives`` the query then spends time on other seeds).
 
-Run: ``.venv/bin/python benchmarks/planning_startup.py [--scene quickstart] [--repeat 2]``
+Run: ``.venv/bin/python benchmarks/planning_startup.py [--scene quickstart] [--repeat 2]
+[--gripper closed|open]``
 """
 
 from __future__ import annotations
@@ -28,12 +31,14 @@ w0, c0 = time.perf_counter(), time.process_time()
 import numpy as np
 sys.path.insert(0, {bench!r})
 import planning_scenes as ps
-from planning import to_geosyn
+from planning import GRIPPERS, to_geosyn
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
 from geosyn.robots import load_robot
 w1, c1 = time.perf_counter(), time.process_time()
-planner = Planner(KineticEnergyMetric(load_robot("panda", armature=0.0)))
+lock = GRIPPERS[{gripper!r}]
+planner = Planner(KineticEnergyMetric(load_robot("panda", armature=0.0,
+                                                 **({{"lock_q": lock}} if lock else {{}}))))
 w2, c2 = time.perf_counter(), time.process_time()
 sc = ps.scene_by_name({scene!r})
 plan = planner.plan(np.array(sc.q_start), np.array(sc.q_goal),
@@ -51,10 +56,14 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description="geosyn Planner: first use and new-process times")
     p.add_argument("--scene", default="quickstart")
     p.add_argument("--repeat", type=int, default=2, help="new processes with the warm cache")
+    p.add_argument("--gripper", choices=("closed", "open"), default="closed",
+                   help="closed: load_robot('panda') as a user gets it; open: as the "
+                        "planning benchmarks' robot (planning.benchmark_robot)")  # fmt: skip
     args = p.parse_args(argv)
     bench = str(Path(__file__).resolve().parent)
-    code = CHILD.format(bench=bench, scene=args.scene)
-    print(f"load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores, shared machine)")
+    code = CHILD.format(bench=bench, scene=args.scene, gripper=args.gripper)
+    print(f"load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores, shared machine); "
+          f"gripper {args.gripper}")  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="geosyn-cache-") as cache:
         env = {**os.environ, "GEOSYN_CACHE_DIR": cache}
         for i in range(1 + args.repeat):
