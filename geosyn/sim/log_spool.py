@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.sim.errors import SpoolError
 from geosyn.sim.log import LOG_FIELDS, allocate_rows, derive_rows, finish_rows
 
@@ -217,4 +218,37 @@ class LogWriter:
             self.path = None
 
 
-__all__ = ["SPOOL_CHUNK", "LogWriter", "SpoolError", "row_bytes", "spool_directory"]
+MAX_LOG_BYTES = 4 << 30
+"""Largest per-tick log of one `geosyn.sim.Simulation.run` [bytes] (4 GiB): a longer run
+is refused before anything is allocated (`open_log`). A run of more than ``SPOOL_CHUNK``
+ticks holds one chunk in memory and the rest in its spool file, so this bounds disk."""
+
+
+def open_log(
+    n_ticks: int,
+    dims: Mapping[str, int],
+    control_dt: float,
+    spool_dir: str | os.PathLike[str] | None = None,
+) -> LogWriter:
+    """The log of a run of ``n_ticks`` ticks of ``control_dt`` [s] with dimensions ``dims``
+    (``nq``, ``nv``, ``P``), spooled when long; `InvalidArgument` over `MAX_LOG_BYTES`."""
+    log_bytes = n_ticks * row_bytes(dims)
+    if log_bytes > MAX_LOG_BYTES:  # e.g. duration 2e4 s: refuse, do not allocate
+        raise InvalidArgument(
+            f"duration={n_ticks * control_dt:g} s is {n_ticks} ticks of {control_dt:g} s whose"
+            f" log needs {log_bytes / 2**30:.3g} GiB, more than MAX_LOG_BYTES ="
+            f" {MAX_LOG_BYTES / 2**30:g} GiB; shorten the run or raise"
+            " geosyn.sim.log_spool.MAX_LOG_BYTES"
+        )
+    return LogWriter(n_ticks, dims, control_dt, spool_dir)
+
+
+__all__ = [
+    "MAX_LOG_BYTES",
+    "SPOOL_CHUNK",
+    "LogWriter",
+    "SpoolError",
+    "open_log",
+    "row_bytes",
+    "spool_directory",
+]

@@ -145,6 +145,31 @@ class Scene:
         return p
 
 
+def torque_range(
+    scene: Scene, robot: Robot, plant: str, limits: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """(nv,), (nv,) torque bounds [N m] a simulation of ``scene`` clips to.
+
+    ``plant`` ``"model"``: MuJoCo's actuator ctrlrange (with ``limits`` False, the
+    actuators are made unlimited in ``scene.model`` and the range is MuJoCo's unused one);
+    ``"file"``: the joint forces are clipped to ``robot.tau_max`` (+-inf without
+    ``limits``). `InvalidArgument` when the model's actuators are not in joint order.
+    """
+    model = scene.model
+    if plant == "file":  # joint forces, clipped to the robot's limits
+        tau_max = np.asarray(robot.tau_max, dtype=np.float64).copy()
+        return (-tau_max, tau_max) if limits else (-np.inf * tau_max, np.inf * tau_max)
+    if not limits:
+        model.actuator_ctrllimited[:] = 0
+    act_joints = [int(model.actuator_trnid[a, 0]) for a in range(model.nu)]
+    act_dof = np.array([model.jnt_dofadr[j] for j in act_joints], dtype=np.int64)
+    if not np.array_equal(act_dof, scene.dof_adr):
+        raise InvalidArgument(
+            "the scene's actuators are not in joint order; check robot.joint_names"
+        )
+    return np.array(model.actuator_ctrlrange[:, 0]), np.array(model.actuator_ctrlrange[:, 1])
+
+
 def _payload_body(payload: Payload, name: str, placement: pin.SE3) -> str:
     """The ``<body>`` of a payload in its carrying joint's body; ``placement`` is the
     payload frame in that body [m]."""
@@ -304,4 +329,4 @@ def build_scene(
     )
 
 
-__all__ = ["PAYLOAD_MARKER_RADIUS", "Scene", "build_scene", "link_placement"]
+__all__ = ["PAYLOAD_MARKER_RADIUS", "Scene", "build_scene", "link_placement", "torque_range"]

@@ -48,15 +48,10 @@ from geosyn.sim.disturbances import Disturbance, overrides
 from geosyn.sim.divergence import SPEED_FACTOR, DivergenceCheck
 from geosyn.sim.file_scene import build_file_scene
 from geosyn.sim.log import SimResult
-from geosyn.sim.log_spool import LogWriter, row_bytes
+from geosyn.sim.log_spool import MAX_LOG_BYTES, LogWriter, open_log
 from geosyn.sim.obstacles import obstacle_contact_force
-from geosyn.sim.scene import Scene, build_scene
+from geosyn.sim.scene import Scene, build_scene, torque_range
 from geosyn.world import Payload
-
-MAX_LOG_BYTES = 4 << 30
-"""Largest per-tick log of one `Simulation.run` [bytes] (4 GiB): a longer run is refused
-before anything is allocated. A run of more than ``SPOOL_CHUNK`` ticks holds one chunk in
-memory and the rest in its spool file (`geosyn.sim.log_spool`), so this bounds disk."""
 
 
 class Simulation:
@@ -147,22 +142,7 @@ class Simulation:
             )
         self.model = self.scene.model
         self.data = mujoco.MjData(self.model)
-        if self.plant == "file":  # joint forces, clipped to the robot's limits
-            self.tau_min = -np.asarray(robot.tau_max, dtype=np.float64)
-            self.tau_max = np.asarray(robot.tau_max, dtype=np.float64).copy()
-            if not self.torque_limits:
-                self.tau_min, self.tau_max = self.tau_min * np.inf, self.tau_max * np.inf
-        else:
-            if not self.torque_limits:
-                self.model.actuator_ctrllimited[:] = 0
-            self.tau_min = np.array(self.model.actuator_ctrlrange[:, 0])
-            self.tau_max = np.array(self.model.actuator_ctrlrange[:, 1])
-        act_joints = [int(self.model.actuator_trnid[a, 0]) for a in range(self.model.nu)]
-        act_dof = np.array([self.model.jnt_dofadr[j] for j in act_joints], dtype=np.int64)
-        if self.plant == "model" and not np.array_equal(act_dof, self.scene.dof_adr):
-            raise InvalidArgument(
-                "the scene's actuators are not in joint order; check robot.joint_names"
-            )
+        self.tau_min, self.tau_max = torque_range(self.scene, robot, self.plant, self.torque_limits)
 
         self.disturbances = copy.deepcopy(disturbances)
         for d in self.disturbances:
@@ -228,14 +208,15 @@ class Simulation:
 
         Raises:
             InvalidArgument: bad initial state, duration (also: a log larger than
-                `MAX_LOG_BYTES`) or seed, the controller returned
+                `geosyn.sim.log_spool.MAX_LOG_BYTES`) or seed, the controller returned
                 an array of the wrong shape or raised `InvalidArgument`. Other geosyn errors
                 of the controller (a failed solve, no reference) end the run with the status
                 ``"controller failed: ..."``.
             SpoolError: a long run's spool file cannot be written (e.g. disk full).
         """
         q0, v0, n_ticks, seed = self._check_run(q0, v0, duration, seed)
-        log = self._open_log(n_ticks, duration, spool_dir)
+        dims = {"nq": self.robot.nq, "nv": self.robot.nv, "P": len(self.scene.payload_body_ids)}
+        log = open_log(n_ticks, dims, self.control_dt, spool_dir)
         try:
             self._start(q0, v0, reference, seed)
             wall0 = time.perf_counter()
@@ -266,21 +247,6 @@ class Simulation:
             )
         seed = check_int(self.seed if seed is None else seed, "seed", low=0)
         return q0, v0, n_ticks, seed
-
-    def _open_log(
-        self, n_ticks: int, duration: float, spool_dir: str | os.PathLike[str] | None
-    ) -> LogWriter:
-        """The log of a run of ``n_ticks`` (spooled when long), refused over `MAX_LOG_BYTES`."""
-        dims = {"nq": self.robot.nq, "nv": self.robot.nv, "P": len(self.scene.payload_body_ids)}
-        log_bytes = n_ticks * row_bytes(dims)
-        if log_bytes > MAX_LOG_BYTES:  # e.g. duration 2e4 s: refuse, do not allocate
-            raise InvalidArgument(
-                f"duration={duration:g} s is {n_ticks} ticks of {self.control_dt:g} s whose log"
-                f" needs {log_bytes / 2**30:.3g} GiB, more than MAX_LOG_BYTES ="
-                f" {MAX_LOG_BYTES / 2**30:g} GiB; shorten the run or raise"
-                " geosyn.sim.simulation.MAX_LOG_BYTES"
-            )
-        return LogWriter(n_ticks, dims, self.control_dt, spool_dir)
 
     def _loop(
         self, log: LogWriter, n_ticks: int, reference: ReferenceLike | None
@@ -485,4 +451,4 @@ class Simulation:
         )
 
 
-__all__ = ["SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]
+__all__ = ["MAX_LOG_BYTES", "SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]
