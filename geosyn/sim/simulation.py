@@ -48,7 +48,7 @@ from geosyn.sim.disturbances import Disturbance, overrides
 from geosyn.sim.divergence import SPEED_FACTOR, DivergenceCheck
 from geosyn.sim.file_scene import build_file_scene
 from geosyn.sim.log import SimResult
-from geosyn.sim.log_spool import MAX_LOG_BYTES, LogWriter, open_log
+from geosyn.sim.log_spool import LogWriter, open_log
 from geosyn.sim.obstacles import obstacle_contact_force
 from geosyn.sim.scene import Scene, build_scene, torque_range
 from geosyn.world import Payload
@@ -451,4 +451,4 @@ class Simulation:
         )
 
 
-__all__ = ["MAX_LOG_BYTES", "SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]
+__all__ = ["SPEED_FACTOR", "ControllerLike", "ReferenceLike", "Simulation"]
