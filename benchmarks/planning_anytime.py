@@ -4,7 +4,7 @@ the same scenes in one run (issue 22, "anytime behaviour").
 For each budget ``T`` (default 0.05, 0.1, 0.3, 1, 2 s), in turn: geodex plans every scene
 with ``PlanSettings.time = T`` (its venv, `planning_geodex.geodex_run`), then geosyn's
 default ``Planner(KineticEnergyMetric(panda))`` (the gripper open, as geodex's Panda:
-`planning.benchmark_robot`) plans every scene with ``budget=T``
+`planning_geosyn.benchmark_robot`) plans every scene with ``budget=T``
 (alternating A/B by budget, so both see the same machine load); then geosyn again with
 geodex's measured wall time on each scene as its budget (geodex overshoots its budget,
 by its smoothing: at equal wall time, as the issue asks; ``--no-matched`` skips it). geosyn's NLPs of every
@@ -42,15 +42,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 import planning_scenes as ps  # noqa: E402
-from planning import (  # noqa: E402
-    CAPACITY,
-    GRIPPERS,
-    ROOT,
-    benchmark_robot,
-    metric_length,
-    to_geosyn,
-)
+from planning import ROOT, metric_length  # noqa: E402
 from planning_geodex import geodex_run  # noqa: E402
+from planning_geosyn import CAPACITY, GRIPPERS, benchmark_robot, to_geosyn  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
 from geosyn.metrics.planning import Planner, PlanningError  # noqa: E402
@@ -124,7 +118,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--check-step", type=float, default=2e-3, help="resampling step [rad]")
     p.add_argument("--geodex-seed", type=int, default=1)
     p.add_argument("--gripper", choices=sorted(GRIPPERS), default="open",
-                   help="the Panda's fingers (planning.GRIPPERS; geodex's Panda is open)")  # fmt: skip
+                   help="the Panda's fingers (planning_geosyn.GRIPPERS; geodex's Panda is open)")  # fmt: skip
     p.add_argument("--out", default=str(ROOT / "runs" / "planning" / "anytime.json"))
     p.add_argument("--no-matched", dest="matched", action="store_false",
                    help="skip geosyn's runs with geodex's measured wall time as the budget")  # fmt: skip

@@ -2,7 +2,7 @@
 
 Runs, each in a fresh Python process, ``Planner(KineticEnergyMetric(load_robot("panda")))``
 (every default; ``--gripper open``: the fingers locked open, as the planning benchmarks'
-`planning.benchmark_robot`, whose finger meshes the spheres are then fitted to as well)
+`planning_geosyn.benchmark_robot`, whose finger meshes the spheres are then fitted to as well)
 and its first query (a scene of ``planning_scenes.py``): first with an
 empty cache folder (``GEOSYN_CACHE_DIR`` a new temporary folder: the spheres are fitted
 to the URDF meshes and the per-node functions built), then ``--repeat`` times with that
@@ -31,7 +31,7 @@ w0, c0 = time.perf_counter(), time.process_time()
 import numpy as np
 sys.path.insert(0, {bench!r})
 import planning_scenes as ps
-from planning import GRIPPERS, to_geosyn
+from planning_geosyn import GRIPPERS, to_geosyn
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
 from geosyn.robots import load_robot
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--repeat", type=int, default=2, help="new processes with the warm cache")
     p.add_argument("--gripper", choices=("closed", "open"), default="closed",
                    help="closed: load_robot('panda') as a user gets it; open: as the "
-                        "planning benchmarks' robot (planning.benchmark_robot)")  # fmt: skip
+                        "planning benchmarks' robot (planning_geosyn.benchmark_robot)")  # fmt: skip
     args = p.parse_args(argv)
     bench = str(Path(__file__).resolve().parent)
     code = CHILD.format(bench=bench, scene=args.scene, gripper=args.gripper)
