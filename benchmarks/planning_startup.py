@@ -25,20 +25,20 @@ import sys
 import tempfile
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).parent))
+from planning_geosyn import GRIPPERS  # noqa: E402
+
 CHILD = """
 import json, sys, time
 w0, c0 = time.perf_counter(), time.process_time()
 import numpy as np
 sys.path.insert(0, {bench!r})
 import planning_scenes as ps
-from planning_geosyn import GRIPPERS, to_geosyn
+from planning_geosyn import benchmark_robot, to_geosyn
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
-from geosyn.robots import load_robot
 w1, c1 = time.perf_counter(), time.process_time()
-lock = GRIPPERS[{gripper!r}]
-planner = Planner(KineticEnergyMetric(load_robot("panda", armature=0.0,
-                                                 **({{"lock_q": lock}} if lock else {{}}))))
+planner = Planner(KineticEnergyMetric(benchmark_robot({gripper!r})))
 w2, c2 = time.perf_counter(), time.process_time()
 sc = ps.scene_by_name({scene!r})
 plan = planner.plan(np.array(sc.q_start), np.array(sc.q_goal),
@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description="geosyn Planner: first use and new-process times")
     p.add_argument("--scene", default="quickstart")
     p.add_argument("--repeat", type=int, default=2, help="new processes with the warm cache")
-    p.add_argument("--gripper", choices=("closed", "open"), default="closed",
+    p.add_argument("--gripper", choices=sorted(GRIPPERS), default="closed",
                    help="closed: load_robot('panda') as a user gets it; open: as the "
                         "planning benchmarks' robot (planning_geosyn.benchmark_robot)")  # fmt: skip
     args = p.parse_args(argv)

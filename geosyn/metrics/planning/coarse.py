@@ -64,7 +64,7 @@ def coarse_to_fine(
     t0 = time.perf_counter()
     coarse = p.collocation(p.coarse_nodes, p.coarse_subdivisions)
     seed = coarse.solve(q0, q1, budget=0.5 * budget, refine=False,
-                        lower=p.coarse_bounds(q0, q1))  # fmt: skip
+                        lower=clearance_bounds(p, coarse, q0, q1, p.coarse_margin))  # fmt: skip
     # a failed coarse solve still leaves a path round the obstacles (its last iterate):
     # only a seed, the full collocation and the checks decide
     attempts.append(f"coarse collocation ({p.coarse_nodes} segments, "
