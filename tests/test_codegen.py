@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from geosyn.core import GeosynError, InvalidArgument, codegen
+from geosyn.core import GeosynError, InvalidArgument, codegen, library_cache
 from geosyn.core.calls import numpy_function
 from geosyn.core.codegen import CodegenError, clear_cache, compile_function
 from geosyn.robots import symbolic
@@ -46,13 +46,13 @@ def sample_dynamics() -> symbolic.DynamicsFunctions:
 def compile_counter(monkeypatch: pytest.MonkeyPatch) -> list[Path]:
     """Records every compiler run (the C file compiled) while still compiling."""
     runs: list[Path] = []
-    real = codegen._compile
+    real = library_cache.run_compiler
 
     def counting(compiler, flags, source, output):
         runs.append(source)
         return real(compiler, flags, source, output)
 
-    monkeypatch.setattr(codegen, "_compile", counting)
+    monkeypatch.setattr(library_cache, "run_compiler", counting)
     return runs
 
 
@@ -95,12 +95,12 @@ def test_cache_is_shared_across_processes(tmp_path: Path) -> None:
     script = textwrap.dedent(
         f"""
         import casadi as ca
-        from geosyn.core import codegen
+        from geosyn.core import codegen, library_cache
 
         def no_compiler(*args):
             raise SystemExit("the compiler ran despite a cached library")
 
-        codegen._compile = no_compiler
+        library_cache.run_compiler = no_compiler
         x = ca.SX.sym("x", 3)
         y = ca.SX.sym("y")
         fun = ca.Function("tiny", [x, y], [ca.sin(x) * y, ca.horzcat(x, 2 * x), ca.dot(x, x)],
@@ -132,13 +132,13 @@ def test_long_sources_compile_with_the_large_source_flags(
     C on (here lowered below the tiny function's source); the numbers are the uncompiled
     function's either way."""
     used: list[tuple[str, ...]] = []
-    real = codegen._compile
+    real = library_cache.run_compiler
 
     def recording(compiler, flags, source, output):
         used.append(tuple(flags))
         return real(compiler, flags, source, output)
 
-    monkeypatch.setattr(codegen, "_compile", recording)
+    monkeypatch.setattr(library_cache, "run_compiler", recording)
     fun = _tiny()
     x, y = np.array([0.3, -1.2, 2.0]), 0.7
     short = compile_function(fun, tmp_path / "short")
@@ -264,7 +264,7 @@ def test_concurrent_builders_agree(tmp_path: Path) -> None:
 
 
 def test_missing_compiler_raises(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(codegen.shutil, "which", lambda name: None)
+    monkeypatch.setattr(library_cache.shutil, "which", lambda name: None)
     with pytest.raises(CodegenError, match="no C compiler"):
         compile_function(_tiny(), tmp_path)
     assert issubclass(CodegenError, GeosynError)

@@ -20,7 +20,7 @@ from geosyn.controllers.mpc.ocp.compiled import (
 )
 from geosyn.controllers.mpc.ocp.dynamics import stage_dynamics
 from geosyn.controllers.mpc.ocp.settings import DEFAULT_EFFORT_WEIGHT, ocp_settings
-from geosyn.core import InvalidArgument, codegen
+from geosyn.core import InvalidArgument, codegen, library_cache
 from geosyn.core.codegen import CodegenError, clear_cache, compile_library
 
 
@@ -89,7 +89,7 @@ def test_compiled_stage_dynamics_match_the_symbolic_ones() -> None:
 def test_without_compiler_hessian_becomes_exact_and_is_recorded(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    monkeypatch.setattr(codegen, "find_compiler", lambda: None)
+    monkeypatch.setattr(library_cache, "find_compiler", lambda: None)
     with pytest.warns(RuntimeWarning, match="hessian.*exact.*no C compiler"):
         mpc = GeodesicMPC(get_robot("planar2"), get_metric("planar2"), horizon=5)
     assert mpc.hessian == "exact"
@@ -120,7 +120,7 @@ def test_settings_defaults_follow_the_effort() -> None:
 def test_codegen_error_is_what_a_missing_compiler_raises(
     cache: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(codegen, "find_compiler", lambda: None)
+    monkeypatch.setattr(library_cache, "find_compiler", lambda: None)
     with pytest.raises(CodegenError, match="no C compiler"):
         zero_curvature_library([_probe()], "geosyn_test_gn")
 

@@ -18,7 +18,8 @@ Cache location, first that applies: the ``cache_dir`` argument,
 ``$GEOSYN_CACHE_DIR/codegen``, ``$XDG_CACHE_HOME/geosyn/codegen``,
 ``~/.cache/geosyn/codegen``. :func:`clear_cache` empties it.
 
-Calling a compiled function from Python with numpy arrays: `geosyn.core.calls`.
+The cache's keys, checks and atomic writes: `geosyn.core.library_cache`. Calling a
+compiled function from Python with numpy arrays: `geosyn.core.calls`.
 """
 
 from __future__ import annotations
@@ -26,8 +27,6 @@ from __future__ import annotations
 import hashlib
 import os
 import re
-import shutil
-import subprocess
 import tempfile
 import time
 import warnings
@@ -36,10 +35,20 @@ from pathlib import Path
 
 import casadi as ca
 
-from geosyn.core import GeosynError, InvalidArgument, library_digest
+from geosyn.core import InvalidArgument, library_digest
 from geosyn.core.cache_folder import TMP_PREFIX as _TMP_PREFIX
 from geosyn.core.cache_folder import clear_cache, default_cache_dir
 from geosyn.core.cache_folder import resolve_cache_dir as _resolve_cache_dir
+from geosyn.core.library_cache import (
+    CodegenError,
+    build_cached,
+    cached_library,
+    find_compiler,
+    library_key,
+    load_function,
+    require_compiler,
+    warn_rebuild,
+)
 
 __all__ = [
     "CodegenError",
@@ -74,48 +83,10 @@ def _flags_for(source: str, flags: Sequence[str] | None) -> tuple[str, ...]:
     return LARGE_SOURCE_FLAGS if len(source) >= LARGE_SOURCE_CHARS else DEFAULT_FLAGS
 
 
-# Salts of the keys: bumped when what a recipe index or a library carries changes, so
-# older files are never looked up (no warning about them; clear_cache removes them).
+# Salt of the recipe keys: bumped when what a recipe index carries changes, so older
+# files are never looked up (no warning about them; clear_cache removes them). The
+# libraries' own salt is `library_cache.LIBRARY_FORMAT`.
 _RECIPE_FORMAT = "geosyn-recipe-v2"
-_LIBRARY_FORMAT = "geosyn-library-v2"  # v2: the library carries its keys
-
-
-class CodegenError(GeosynError):
-    """Generating, compiling or loading C code for a CasADi function failed.
-
-    Attributes:
-        command: the compiler command line, if the compiler was run.
-        returncode: the compiler's exit status, if it ran to completion.
-        stderr: the compiler's error output, if any.
-    """
-
-    def __init__(
-        self,
-        message: str,
-        command: Sequence[str] | None = None,
-        returncode: int | None = None,
-        stderr: str | None = None,
-    ) -> None:
-        super().__init__(message)
-        self.command = list(command) if command is not None else None
-        self.returncode = returncode
-        self.stderr = stderr
-
-
-def find_compiler() -> str | None:
-    """Path of the C compiler to use: ``gcc`` on ``PATH``, else ``cc``, else None."""
-    return shutil.which("gcc") or shutil.which("cc")
-
-
-def _require_compiler(compiler: str | None) -> str:
-    """``compiler`` or :func:`find_compiler`'s, else raise `CodegenError`."""
-    cc = compiler if compiler is not None else find_compiler()
-    if cc is None:
-        raise CodegenError(
-            "no C compiler found: neither 'gcc' nor 'cc' is on PATH "
-            f"(PATH={os.environ.get('PATH', '')!r}); install gcc or pass compiler="
-        )
-    return cc
 
 
 def generate_source(name: str, functions: Sequence[ca.Function]) -> str:
@@ -132,31 +103,6 @@ def generate_source(name: str, functions: Sequence[ca.Function]) -> str:
     except RuntimeError as err:
         names = ", ".join(repr(f.name()) for f in functions)
         raise CodegenError(f"CasADi could not generate C code for function {names}: {err}") from err
-
-
-def _compile(compiler: str, flags: Sequence[str], source: Path, output: Path) -> None:
-    command = [compiler, *flags, "-shared", "-fPIC", "-o", str(output), str(source), "-lm"]
-    try:
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
-    except OSError as err:
-        raise CodegenError(
-            f"could not run the C compiler {compiler!r}: {err}", command=command
-        ) from err
-    if done.returncode != 0 or not output.is_file():
-        raise CodegenError(
-            f"the C compiler {compiler!r} failed with exit status {done.returncode} on "
-            f"{source.name}:\n{done.stderr.strip()[-2000:]}",
-            command=command,
-            returncode=done.returncode,
-            stderr=done.stderr,
-        )
-
-
-def _load(name: str, path: Path) -> ca.Function:
-    try:
-        return ca.external(name, str(path))
-    except RuntimeError as err:
-        raise CodegenError(f"could not load compiled function {name!r} from {path}: {err}") from err
 
 
 def compile_function(
@@ -220,47 +166,7 @@ def _compile_cached(
     name = fun.name()
     source = generate_source(name, [fun])
     used = _flags_for(source, flags)
-    return _build_cached(name, source, [name], cache_dir, used, compiler)[name]
-
-
-def _library_key(source: str, cc: str, flags: Sequence[str], recipe_key: str | None) -> str:
-    """64 hex digits: the key of a library (its file name holds the first 24)."""
-    parts = [_LIBRARY_FORMAT, source, cc, *flags]
-    parts += [recipe_key] if recipe_key is not None else []
-    return hashlib.sha256("\0".join(parts).encode()).hexdigest()
-
-
-def _warn_rebuild(what: str, problem: str) -> None:
-    warnings.warn(
-        f"compiled-code cache: {what} is damaged ({problem}); discarding it and recompiling",
-        RuntimeWarning,
-        stacklevel=4,
-    )
-
-
-def _build_cached(
-    name: str,
-    source: str,
-    load: Sequence[str],
-    cache_dir: Path,
-    flags: tuple[str, ...],
-    compiler: str | None,
-    recipe_key: str | None = None,
-) -> dict[str, ca.Function]:
-    """Compile ``source`` into ``<name>_<key>.so`` unless cached; load the names ``load``.
-
-    The library carries its key and ``recipe_key`` (`library_digest.tagged_source`); a
-    cached one is loaded only if its digest and both keys match.
-    """
-    library, checked = _cached_library(name, source, cache_dir, flags, compiler, recipe_key)
-    if checked:
-        try:
-            return {n: _load(n, library) for n in load}
-        except CodegenError as err:  # verified bytes that dlopen refuses: build anew
-            _warn_rebuild(library.name, str(err))
-            library, _ = _cached_library(name, source, cache_dir, flags, compiler,
-                                         recipe_key, rebuild=True)  # fmt: skip
-    return {n: _load(n, library) for n in load}
+    return build_cached(name, source, [name], cache_dir, used, compiler)[name]
 
 
 def compile_shared(
@@ -289,54 +195,10 @@ def compile_shared(
     """
     if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
         raise InvalidArgument(f"name: {name!r} is not a C identifier")
-    library, _ = _cached_library(
+    library, _ = cached_library(
         name, source, _resolve_cache_dir(cache_dir), tuple(flags), compiler, None
     )
     return library
-
-
-def _cached_library(
-    name: str,
-    source: str,
-    cache_dir: Path,
-    flags: tuple[str, ...],
-    compiler: str | None,
-    recipe_key: str | None,
-    rebuild: bool = False,
-) -> tuple[Path, bool]:
-    """(``<name>_<key>.so``, whether it was a verified cache hit): compiled unless a
-    cached library passes its digest and key checks (``rebuild``: compiled anyway)."""
-    cc = _require_compiler(compiler)
-    key = _library_key(source, cc, flags, recipe_key)
-    stem = f"{name}_{key[:24]}"
-    library = cache_dir / f"{stem}.so"
-    if library.is_file() and not rebuild:
-        damage = library_digest.damage(library, key, recipe_key)
-        if damage is None:
-            return library, True
-        # A damaged or foreign file (a full disk, a killed copy, a bit flip, a copy under
-        # another name): never dlopen it, build anew.
-        _warn_rebuild(library.name, damage)
-    try:
-        cache_dir.mkdir(parents=True, exist_ok=True)
-        work = Path(tempfile.mkdtemp(prefix=_TMP_PREFIX, dir=cache_dir))
-    except OSError as err:
-        raise CodegenError(f"cannot create the codegen cache folder {cache_dir}: {err}") from err
-    try:
-        c_file = work / f"{stem}.c"
-        c_file.write_text(library_digest.tagged_source(source, key, recipe_key))
-        built = work / f"{stem}.so"
-        _compile(cc, flags, c_file, built)
-        digest = work / f"{stem}.so{library_digest.DIGEST_SUFFIX}"
-        digest.write_text(library_digest.sha256_hex(built.read_bytes()) + "\n")
-        # Same folder, so os.replace is an atomic rename: readers see all or nothing. The
-        # digest goes first: a reader that pairs it with an older library rebuilds (safe).
-        os.replace(c_file, cache_dir / c_file.name)
-        os.replace(digest, library_digest.digest_path(library))
-        os.replace(built, library)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
-    return library, False
 
 
 def compile_source(
@@ -369,7 +231,7 @@ def compile_source(
     """
     if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
         raise InvalidArgument(f"name: {name!r} is not a C identifier")
-    return _build_cached(
+    return build_cached(
         name, source, list(load), _resolve_cache_dir(cache_dir), tuple(flags), compiler
     )
 
@@ -431,7 +293,7 @@ def compile_library(
     if unknown:
         raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
     source = generate_source(name, funs)
-    return _build_cached(
+    return build_cached(
         name, source, wanted, _resolve_cache_dir(cache_dir), _flags_for(source, flags), compiler
     )
 
@@ -480,7 +342,7 @@ def compile_recipe(
     """
     if not isinstance(name, str) or not _C_IDENTIFIER.fullmatch(name):
         raise InvalidArgument(f"name: {name!r} is not a C identifier")
-    cc = _require_compiler(compiler)
+    cc = require_compiler(compiler)
     folder = _resolve_cache_dir(cache_dir)
     extra = () if flags is None else tuple(flags)
     recipe_key = hashlib.sha256("\0".join([_RECIPE_FORMAT, recipe, cc, *extra]).encode())
@@ -502,12 +364,12 @@ def compile_recipe(
     unknown = sorted(set(load) - set(names))
     if unknown:
         raise InvalidArgument(f"load: {unknown} are not among the functions {names}")
-    result = _build_cached(name, source, list(load), folder, used, cc, recipe_key.hexdigest())
+    result = build_cached(name, source, list(load), folder, used, cc, recipe_key.hexdigest())
     try:  # the index appears atomically, after the library it names
         fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, dir=folder)
         os.chmod(tmp, 0o644)  # like the library it names (mkstemp makes it private)
         with os.fdopen(fd, "w") as fh:
-            fh.write(f"{name}_{_library_key(source, cc, used, recipe_key.hexdigest())[:24]}\n")
+            fh.write(f"{name}_{library_key(source, cc, used, recipe_key.hexdigest())[:24]}\n")
         os.replace(tmp, index)
     except OSError as err:
         warnings.warn(f"could not write the recipe index {index}: {err}", RuntimeWarning, 2)
@@ -523,19 +385,19 @@ def _recipe_hit(
     try:
         stem = library_digest.read_index(index, name)
     except (OSError, ValueError) as err:
-        _warn_rebuild(f"recipe index {index.name}", str(err))
+        warn_rebuild(f"recipe index {index.name}", str(err))
         return None
     if stem is None:
         return None
     library = index.with_name(f"{stem}.so")
     if not library.is_file():  # removed by hand, or a flipped bit named another file
-        _warn_rebuild(f"recipe index {index.name}", f"it names a missing library {stem}.so")
+        warn_rebuild(f"recipe index {index.name}", f"it names a missing library {stem}.so")
         return None
     damage = library_digest.damage(library, recipe_key=recipe_key)
     if damage is None:
         try:
-            return {n: _load(n, library) for n in load}
+            return {n: load_function(n, library) for n in load}
         except CodegenError as err:
             damage = str(err)
-    _warn_rebuild(f"{library.name} (named by {index.name})", damage)
+    warn_rebuild(f"{library.name} (named by {index.name})", damage)
     return None
