@@ -13,9 +13,9 @@ from pathlib import Path
 
 __all__ = ["TMP_PREFIX", "clear_cache", "default_cache_dir", "resolve_cache_dir"]
 
-# <function name>_<24 hex digits of the key>.<so|c|recipe|so.sha256>; clear_cache deletes
-# only these.
-_CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c|recipe|so\.sha256)$")
+# <function name>_<24 hex digits of the key>.<so|c|recipe|so.sha256|lock>; clear_cache
+# deletes only these.
+_CACHED_FILE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*_[0-9a-f]{24}\.(so|c|recipe|so\.sha256|lock)$")
 TMP_PREFIX = ".tmp-geosyn-"
 # Temporary folders clear_cache removes: this module's, and those of the MPC's former
 # private copy of this cache (left behind by a compile killed midway).
@@ -45,8 +45,8 @@ def resolve_cache_dir(cache_dir: str | os.PathLike[str] | None) -> Path:
 def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:
     """Delete the compiled libraries and sources of the codegen cache.
 
-    Only files this module writes (``<name>_<24 hex>.so`` / ``.c`` and its temporary
-    folders) are removed, so pointing ``cache_dir`` at a shared folder is safe. Libraries
+    Only files this module writes (``<name>_<24 hex>.so`` / ``.c`` / ``.recipe`` /
+    ``.so.sha256`` / ``.lock`` and its temporary folders) are removed, so pointing ``cache_dir`` at a shared folder is safe. Libraries
     already loaded by a running process stay usable.
 
     Args:

@@ -5,20 +5,24 @@ One library per key: the key is the sha256 of the C source, the compiler, its fl
 cached library is used only if its sha256 (`geosyn.core.library_digest`) and the keys
 compiled into it match; a damaged or swapped file is rebuilt, with a warning. Files
 appear atomically (built in a temporary folder beside them, then ``os.replace``), so
-concurrent processes never load a half-written library.
+concurrent processes never load a half-written library; and one process compiles a given
+library at a time (an exclusive lock on ``<stem>.lock`` beside it, `compile_lock`), so the
+workers of a sweep on a cold cache compile it once and the others load it.
 
 The public entry points are `geosyn.core.codegen`'s; these are its parts.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
 import subprocess
 import tempfile
+import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import casadi as ca
@@ -29,8 +33,10 @@ from geosyn.core.cache_folder import TMP_PREFIX as _TMP_PREFIX
 __all__ = [
     "LIBRARY_FORMAT",
     "CodegenError",
+    "LOCK_WAIT",
     "build_cached",
     "cached_library",
+    "compile_lock",
     "find_compiler",
     "library_key",
     "load_function",
@@ -42,6 +48,10 @@ __all__ = [
 LIBRARY_FORMAT = "geosyn-library-v2"
 """Salt of the library keys, bumped when what a library carries changes (v2: its keys),
 so older files are never looked up (no warning about them; clear_cache removes them)."""
+LOCK_WAIT = 600.0
+"""Longest wait [s] for another process compiling the same library (the largest libraries
+compile in about a minute); after it this process compiles too, with a warning."""
+_LOCK_POLL = 0.05  # [s] between two tries of the lock
 
 
 class CodegenError(GeosynError):
@@ -159,6 +169,51 @@ def build_cached(
     return {n: load_function(n, library) for n in load}
 
 
+@contextlib.contextmanager
+def compile_lock(path: Path, wait: float | None = None) -> Iterator[None]:
+    """Hold an exclusive advisory lock (``flock``) on the file ``path`` for the ``with``
+    block; released when the block ends or the process dies. The file is created for it
+    and removed after it (a process killed meanwhile leaves it: `clear_cache` removes it).
+
+    Waits at most ``wait`` [s] (default `LOCK_WAIT`) for another holder, then warns and
+    runs the block without the lock (two processes then both compile; the atomic
+    renames keep that safe). Where the lock file cannot be opened (a read-only folder,
+    no ``fcntl``), the block runs without it.
+    """
+    limit = LOCK_WAIT if wait is None else wait
+    try:
+        import fcntl
+
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except (ImportError, OSError):
+        yield
+        return
+    held = False
+    try:
+        deadline = time.monotonic() + limit
+        while not held:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                held = True
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    warnings.warn(
+                        f"compiled-code cache: another process has held {path.name} for "
+                        f"more than {limit:g} s; compiling here as well",
+                        RuntimeWarning,
+                        stacklevel=5,
+                    )
+                    break
+                time.sleep(_LOCK_POLL)
+        yield
+    finally:
+        if held:  # remove the file if it is still this lock's (not a newer holder's)
+            with contextlib.suppress(OSError):
+                if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                    os.unlink(path)
+        os.close(fd)  # releases the lock
+
+
 def cached_library(
     name: str,
     source: str,
@@ -169,7 +224,8 @@ def cached_library(
     rebuild: bool = False,
 ) -> tuple[Path, bool]:
     """(``<name>_<key>.so``, whether it was a verified cache hit): compiled unless a
-    cached library passes its digest and key checks (``rebuild``: compiled anyway)."""
+    cached library passes its digest and key checks (``rebuild``: compiled anyway). The
+    compile holds `compile_lock`; a library another process finished meanwhile is a hit."""
     cc = require_compiler(compiler)
     key = library_key(source, cc, flags, recipe_key)
     stem = f"{name}_{key[:24]}"
@@ -183,6 +239,29 @@ def cached_library(
         warn_rebuild(library.name, damage)
     try:
         cache_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise CodegenError(f"cannot create the codegen cache folder {cache_dir}: {err}") from err
+    with compile_lock(cache_dir / f"{stem}.lock"):
+        if not rebuild and library.is_file():
+            if library_digest.damage(library, key, recipe_key) is None:
+                return library, True  # built by another process while this one waited
+        _compile_into(cache_dir, stem, library, cc, flags, source, key, recipe_key)
+    return library, False
+
+
+def _compile_into(
+    cache_dir: Path,
+    stem: str,
+    library: Path,
+    cc: str,
+    flags: tuple[str, ...],
+    source: str,
+    key: str,
+    recipe_key: str | None,
+) -> None:
+    """Compile ``source`` (tagged with its keys) into ``library``, with its ``.c`` and
+    digest beside it, each appearing by an atomic rename."""
+    try:
         work = Path(tempfile.mkdtemp(prefix=_TMP_PREFIX, dir=cache_dir))
     except OSError as err:
         raise CodegenError(f"cannot create the codegen cache folder {cache_dir}: {err}") from err
@@ -200,4 +279,3 @@ def cached_library(
         os.replace(built, library)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return library, False

@@ -1,0 +1,116 @@
+"""One process compiles a library at a time: a cold cache shared by concurrent processes
+(a sweep's workers) compiles each library once (`geosyn.core.library_cache.compile_lock`)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import casadi as ca
+import pytest
+
+from geosyn.core import codegen, library_cache
+
+# Each process waits for the other at a barrier, then compiles the same new function with
+# a compiler that first sleeps 1 s and logs its run: without the lock, both processes find
+# the cache empty and both compile.
+_WORKER = """
+import os, sys, time
+from pathlib import Path
+import casadi as ca
+from geosyn.core import codegen, library_cache
+
+cache, runs, me, other = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], sys.argv[4]
+real = library_cache.run_compiler
+
+def slow(compiler, flags, source, output):
+    with open(runs, "a") as fh:
+        fh.write(f"{os.getpid()}\\n")
+    time.sleep(1.0)
+    return real(compiler, flags, source, output)
+
+library_cache.run_compiler = slow
+x = ca.SX.sym("x", 3)
+fun = ca.Function("lock_probe", [x], [ca.sin(x) * ca.dot(x, x)], ["x"], ["y"])
+(cache / f"ready-{me}").touch()
+deadline = time.monotonic() + 60
+while not (cache / f"ready-{other}").exists():
+    assert time.monotonic() < deadline, "the other process never came"
+    time.sleep(0.005)
+out = codegen.compile_function(fun, cache)
+print(repr(float(out([0.1, -0.2, 0.3])[2])))
+"""
+
+
+def test_concurrent_processes_on_a_cold_cache_compile_once(tmp_path: Path) -> None:
+    """Two processes asking for the same library at once: one compiler run, both get the
+    uncompiled function's numbers (to 1e-15), one library, no lock file left; clear_cache
+    takes a lock file a killed process left."""
+    cache, runs = tmp_path / "cache", tmp_path / "runs.txt"
+    cache.mkdir()
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", _WORKER, str(cache), str(runs), me, other],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for me, other in (("a", "b"), ("b", "a"))
+    ]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [err[-2000:] for _, err in outs]
+    x = ca.SX.sym("x", 3)
+    fun = ca.Function("lock_probe", [x], [ca.sin(x) * ca.dot(x, x)])
+    expected = float(fun([0.1, -0.2, 0.3])[2])
+    for out, _ in outs:
+        assert abs(float(out.strip()) - expected) <= 1e-15 * abs(expected)
+    assert len(runs.read_text().split()) == 1  # one compiler run for both processes
+    (library,) = cache.glob("lock_probe_*.so")
+    assert not list(cache.glob("*.lock"))  # the lock went with the compile
+    left = library.with_suffix(".lock")  # as a process killed while compiling leaves it
+    left.touch()
+    codegen.clear_cache(cache)
+    assert not list(cache.glob("lock_probe_*"))
+
+
+def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> None:
+    """Another holder past the wait bound: a RuntimeWarning, and the block still runs
+    (after at least the bound); a lock released within the bound is taken silently."""
+    path = tmp_path / "probe.lock"
+    held, release = threading.Event(), threading.Event()
+
+    def holder() -> None:
+        with library_cache.compile_lock(path):
+            held.set()
+            release.wait(30)
+
+    thread = threading.Thread(target=holder)
+    thread.start()
+    try:
+        assert held.wait(30)
+        start = time.monotonic()
+        with (
+            pytest.warns(RuntimeWarning, match=path.name),
+            library_cache.compile_lock(path, wait=0.3),
+        ):
+            waited = time.monotonic() - start
+        assert waited >= 0.3
+    finally:
+        release.set()
+        thread.join(30)
+    timer = threading.Timer(0.2, release.set)
+    held.clear()
+    release.clear()
+    thread = threading.Thread(target=holder)
+    thread.start()
+    assert held.wait(30)
+    timer.start()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with library_cache.compile_lock(path, wait=60.0):
+            pass
+    thread.join(30)
