@@ -1,5 +1,5 @@
 """One process compiles a library at a time: a cold cache shared by concurrent processes
-(a sweep's workers) compiles each library once (`geosyn.core.library_cache.compile_lock`)."""
+(a sweep's workers) compiles each library once (`geosyn.core.library_cache.cache_lock`)."""
 
 from __future__ import annotations
 
@@ -46,15 +46,13 @@ print(repr(float(out([0.1, -0.2, 0.3])[2])))
 """
 
 
-def test_concurrent_processes_on_a_cold_cache_compile_once(tmp_path: Path) -> None:
-    """Two processes asking for the same library at once: one compiler run, both get the
-    uncompiled function's numbers (to 1e-15), one library, no lock file left; clear_cache
-    takes a lock file a killed process left."""
-    cache, runs = tmp_path / "cache", tmp_path / "runs.txt"
-    cache.mkdir()
+def race_pair(script: str, *args: str) -> list[str]:
+    """Run ``python -c script *args me other`` as two processes at once (``me``/``other``
+    ``a``/``b`` and ``b``/``a``, for the script's barrier); their stripped stdouts after
+    both exit 0."""
     procs = [
         subprocess.Popen(
-            [sys.executable, "-c", _WORKER, str(cache), str(runs), me, other],
+            [sys.executable, "-c", script, *args, me, other],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -63,11 +61,21 @@ def test_concurrent_processes_on_a_cold_cache_compile_once(tmp_path: Path) -> No
     ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [err[-2000:] for _, err in outs]
+    return [out.strip() for out, _ in outs]
+
+
+def test_concurrent_processes_on_a_cold_cache_compile_once(tmp_path: Path) -> None:
+    """Two processes asking for the same library at once: one compiler run, both get the
+    uncompiled function's numbers (to 1e-15), one library, no lock file left; clear_cache
+    takes a lock file a killed process left."""
+    cache, runs = tmp_path / "cache", tmp_path / "runs.txt"
+    cache.mkdir()
+    outs = race_pair(_WORKER, str(cache), str(runs))
     x = ca.SX.sym("x", 3)
     fun = ca.Function("lock_probe", [x], [ca.sin(x) * ca.dot(x, x)])
     expected = float(fun([0.1, -0.2, 0.3])[2])
-    for out, _ in outs:
-        assert abs(float(out.strip()) - expected) <= 1e-15 * abs(expected)
+    for out in outs:
+        assert abs(float(out) - expected) <= 1e-15 * abs(expected)
     assert len(runs.read_text().split()) == 1  # one compiler run for both processes
     (library,) = cache.glob("lock_probe_*.so")
     assert not list(cache.glob("*.lock"))  # the lock went with the compile
@@ -84,7 +92,7 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
     held, release = threading.Event(), threading.Event()
 
     def holder() -> None:
-        with library_cache.compile_lock(path):
+        with library_cache.cache_lock(path):
             held.set()
             release.wait(30)
 
@@ -95,7 +103,7 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
         start = time.monotonic()
         with (
             pytest.warns(RuntimeWarning, match=path.name),
-            library_cache.compile_lock(path, wait=0.3),
+            library_cache.cache_lock(path, wait=0.3),
         ):
             waited = time.monotonic() - start
         assert waited >= 0.3
@@ -111,6 +119,6 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
     timer.start()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        with library_cache.compile_lock(path, wait=60.0):
+        with library_cache.cache_lock(path, wait=60.0):
             pass
     thread.join(30)

@@ -6,7 +6,7 @@ cached library is used only if its sha256 (`geosyn.core.library_digest`) and the
 compiled into it match; a damaged or swapped file is rebuilt, with a warning. Files
 appear atomically (built in a temporary folder beside them, then ``os.replace``), so
 concurrent processes never load a half-written library; and one process compiles a given
-library at a time (an exclusive lock on ``<stem>.lock`` beside it, `compile_lock`), so the
+library at a time (an exclusive lock on ``<stem>.lock`` beside it, `cache_lock`), so the
 workers of a sweep on a cold cache compile it once and the others load it.
 
 The public entry points are `geosyn.core.codegen`'s; these are its parts.
@@ -36,7 +36,7 @@ __all__ = [
     "LOCK_WAIT",
     "build_cached",
     "cached_library",
-    "compile_lock",
+    "cache_lock",
     "find_compiler",
     "library_key",
     "load_function",
@@ -170,13 +170,14 @@ def build_cached(
 
 
 @contextlib.contextmanager
-def compile_lock(path: Path, wait: float | None = None) -> Iterator[None]:
+def cache_lock(path: Path, wait: float | None = None) -> Iterator[None]:
     """Hold an exclusive advisory lock (``flock``) on the file ``path`` for the ``with``
-    block; released when the block ends or the process dies. The file is created for it
+    block (one process compiling a library, or fitting a robot's spheres,
+    `geosyn.robots.collision_spheres`); released when the block ends or the process dies. The file is created for it
     and removed after it (a process killed meanwhile leaves it: `clear_cache` removes it).
 
     Waits at most ``wait`` [s] (default `LOCK_WAIT`) for another holder, then warns and
-    runs the block without the lock (two processes then both compile; the atomic
+    runs the block without the lock (two processes then both do the work; the atomic
     renames keep that safe). Where the lock file cannot be opened (a read-only folder,
     no ``fcntl``), the block runs without it.
     """
@@ -198,8 +199,8 @@ def compile_lock(path: Path, wait: float | None = None) -> Iterator[None]:
             except BlockingIOError:
                 if time.monotonic() >= deadline:
                     warnings.warn(
-                        f"compiled-code cache: another process has held {path.name} for "
-                        f"more than {limit:g} s; compiling here as well",
+                        f"cache: another process has held {path.name} for more than "
+                        f"{limit:g} s (compiling or fitting); doing the same work here",
                         RuntimeWarning,
                         stacklevel=5,
                     )
@@ -225,7 +226,7 @@ def cached_library(
 ) -> tuple[Path, bool]:
     """(``<name>_<key>.so``, whether it was a verified cache hit): compiled unless a
     cached library passes its digest and key checks (``rebuild``: compiled anyway). The
-    compile holds `compile_lock`; a library another process finished meanwhile is a hit."""
+    compile holds `cache_lock`; a library another process finished meanwhile is a hit."""
     cc = require_compiler(compiler)
     key = library_key(source, cc, flags, recipe_key)
     stem = f"{name}_{key[:24]}"
@@ -241,7 +242,7 @@ def cached_library(
         cache_dir.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise CodegenError(f"cannot create the codegen cache folder {cache_dir}: {err}") from err
-    with compile_lock(cache_dir / f"{stem}.lock"):
+    with cache_lock(cache_dir / f"{stem}.lock"):
         if not rebuild and library.is_file():
             if library_digest.damage(library, key, recipe_key) is None:
                 return library, True  # built by another process while this one waited

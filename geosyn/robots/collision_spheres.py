@@ -24,6 +24,7 @@ geometry and the settings; `clear_sphere_cache` empties it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -37,6 +38,7 @@ import numpy as np
 import pinocchio as pin
 
 from geosyn.core.codegen import default_cache_dir
+from geosyn.core.library_cache import cache_lock
 from geosyn.core.validation import check_float
 from geosyn.robots.collision_geometry import (
     CollisionObject,
@@ -113,11 +115,12 @@ def sphere_cache_dir() -> Path:
 
 
 def clear_sphere_cache() -> int:
-    """Delete the cached sphere fits; returns how many files were removed."""
+    """Delete the cached sphere fits (and lock files a killed fit left); returns how many
+    files were removed."""
     folder = sphere_cache_dir()
     removed = 0
     if folder.is_dir():
-        for f in folder.glob("spheres_*.json"):
+        for f in [*folder.glob("spheres_*.json"), *folder.glob("spheres_*.lock")]:
             f.unlink(missing_ok=True)
             removed += 1
     return removed
@@ -344,16 +347,53 @@ def file_spheres(robot: Robot, *, excess: float = 0.02, margin: float = 0.002) -
     objects = collision_objects(robot)
     digest = geometry_digest(objects)
     path = _cache_path(digest, excess, margin)
-    if path.is_file():
-        try:
-            data = json.loads(path.read_text())
-            read = tuple(CollisionSphere(s["joint"], tuple(s["center"]), s["radius"])
-                         for s in data["spheres"])  # fmt: skip
-            pairs = tuple((a, b) for a, b in data["self_pairs"])
-            return SphereModel(read, tuple(data["links"]), margin, excess,
-                               tuple(data["reach"]), pairs, digest, True)  # fmt: skip
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # a damaged entry is fitted again and overwritten
+    model = _read_cache(path, margin, excess, digest)
+    if model is not None:
+        return model
+    # One process fits a robot at a time (a sweep's workers on a cold cache): the others
+    # wait, then read its file.
+    with contextlib.suppress(OSError):  # unwritable: fitted unlocked, warned at the write
+        path.parent.mkdir(parents=True, exist_ok=True)
+    with cache_lock(path.with_suffix(".lock")):
+        model = _read_cache(path, margin, excess, digest, warn=False)
+        if model is None:
+            model = _fit(robot, objects, margin, excess, digest, path)
+    return model
+
+
+def _read_cache(
+    path: Path, margin: float, excess: float, digest: str, warn: bool = True
+) -> SphereModel | None:
+    """The spheres cached at ``path``, or None (missing, or damaged: refitted, and
+    warned if ``warn``)."""
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text())
+        read = tuple(CollisionSphere(s["joint"], tuple(s["center"]), s["radius"])
+                     for s in data["spheres"])  # fmt: skip
+        pairs = tuple((a, b) for a, b in data["self_pairs"])
+        return SphereModel(read, tuple(data["links"]), margin, excess,
+                           tuple(data["reach"]), pairs, digest, True)  # fmt: skip
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        if warn:
+            warnings.warn(
+                f"sphere cache: {path.name} is damaged ({err!r}); fitting again",
+                RuntimeWarning,
+                3,
+            )
+        return None
+
+
+def _fit(
+    robot: Robot,
+    objects: tuple[CollisionObject, ...],
+    margin: float,
+    excess: float,
+    digest: str,
+    path: Path,
+) -> SphereModel:
+    """Fit the spheres of ``objects`` and write them to ``path`` (atomically)."""
     spheres: list[CollisionSphere] = []
     links: list[str] = []
     reaches: list[float] = []
