@@ -15,44 +15,54 @@ import pytest
 
 from geosyn.core import codegen, library_cache
 
-# Each process waits for the other at a barrier, then compiles the same new function with
-# a compiler that first sleeps 1 s and logs its run: without the lock, both processes find
-# the cache empty and both compile.
-_WORKER = """
+# The start of every race script: ``folder``, ``runs`` and the names of the two processes
+# from argv; ``slowed(f)``, f that first logs its call to ``runs`` and sleeps 1 s (so that
+# without a lock both processes find the cache empty and both do the work); ``barrier()``,
+# the point both processes reach before racing.
+RACE_PRELUDE = """
 import os, sys, time
 from pathlib import Path
+
+folder, runs, me, other = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], sys.argv[4]
+
+
+def slowed(real):
+    def slow(*args):
+        with open(runs, "a") as fh:
+            fh.write(f"{os.getpid()}\\n")
+        time.sleep(1.0)
+        return real(*args)
+    return slow
+
+
+def barrier():
+    (folder / f"ready-{me}").touch()
+    deadline = time.monotonic() + 60
+    while not (folder / f"ready-{other}").exists():
+        assert time.monotonic() < deadline, "the other process never came"
+        time.sleep(0.005)
+"""
+
+# Both processes compile the same new function into the cache ``folder``.
+_WORKER = """
 import casadi as ca
 from geosyn.core import codegen, library_cache
 
-cache, runs, me, other = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], sys.argv[4]
-real = library_cache.run_compiler
-
-def slow(compiler, flags, source, output):
-    with open(runs, "a") as fh:
-        fh.write(f"{os.getpid()}\\n")
-    time.sleep(1.0)
-    return real(compiler, flags, source, output)
-
-library_cache.run_compiler = slow
+library_cache.run_compiler = slowed(library_cache.run_compiler)
 x = ca.SX.sym("x", 3)
 fun = ca.Function("lock_probe", [x], [ca.sin(x) * ca.dot(x, x)], ["x"], ["y"])
-(cache / f"ready-{me}").touch()
-deadline = time.monotonic() + 60
-while not (cache / f"ready-{other}").exists():
-    assert time.monotonic() < deadline, "the other process never came"
-    time.sleep(0.005)
-out = codegen.compile_function(fun, cache)
+barrier()
+out = codegen.compile_function(fun, folder)
 print(repr(float(out([0.1, -0.2, 0.3])[2])))
 """
 
 
-def race_pair(script: str, *args: str) -> list[str]:
-    """Run ``python -c script *args me other`` as two processes at once (``me``/``other``
-    ``a``/``b`` and ``b``/``a``, for the script's barrier); their stripped stdouts after
-    both exit 0."""
+def race_pair(script: str, folder: Path, runs: Path) -> list[str]:
+    """Run `RACE_PRELUDE` + ``script`` as two processes at once, racing in ``folder`` and
+    logging the slowed calls to ``runs``; their stripped stdouts after both exit 0."""
     procs = [
         subprocess.Popen(
-            [sys.executable, "-c", script, *args, me, other],
+            [sys.executable, "-c", RACE_PRELUDE + script, str(folder), str(runs), me, other],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -70,7 +80,7 @@ def test_concurrent_processes_on_a_cold_cache_compile_once(tmp_path: Path) -> No
     takes a lock file a killed process left."""
     cache, runs = tmp_path / "cache", tmp_path / "runs.txt"
     cache.mkdir()
-    outs = race_pair(_WORKER, str(cache), str(runs))
+    outs = race_pair(_WORKER, cache, runs)
     x = ca.SX.sym("x", 3)
     fun = ca.Function("lock_probe", [x], [ca.sin(x) * ca.dot(x, x)])
     expected = float(fun([0.1, -0.2, 0.3])[2])

@@ -12,30 +12,14 @@ from test_collision_spheres import MJCF
 from geosyn.robots import load_robot
 from geosyn.robots.collision_spheres import clear_sphere_cache, file_spheres, sphere_cache_dir
 
-# Each process waits for the other at a barrier, then fits the same robot with a fit that
-# first sleeps 1 s and logs its run: without the lock, both find the cache empty and fit.
+# Both processes fit the robot of ``folder / "two_links.xml"`` (the cache: the test's).
 _WORKER = """
-import os, sys, time
-from pathlib import Path
 from geosyn.robots import load_robot
 from geosyn.robots import collision_spheres as cs
 
-xml, runs, me, other = Path(sys.argv[1]), Path(sys.argv[2]), sys.argv[3], sys.argv[4]
-real = cs._fit
-
-def slow(*args):
-    with open(runs, "a") as fh:
-        fh.write(f"{os.getpid()}\\n")
-    time.sleep(1.0)
-    return real(*args)
-
-cs._fit = slow
-robot = load_robot(xml)
-(xml.parent / f"ready-{me}").touch()
-deadline = time.monotonic() + 60
-while not (xml.parent / f"ready-{other}").exists():
-    assert time.monotonic() < deadline, "the other process never came"
-    time.sleep(0.005)
+cs._fit = slowed(cs._fit)
+robot = load_robot(folder / "two_links.xml")
+barrier()
 model = cs.file_spheres(robot)
 print(repr([(s.joint, s.center, s.radius) for s in model.spheres]))
 """
@@ -49,7 +33,7 @@ def test_concurrent_processes_fit_a_robot_once(
     monkeypatch.setenv("GEOSYN_CACHE_DIR", str(tmp_path / "cache"))
     xml, runs = tmp_path / "two_links.xml", tmp_path / "runs.txt"
     xml.write_text(MJCF)
-    outs = race_pair(_WORKER, str(xml), str(runs))
+    outs = race_pair(_WORKER, tmp_path, runs)
     assert len(runs.read_text().split()) == 1  # one fit for both processes
     model = file_spheres(load_robot(xml))
     assert model.cached

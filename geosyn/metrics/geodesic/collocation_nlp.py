@@ -14,6 +14,7 @@ builds them, and shared in a process by every collocation of the same key
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -25,6 +26,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import casadi as ca
 
 from geosyn.core.codegen import compile_library, default_cache_dir
+from geosyn.core.library_cache import cache_lock
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
 from geosyn.metrics.geodesic.collocation_parts import node_functions
@@ -59,12 +61,12 @@ def _cache_dir() -> Path:
 
 
 def clear_node_function_cache() -> int:
-    """Forget the per-node functions kept in this process and on disk; returns the number
-    of files removed."""
+    """Forget the per-node functions kept in this process and on disk (and lock files a
+    killed build left); returns the number of files removed."""
     _MEMORY.clear()
     removed = 0
     if _cache_dir().is_dir():
-        for f in _cache_dir().glob("nodefuns_*.json"):
+        for f in [*_cache_dir().glob("nodefuns_*.json"), *_cache_dir().glob("nodefuns_*.lock")]:
             f.unlink(missing_ok=True)
             removed += 1
     return removed
@@ -100,31 +102,58 @@ def _node_functions_cached(
     """`node_functions` plus the structured clearance Jacobian (last), from memory, the
     disk cache, or built (then stored)."""
     key = node_function_key(metric, clearance, constraint_hessian, softmin)
-    if key is not None and key in _MEMORY:
+    if key is None:
+        return _build_node_functions(metric, clearance, constraint_hessian, softmin)
+    if key in _MEMORY:
         return _MEMORY[key]
-    path = None if key is None else _cache_dir() / f"nodefuns_{key}.json"
-    if path is not None and path.is_file():
-        try:
-            funcs = tuple(ca.Function.deserialize(x) for x in json.loads(path.read_text()))
-            _MEMORY[key] = funcs  # type: ignore[index]
-            return funcs
-        except (OSError, ValueError, RuntimeError):
-            pass  # a damaged entry is built again and overwritten
+    path = _cache_dir() / f"nodefuns_{key}.json"
+    funcs = _read_node_functions(path)
+    if funcs is None:  # one process builds them at a time; the others then read its file
+        with contextlib.suppress(OSError):  # unwritable: built unlocked, warned at the write
+            path.parent.mkdir(parents=True, exist_ok=True)
+        with cache_lock(path.with_suffix(".lock")):
+            funcs = _read_node_functions(path, warn=False)
+            if funcs is None:
+                funcs = _build_node_functions(metric, clearance, constraint_hessian, softmin)
+                _write_node_functions(path, funcs)
+    _MEMORY[key] = funcs
+    return funcs
+
+
+def _build_node_functions(
+    metric: Metric, clearance: ObstacleTerm | None, constraint_hessian: bool, softmin: float | None
+) -> tuple[ca.Function, ...]:
     funcs = node_functions(metric, clearance, constraint_hessian, softmin)
     if clearance is not None and softmin is not None:
         funcs = (*funcs, clearance_jacobian(clearance, softmin))
-    if key is not None and path is not None:
-        _MEMORY[key] = funcs
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".nodefuns_", suffix=".tmp")
-            with os.fdopen(fd, "w") as f:
-                json.dump([fn.serialize() for fn in funcs], f)
-            os.replace(tmp, path)
-        except OSError as err:
-            warnings.warn(f"could not write the node-function cache {path}: {err}",
-                          RuntimeWarning, 2)  # fmt: skip
     return funcs
+
+
+def _read_node_functions(path: Path, warn: bool = True) -> tuple[ca.Function, ...] | None:
+    """The functions cached at ``path``, or None (missing, or damaged: built again, and
+    warned if ``warn``)."""
+    if not path.is_file():
+        return None
+    try:
+        return tuple(ca.Function.deserialize(x) for x in json.loads(path.read_text()))
+    except (OSError, ValueError, RuntimeError) as err:
+        if warn:
+            warnings.warn(f"node-function cache: {path.name} is damaged ({err!r}); "
+                          "building it again", RuntimeWarning, 4)  # fmt: skip
+        return None
+
+
+def _write_node_functions(path: Path, funcs: tuple[ca.Function, ...]) -> None:
+    """Store ``funcs`` at ``path`` atomically (an unwritable cache is warned, not fatal)."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".nodefuns_", suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            json.dump([fn.serialize() for fn in funcs], f)
+        os.replace(tmp, path)
+    except OSError as err:
+        warnings.warn(f"could not write the node-function cache {path}: {err}",
+                      RuntimeWarning, 4)  # fmt: skip
 
 
 def per_node_functions(
