@@ -68,7 +68,7 @@ from geosyn.controllers.mpc.nlp.open_loop import OpenLoopOCP, OpenLoopSolution
 from geosyn.controllers.mpc.nlp.options import NLPOptions
 from geosyn.controllers.mpc.nlp.tracking import tracking_parameters
 from geosyn.controllers.mpc.ocp.dynamics import FRICTION_VELOCITY, joint_damping, joint_friction
-from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots
+from geosyn.controllers.mpc.ocp.obstacles import obstacle_slots
 from geosyn.controllers.mpc.ocp.plan import EPS_T, MPCPlan, ReferenceSampler, ReferenceSamples
 from geosyn.controllers.mpc.ocp.settings import HESSIANS, ocp_settings, outside_state_margin
 from geosyn.controllers.reference import Reference
@@ -85,25 +85,6 @@ __all__ = ["GeodesicMPC"]
 def _report_progress(line: str) -> None:
     """A first build compiles for tens of seconds: say so on stderr (never silent)."""
     print(f"geosyn MPC: {line}", file=sys.stderr, flush=True)
-
-
-def _obstacle_slots(
-    robot: Robot, margin: float | None, obstacles: Sequence[Shape] | None
-) -> ObstacleSlots | None:
-    """Slots of ``obstacles`` (None without them; the backend names what is missing when
-    ``clearance_margin`` is set: obstacles reach the MPC as shapes, never through its
-    metric)."""
-    if obstacles is not None and margin is None:
-        raise InvalidArgument("obstacles need clearance_margin (the clearance [m] kept)")
-    return None if obstacles is None else ObstacleSlots(robot, obstacles)
-
-
-def _within_budget(plan: MPCPlan, budget: float) -> MPCPlan:
-    """A successful plan solved in more than ``budget`` [s] counts as failed."""
-    if plan.success and plan.solve_time > budget:
-        status = f"over budget: {plan.solve_time:.3g} s > max_solve_time {budget:.3g} s"
-        return plan._replace(success=False, status=f"{status} ({plan.status})")
-    return plan
 
 
 class GeodesicMPC(Controller):
@@ -236,7 +217,7 @@ class GeodesicMPC(Controller):
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.kp, self.kd = check_gain(kp, n, "kp"), check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
-        self.obstacles = _obstacle_slots(robot, s.clearance_margin, obstacles)
+        self.obstacles = obstacle_slots(robot, s.clearance_margin, obstacles)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
         if not isinstance(joint_limit_guard, bool):
             raise InvalidArgument(
@@ -379,9 +360,8 @@ class GeodesicMPC(Controller):
             return MPCPlan(t, nan_x, nan_u, nan_u.copy(), status, 0, False, 0.0)
         start = time.perf_counter()
         plan = self._tracker.solve(t, x_init, ref, self._plan)
-        return _within_budget(
-            plan._replace(solve_time=time.perf_counter() - start), self.max_solve_time
-        )
+        plan = plan._replace(solve_time=time.perf_counter() - start)
+        return plan.within_budget(self.max_solve_time)
 
     # -- control ---------------------------------------------------------------------
     def compute(self, t: float, q: Vector, v: Vector) -> Vector:

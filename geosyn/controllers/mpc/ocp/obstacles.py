@@ -40,6 +40,7 @@ __all__ = [
     "SLOT_SIZE",
     "ObstacleSlots",
     "clearance_digest",
+    "obstacle_slots",
 ]
 
 SLOT_SIZE = ROUNDED_BOX_SIZE + 1
@@ -137,6 +138,21 @@ class ObstacleSlots:
             "mpc_clearance", [q, p], [c, ca.jacobian(c, q)], ["q", "p"], ["c", "dc_dq"],
             {"cse": True},
         )  # fmt: skip
+
+
+def obstacle_slots(
+    robot: Robot, margin: float | None, obstacles: Sequence[Shape] | None
+) -> ObstacleSlots | None:
+    """`GeodesicMPC`'s slots of ``obstacles`` (None without them; the backend names what
+    is missing when ``clearance_margin`` is set: obstacles reach the MPC as shapes, never
+    through its metric).
+
+    Raises:
+        InvalidArgument: ``obstacles`` without a ``margin`` (``clearance_margin``).
+    """
+    if obstacles is not None and margin is None:
+        raise InvalidArgument("obstacles need clearance_margin (the clearance [m] kept)")
+    return None if obstacles is None else ObstacleSlots(robot, obstacles)
 
 
 def clearance_digest(fun: ca.Function) -> str:

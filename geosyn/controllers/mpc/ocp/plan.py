@@ -54,6 +54,14 @@ class MPCPlan(NamedTuple):
     K: np.ndarray | None = None
     friction: np.ndarray | None = None
 
+    def within_budget(self, budget: float) -> MPCPlan:
+        """This plan, or when it succeeded in more than ``budget`` [s] of solve time,
+        a copy flagged as failed with the overrun in its status."""
+        if self.success and self.solve_time > budget:
+            status = f"over budget: {self.solve_time:.3g} s > max_solve_time {budget:.3g} s"
+            return self._replace(success=False, status=f"{status} ({self.status})")
+        return self
+
 
 class ReferenceSamples(NamedTuple):
     """The reference at the stage times ``t + k dt``.
