@@ -132,3 +132,29 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
         with library_cache.cache_lock(path, wait=60.0):
             pass
     thread.join(30)
+
+
+def test_a_file_system_without_locks_runs_unlocked_and_says_so_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """flock failing with ENOLCK (some network file systems): the block runs, with one
+    RuntimeWarning per process; the compile still gives the uncompiled numbers."""
+    import errno
+    import fcntl
+
+    def no_locks(fd: int, op: int) -> None:
+        raise OSError(errno.ENOLCK, "No locks available")
+
+    monkeypatch.setattr(fcntl, "flock", no_locks)
+    monkeypatch.setattr(library_cache, "_UNLOCKED", [False])
+    ran = []
+    with pytest.warns(RuntimeWarning, match="cannot lock"):
+        with library_cache.cache_lock(tmp_path / "a.lock"):
+            ran.append(1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        x = ca.SX.sym("x", 2)
+        fun = ca.Function("unlocked_probe", [x], [ca.exp(x[0]) * x[1]])
+        out = codegen.compile_function(fun, tmp_path / "cache")
+    assert ran == [1]
+    assert abs(float(out([0.3, 2.0])) - float(fun([0.3, 2.0]))) <= 1e-15 * 2.7

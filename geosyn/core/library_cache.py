@@ -52,6 +52,7 @@ LOCK_WAIT = 600.0
 """Longest wait [s] for another process compiling the same library (the largest libraries
 compile in about a minute); after it this process compiles too, with a warning."""
 _LOCK_POLL = 0.05  # [s] between two tries of the lock
+_UNLOCKED = [False]  # whether working without locks was warned in this process
 
 
 class CodegenError(GeosynError):
@@ -169,24 +170,40 @@ def build_cached(
     return {n: load_function(n, library) for n in load}
 
 
+def _warn_unlocked(path: Path, err: BaseException) -> None:
+    """Say once per process that the cache works without locks (concurrent processes
+    may then do the same work; still safe)."""
+    if not _UNLOCKED[0]:
+        _UNLOCKED[0] = True
+        warnings.warn(
+            f"cache: cannot lock {path} ({err}); concurrent processes may each compile or "
+            "fit the same thing (safe, only slower)",
+            RuntimeWarning,
+            stacklevel=6,
+        )
+
+
 @contextlib.contextmanager
 def cache_lock(path: Path, wait: float | None = None) -> Iterator[None]:
     """Hold an exclusive advisory lock (``flock``) on the file ``path`` for the ``with``
-    block (one process compiling a library, or fitting a robot's spheres,
-    `geosyn.robots.collision_spheres`); released when the block ends or the process dies. The file is created for it
+    block: one process compiles a library (or fits a robot's spheres,
+    `geosyn.robots.collision_spheres`, or builds the collocation's node functions) at a
+    time. Released when the block ends or the process dies. The file is created for it
     and removed after it (a process killed meanwhile leaves it: `clear_cache` removes it).
 
     Waits at most ``wait`` [s] (default `LOCK_WAIT`) for another holder, then warns and
     runs the block without the lock (two processes then both do the work; the atomic
     renames keep that safe). Where the lock file cannot be opened (a read-only folder,
-    no ``fcntl``), the block runs without it.
+    no ``fcntl``) or locked (a file system without locks), the block runs without it,
+    warned once per process.
     """
     limit = LOCK_WAIT if wait is None else wait
     try:
         import fcntl
 
         fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    except (ImportError, OSError):
+    except (ImportError, OSError) as err:
+        _warn_unlocked(path, err)
         yield
         return
     held = False
@@ -196,7 +213,7 @@ def cache_lock(path: Path, wait: float | None = None) -> Iterator[None]:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
                 held = True
-            except BlockingIOError:
+            except BlockingIOError:  # held by another process (or open file) now
                 if time.monotonic() >= deadline:
                     warnings.warn(
                         f"cache: another process has held {path.name} for more than "
@@ -206,6 +223,9 @@ def cache_lock(path: Path, wait: float | None = None) -> Iterator[None]:
                     )
                     break
                 time.sleep(_LOCK_POLL)
+            except OSError as err:  # a file system without locks (ENOLCK): run unlocked
+                _warn_unlocked(path, err)
+                break
         yield
     finally:
         if held:  # remove the file if it is still this lock's (not a newer holder's)
