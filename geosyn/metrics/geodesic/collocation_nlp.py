@@ -123,6 +123,7 @@ def _node_functions_cached(
 def _build_node_functions(
     metric: Metric, clearance: ObstacleTerm | None, constraint_hessian: bool, softmin: float | None
 ) -> tuple[ca.Function, ...]:
+    """`node_functions`, and the clearances' structured Jacobian last (with ``softmin``)."""
     funcs = node_functions(metric, clearance, constraint_hessian, softmin)
     if clearance is not None and softmin is not None:
         funcs = (*funcs, clearance_jacobian(clearance, softmin))
