@@ -21,7 +21,7 @@ from geosyn.metrics.shaping import (
     TermAlreadyBound,
     TermNotBound,
 )
-from geosyn.metrics.shaping.obstacle import PARAMS_PER_OBSTACLE
+from geosyn.metrics.shaping.obstacle import PARAMS_PER_OBSTACLE, PROFILE_PARAMS
 from geosyn.world import Box, Capsule, HalfSpace, Sphere
 
 
@@ -200,7 +200,7 @@ def test_velocity_gated_coriolis_follows_frozen_velocity_definition() -> None:
 def test_parameter_hook_and_symbolic_functions(shaped_panda: ShapedMetric) -> None:
     obstacle_term = shaped_panda.terms[1]
     p = shaped_panda.symbolic_parameters()
-    assert p.shape == (obstacle_term.capacity * PARAMS_PER_OBSTACLE, 1)
+    assert p.shape == (obstacle_term.capacity * PARAMS_PER_OBSTACLE + PROFILE_PARAMS, 1)
     assert np.array_equal(shaped_panda.parameter_values(), obstacle_term.parameter_values())
     # A geodesic integrator built from the symbolic form with the hook reproduces the
     # numeric geodesic acceleration.

@@ -358,13 +358,15 @@ def test_parameter_homotopy_shrinks_obstacles_about_their_centres() -> None:
     shaped = ShapedMetric(get_metric("panda"), [term])
     now = shaped.parameter_values().copy()
     np.testing.assert_array_equal(parameter_homotopy(shaped, 1.0), now)
-    at0 = parameter_homotopy(shaped, 0.0).reshape(3, PARAMS_PER_OBSTACLE)
-    slots = now.reshape(3, PARAMS_PER_OBSTACLE)
+    n_slots = 3 * PARAMS_PER_OBSTACLE  # then the profile's gain and cutoff, kept
+    at0 = parameter_homotopy(shaped, 0.0)[:n_slots].reshape(3, PARAMS_PER_OBSTACLE)
+    slots = now[:n_slots].reshape(3, PARAMS_PER_OBSTACLE)
+    np.testing.assert_array_equal(parameter_homotopy(shaped, 0.0)[n_slots:], [1e-3, 0.2])
     np.testing.assert_array_equal(at0[:, :12], slots[:, :12])  # centres and rotations kept
     np.testing.assert_array_equal(at0[:, 12:15], 0.0)
     np.testing.assert_allclose(at0[:, 15], HOMOTOPY_RADIUS, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(at0[:, 16], slots[:, 16])  # active flags kept
-    half = parameter_homotopy(shaped, 0.5).reshape(3, PARAMS_PER_OBSTACLE)
+    half = parameter_homotopy(shaped, 0.5)[:n_slots].reshape(3, PARAMS_PER_OBSTACLE)
     np.testing.assert_allclose(half[0, 15], 0.5 * 0.1 + 0.5 * HOMOTOPY_RADIUS, rtol=1e-15)
     np.testing.assert_array_equal(shaped.parameter_values(), now)  # the metric is unchanged
     assert parameter_homotopy(get_metric("panda"), 0.0) is None  # unshaped: no homotopy

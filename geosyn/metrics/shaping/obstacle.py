@@ -35,6 +35,7 @@ __all__ = [
     "INACTIVE_CLEARANCE",
     "ObstacleTerm",
     "PARAMS_PER_OBSTACLE",
+    "PROFILE_PARAMS",
     "PROFILES",
 ]
 
@@ -47,6 +48,9 @@ INACTIVE_CLEARANCE = 10.0
 PARAMS_PER_OBSTACLE = ROUNDED_BOX_SIZE + 1
 """Parameters per obstacle slot (17): centre (3), rotation (9, row-major), half-extents (3),
 rounding radius (1), active flag (1)."""
+
+PROFILE_PARAMS = 2
+"""Parameters after the slots: the profile's ``gain`` and ``cutoff`` [m]."""
 
 
 DISTANCES: dict[str, Callable[[], ca.Function]] = {
@@ -96,10 +100,12 @@ class ObstacleTerm(MetricTerm):
     clearance shrinks; a continuation on the obstacle's size or position (parameter
     writes only, see `set_obstacle`) warm-starts them well.
 
-    Obstacle poses and sizes are parameters: the term owns a CasADi symbol of
-    ``capacity * PARAMS_PER_OBSTACLE`` values (rounded-box parameters and an active flag
-    per slot). `set_obstacles` and `move` only write that numpy array, so any compiled
-    function of a `ShapedMetric` using the term stays valid.
+    Obstacle poses and sizes, and the profile's ``gain`` and ``cutoff``, are parameters:
+    the term owns a CasADi symbol of ``capacity * PARAMS_PER_OBSTACLE + PROFILE_PARAMS``
+    values (rounded-box parameters and an active flag per slot, then gain and cutoff).
+    `set_obstacles` and `move` only write that numpy array, so any compiled function of a
+    `ShapedMetric` using the term stays valid; and terms that differ only in gain or cutoff
+    share their compiled code (no compile when a sweep varies them).
 
     Args:
         obstacles: initial obstacles, shapes of `geosyn.world` (`Sphere`, `Box`,
@@ -175,9 +181,12 @@ class ObstacleTerm(MetricTerm):
                     )
         self.spheres: tuple[CollisionSphere, ...] = ()
         self._sphere_joints: list[int] = []
-        self._p = ca.SX.sym("obstacle_params", self.capacity * PARAMS_PER_OBSTACLE)
-        self._values = np.zeros(self.capacity * PARAMS_PER_OBSTACLE)
-        self._slots = self._values.reshape(self.capacity, PARAMS_PER_OBSTACLE)
+        n_slots = self.capacity * PARAMS_PER_OBSTACLE
+        self._p = ca.SX.sym("obstacle_params", n_slots + PROFILE_PARAMS)
+        self._values = np.zeros(n_slots + PROFILE_PARAMS)
+        self._values[n_slots:] = (self.gain, self.cutoff)
+        self._slots = self._values[:n_slots].reshape(self.capacity, PARAMS_PER_OBSTACLE)
+        self._gain, self._cutoff = self._p[n_slots], self._p[n_slots + 1]
         self._obstacles: list[Shape] = []
         self._clearance_call: Callable[..., tuple[np.ndarray, ...]] | None = None
         self.set_obstacles(obstacles)
@@ -269,7 +278,8 @@ class ObstacleTerm(MetricTerm):
         self._obstacles[index] = ob
 
     def symbolic_parameters(self) -> ca.SX:
-        """(capacity * 17, 1) SX parameter symbol (see `PARAMS_PER_OBSTACLE`)."""
+        """(capacity * 17 + 2, 1) SX parameter symbol: the slots (`PARAMS_PER_OBSTACLE`
+        each), then gain and cutoff (`PROFILE_PARAMS`)."""
         return self._p
 
     def parameter_homotopy(self, s: float) -> np.ndarray:
@@ -284,17 +294,19 @@ class ObstacleTerm(MetricTerm):
             s: homotopy parameter in [0, 1].
 
         Returns:
-            (capacity * 17,) parameters (a new array).
+            (capacity * 17 + 2,) parameters (a new array; gain and cutoff unchanged).
         """
         s = float(np.clip(s, 0.0, 1.0))
         values = self._values.copy()
-        slots = values.reshape(self.capacity, PARAMS_PER_OBSTACLE)
+        slots = values[: self.capacity * PARAMS_PER_OBSTACLE].reshape(
+            self.capacity, PARAMS_PER_OBSTACLE
+        )
         slots[:, 12:15] *= s
         slots[:, 15] = s * slots[:, 15] + (1.0 - s) * HOMOTOPY_RADIUS
         return values
 
     def parameter_values(self) -> np.ndarray:
-        """(capacity * 17,) current parameters (the live array: do not modify)."""
+        """(capacity * 17 + 2,) current parameters (the live array: do not modify)."""
         return self._values
 
     # -- binding and symbolic form ---------------------------------------------------
@@ -346,7 +358,7 @@ class ObstacleTerm(MetricTerm):
                 xdot = ca.mtimes(J, v) if v is not None else ca.SX.zeros(3)
             A = ca.SX.zeros(3, 3)
             for d, nrm, active in pairs:
-                w = active * profile(d, self)
+                w = active * profile(d, self._gain, self._cutoff, self)
                 if xdot is not None:
                     w = w * gate(ca.dot(nrm, xdot), self)
                 A = A + w * ca.mtimes(nrm, nrm.T)
