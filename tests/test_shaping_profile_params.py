@@ -60,3 +60,35 @@ def test_terms_differing_in_gain_and_cutoff_share_their_compiled_code(
         Gs.append(term.G(q0))
     assert compiles[0] >= 1 and compiles[1] == compiles[0]  # no compile for the second
     assert not np.allclose(Gs[0], Gs[1])
+
+
+def test_set_profile_changes_the_barrier_without_a_rebuild() -> None:
+    """`set_profile` on a built shaped metric: its G minus the base's equals the closed form
+    of the new gain and cutoff (1e-6 relative), with no rebuild; a cutoff below d_min is
+    refused and changes nothing."""
+    from geosyn.metrics.shaping import InvalidTermArgument
+
+    robot, base = get_robot("planar2"), get_metric("planar2")
+    obstacles = [Sphere((0.55, 0.45, 0.0), 0.08)]
+    term = ObstacleTerm(obstacles, capacity=1, gain=1e-3, cutoff=0.2)
+    shaped = ShapedMetric(base, [term])
+    rng = np.random.default_rng(8)
+    qs = [_random_clear_q(robot, term, rng) for _ in range(30)]
+    shaped.G(qs[0])
+    builds = shaped.build_count
+    term.set_profile(gain=4e-3, cutoff=0.35)
+    checked = 0
+    for q in qs:
+        ref = _reference_G(robot, q, obstacles, 4e-3, 0.35)
+        if np.abs(ref).max() < 1e-6:
+            continue
+        np.testing.assert_allclose(
+            shaped.G(q) - base.G(q), ref, rtol=1e-6, atol=1e-9 * np.abs(ref).max()
+        )
+        checked += 1
+    assert checked >= 5 and shaped.build_count == builds
+    before = shaped.parameter_values().copy()
+    with pytest.raises(InvalidTermArgument, match="cutoff"):
+        term.set_profile(gain=2e-3, cutoff=1e-5)
+    np.testing.assert_array_equal(shaped.parameter_values(), before)
+    assert (term.gain, term.cutoff) == (4e-3, 0.35)

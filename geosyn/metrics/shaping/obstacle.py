@@ -257,6 +257,27 @@ class ObstacleTerm(MetricTerm):
         else:
             self._obstacles[index] = obstacle
 
+    def set_profile(self, gain: float | None = None, cutoff: float | None = None) -> None:
+        """Change the profile's gain and/or cutoff (a parameter write; rebuilds nothing:
+        the compiled functions of a `ShapedMetric` read them at their next call).
+
+        Args:
+            gain: new gain (units as the constructor's), > 0; None keeps it.
+            cutoff: new cutoff [m], > 0 and > ``d_min``; None keeps it.
+
+        Raises:
+            InvalidTermArgument: a value out of range (nothing is changed then).
+        """
+        with term_arguments():
+            g = self.gain if gain is None else check_positive(gain, "gain")
+            c = self.cutoff if cutoff is None else check_positive(cutoff, "cutoff", "m")
+        if self.d_min >= c:
+            raise InvalidTermArgument(
+                f"cutoff must be > d_min={self.d_min!r} [m], got cutoff={cutoff!r}"
+            )
+        self.gain, self.cutoff = g, c
+        self._values[self.capacity * PARAMS_PER_OBSTACLE :] = (g, c)
+
     def move(self, index: int, center: Sequence[float] | np.ndarray) -> None:
         """Translate obstacle ``index`` (a parameter write; rebuilds nothing).
 
