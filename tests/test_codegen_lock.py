@@ -1,5 +1,5 @@
 """One process compiles a library at a time: a cold cache shared by concurrent processes
-(a sweep's workers) compiles each library once (`geosyn.core.library_cache.cache_lock`)."""
+(a sweep's workers) compiles each library once (`geosyn.core.cache_folder.cache_lock`)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from pathlib import Path
 import casadi as ca
 import pytest
 
-from geosyn.core import codegen, library_cache
+from geosyn.core import cache_folder, codegen
 
 # The start of every race script: ``folder``, ``runs`` and the names of the two processes
 # from argv; ``slowed(f)``, f that first logs its call to ``runs`` and sleeps 1 s (so that
@@ -102,7 +102,7 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
     held, release = threading.Event(), threading.Event()
 
     def holder() -> None:
-        with library_cache.cache_lock(path):
+        with cache_folder.cache_lock(path):
             held.set()
             release.wait(30)
 
@@ -113,7 +113,7 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
         start = time.monotonic()
         with (
             pytest.warns(RuntimeWarning, match=path.name),
-            library_cache.cache_lock(path, wait=0.3),
+            cache_folder.cache_lock(path, wait=0.3),
         ):
             waited = time.monotonic() - start
         assert waited >= 0.3
@@ -129,7 +129,7 @@ def test_a_lock_held_too_long_is_waited_for_then_reported(tmp_path: Path) -> Non
     timer.start()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        with library_cache.cache_lock(path, wait=60.0):
+        with cache_folder.cache_lock(path, wait=60.0):
             pass
     thread.join(30)
 
@@ -146,10 +146,10 @@ def test_a_file_system_without_locks_runs_unlocked_and_says_so_once(
         raise OSError(errno.ENOLCK, "No locks available")
 
     monkeypatch.setattr(fcntl, "flock", no_locks)
-    monkeypatch.setattr(library_cache, "_UNLOCKED", [False])
+    monkeypatch.setattr(cache_folder, "_unlocked_warned", False)
     ran = []
     with pytest.warns(RuntimeWarning, match="cannot lock"):
-        with library_cache.cache_lock(tmp_path / "a.lock"):
+        with cache_folder.cache_lock(tmp_path / "a.lock"):
             ran.append(1)
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -1,5 +1,5 @@
 """The sphere fit's disk cache shared by processes: one fit per robot on a cold cache
-(`geosyn.core.library_cache.cache_lock`), a damaged entry warned and fitted again."""
+(`geosyn.core.cache_folder.fill_once`), a damaged entry warned and fitted again."""
 
 from __future__ import annotations
 

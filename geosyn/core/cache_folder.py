@@ -1,4 +1,5 @@
-"""Where the compiled-code cache lives (`geosyn.core.codegen`), and emptying it.
+"""Where the compiled-code cache lives (`geosyn.core.codegen`), emptying it, and the lock
+every disk cache of geosyn takes to make an entry once (`cache_lock`, `fill_once`).
 
 Cache location, first that applies: a ``cache_dir`` argument, ``$GEOSYN_CACHE_DIR/codegen``,
 ``$XDG_CACHE_HOME/geosyn/codegen``, ``~/.cache/geosyn/codegen``.
@@ -6,12 +7,27 @@ Cache location, first that applies: a ``cache_dir`` argument, ``$GEOSYN_CACHE_DI
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
+import time
+import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
-__all__ = ["TMP_PREFIX", "clear_cache", "default_cache_dir", "resolve_cache_dir"]
+__all__ = [
+    "LOCK_WAIT",
+    "TMP_PREFIX",
+    "cache_lock",
+    "clear_cache",
+    "default_cache_dir",
+    "fill_once",
+    "resolve_cache_dir",
+]
+
+T = TypeVar("T")
 
 # <function name>_<24 hex digits of the key>.<so|c|recipe|so.sha256|lock>; clear_cache
 # deletes only these.
@@ -67,3 +83,96 @@ def clear_cache(cache_dir: str | os.PathLike[str] | None = None) -> int:
             shutil.rmtree(entry, ignore_errors=True)
             removed += 1
     return removed
+
+
+LOCK_WAIT = 600.0
+"""Longest wait [s] for another process making the same cache entry (the largest libraries
+compile in about a minute); after it this process does the work too, with a warning."""
+_LOCK_POLL = 0.05  # [s] between two tries of the lock
+_unlocked_warned = False  # whether working without locks was warned in this process
+
+
+def _warn_unlocked(path: Path, err: BaseException) -> None:
+    """Say once per process that the cache works without locks (concurrent processes
+    may then do the same work; still safe)."""
+    global _unlocked_warned
+    if not _unlocked_warned:
+        _unlocked_warned = True
+        warnings.warn(
+            f"cache: cannot lock {path} ({err}); concurrent processes may each compile or "
+            "fit the same thing (safe, only slower)",
+            RuntimeWarning,
+            stacklevel=6,
+        )
+
+
+def _acquire(fd: int, path: Path, limit: float) -> bool:
+    """Take the exclusive ``flock`` on ``fd`` within ``limit`` [s]: True if held; False
+    (warned) after the wait, or on a file system without locks."""
+    import fcntl
+
+    deadline = time.monotonic() + limit
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:  # held by another process (or open file) now
+            if time.monotonic() >= deadline:
+                warnings.warn(
+                    f"cache: another process has held {path.name} for more than "
+                    f"{limit:g} s (compiling or fitting); doing the same work here",
+                    RuntimeWarning,
+                    stacklevel=6,
+                )
+                return False
+            time.sleep(_LOCK_POLL)
+        except OSError as err:  # a file system without locks (ENOLCK): run unlocked
+            _warn_unlocked(path, err)
+            return False
+
+
+@contextlib.contextmanager
+def cache_lock(path: Path, wait: float | None = None) -> Iterator[None]:
+    """Hold an exclusive advisory lock (``flock``) on the file ``path`` for the ``with``
+    block: one process makes a cache entry at a time (a compiled library,
+    `geosyn.core.library_cache`; a robot's spheres; the collocation's node functions; a
+    data wheel). Released when the block ends or the process dies. The file is created
+    for it and removed after it (a process killed meanwhile leaves it: the caches'
+    clear functions remove it).
+
+    Waits at most ``wait`` [s] (default `LOCK_WAIT`) for another holder, then warns and
+    runs the block without the lock (two processes then both do the work; the atomic
+    renames keep that safe). Where the lock file cannot be opened (a read-only folder,
+    no ``fcntl``) or locked (a file system without locks), the block runs without it,
+    warned once per process.
+    """
+    try:
+        import fcntl  # noqa: F401 - POSIX only
+
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except (ImportError, OSError) as err:
+        _warn_unlocked(path, err)
+        yield
+        return
+    held = False
+    try:
+        held = _acquire(fd, path, LOCK_WAIT if wait is None else wait)
+        yield
+    finally:
+        if held:  # remove the file if it is still this lock's (not a newer holder's)
+            with contextlib.suppress(OSError):
+                if os.stat(path).st_ino == os.fstat(fd).st_ino:
+                    os.unlink(path)
+        os.close(fd)  # releases the lock
+
+
+def fill_once(lock: Path, read: Callable[[], T | None], make: Callable[[], T]) -> T:
+    """A cache entry made by one process at a time: under `cache_lock` on ``lock`` (its
+    folder created), ``read()`` again (another process may have made the entry while
+    this one waited), else ``make()`` (which stores it). Call after a ``read`` that
+    missed."""
+    with contextlib.suppress(OSError):  # unwritable: unlocked, and the store says so
+        lock.parent.mkdir(parents=True, exist_ok=True)
+    with cache_lock(lock):
+        found = read()
+        return make() if found is None else found

@@ -6,7 +6,8 @@ cached library is used only if its sha256 (`geosyn.core.library_digest`) and the
 compiled into it match; a damaged or swapped file is rebuilt, with a warning. Files
 appear atomically (built in a temporary folder beside them, then ``os.replace``), so
 concurrent processes never load a half-written library; and one process compiles a given
-library at a time (an exclusive lock on ``<stem>.lock`` beside it, `cache_lock`), so the
+library at a time (an exclusive lock on ``<stem>.lock`` beside it,
+`geosyn.core.cache_folder.cache_lock`), so the
 workers of a sweep on a cold cache compile it once and the others load it.
 
 The public entry points are `geosyn.core.codegen`'s; these are its parts.
@@ -14,29 +15,26 @@ The public entry points are `geosyn.core.codegen`'s; these are its parts.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
 import shutil
 import subprocess
 import tempfile
-import time
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import casadi as ca
 
 from geosyn.core import GeosynError, library_digest
 from geosyn.core.cache_folder import TMP_PREFIX as _TMP_PREFIX
+from geosyn.core.cache_folder import cache_lock
 
 __all__ = [
     "LIBRARY_FORMAT",
     "CodegenError",
-    "LOCK_WAIT",
     "build_cached",
     "cached_library",
-    "cache_lock",
     "find_compiler",
     "library_key",
     "load_function",
@@ -48,11 +46,6 @@ __all__ = [
 LIBRARY_FORMAT = "geosyn-library-v2"
 """Salt of the library keys, bumped when what a library carries changes (v2: its keys),
 so older files are never looked up (no warning about them; clear_cache removes them)."""
-LOCK_WAIT = 600.0
-"""Longest wait [s] for another process compiling the same library (the largest libraries
-compile in about a minute); after it this process compiles too, with a warning."""
-_LOCK_POLL = 0.05  # [s] between two tries of the lock
-_UNLOCKED = [False]  # whether working without locks was warned in this process
 
 
 class CodegenError(GeosynError):
@@ -168,71 +161,6 @@ def build_cached(
             library, _ = cached_library(name, source, cache_dir, flags, compiler,
                                          recipe_key, rebuild=True)  # fmt: skip
     return {n: load_function(n, library) for n in load}
-
-
-def _warn_unlocked(path: Path, err: BaseException) -> None:
-    """Say once per process that the cache works without locks (concurrent processes
-    may then do the same work; still safe)."""
-    if not _UNLOCKED[0]:
-        _UNLOCKED[0] = True
-        warnings.warn(
-            f"cache: cannot lock {path} ({err}); concurrent processes may each compile or "
-            "fit the same thing (safe, only slower)",
-            RuntimeWarning,
-            stacklevel=6,
-        )
-
-
-@contextlib.contextmanager
-def cache_lock(path: Path, wait: float | None = None) -> Iterator[None]:
-    """Hold an exclusive advisory lock (``flock``) on the file ``path`` for the ``with``
-    block: one process compiles a library (or fits a robot's spheres,
-    `geosyn.robots.collision_spheres`, or builds the collocation's node functions) at a
-    time. Released when the block ends or the process dies. The file is created for it
-    and removed after it (a process killed meanwhile leaves it: `clear_cache` removes it).
-
-    Waits at most ``wait`` [s] (default `LOCK_WAIT`) for another holder, then warns and
-    runs the block without the lock (two processes then both do the work; the atomic
-    renames keep that safe). Where the lock file cannot be opened (a read-only folder,
-    no ``fcntl``) or locked (a file system without locks), the block runs without it,
-    warned once per process.
-    """
-    limit = LOCK_WAIT if wait is None else wait
-    try:
-        import fcntl
-
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    except (ImportError, OSError) as err:
-        _warn_unlocked(path, err)
-        yield
-        return
-    held = False
-    try:
-        deadline = time.monotonic() + limit
-        while not held:
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                held = True
-            except BlockingIOError:  # held by another process (or open file) now
-                if time.monotonic() >= deadline:
-                    warnings.warn(
-                        f"cache: another process has held {path.name} for more than "
-                        f"{limit:g} s (compiling or fitting); doing the same work here",
-                        RuntimeWarning,
-                        stacklevel=5,
-                    )
-                    break
-                time.sleep(_LOCK_POLL)
-            except OSError as err:  # a file system without locks (ENOLCK): run unlocked
-                _warn_unlocked(path, err)
-                break
-        yield
-    finally:
-        if held:  # remove the file if it is still this lock's (not a newer holder's)
-            with contextlib.suppress(OSError):
-                if os.stat(path).st_ino == os.fstat(fd).st_ino:
-                    os.unlink(path)
-        os.close(fd)  # releases the lock
 
 
 def cached_library(

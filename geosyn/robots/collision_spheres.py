@@ -24,7 +24,6 @@ geometry and the settings; `clear_sphere_cache` empties it.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
@@ -37,8 +36,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from geosyn.core.codegen import default_cache_dir
-from geosyn.core.library_cache import cache_lock
+from geosyn.core.cache_folder import default_cache_dir, fill_once
 from geosyn.core.validation import check_float
 from geosyn.robots.collision_geometry import (
     CollisionObject,
@@ -352,13 +350,11 @@ def file_spheres(robot: Robot, *, excess: float = 0.02, margin: float = 0.002) -
         return model
     # One process fits a robot at a time (a sweep's workers on a cold cache): the others
     # wait, then read its file.
-    with contextlib.suppress(OSError):  # unwritable: fitted unlocked, warned at the write
-        path.parent.mkdir(parents=True, exist_ok=True)
-    with cache_lock(path.with_suffix(".lock")):
-        model = _read_cache(path, margin, excess, digest, warn=False)
-        if model is None:
-            model = _fit(robot, objects, margin, excess, digest, path)
-    return model
+    return fill_once(
+        path.with_suffix(".lock"),
+        lambda: _read_cache(path, margin, excess, digest, warn=False),
+        lambda: _fit(robot, objects, margin, excess, digest, path),
+    )
 
 
 def _read_cache(

