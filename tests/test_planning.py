@@ -21,6 +21,7 @@ from geosyn.metrics.planning import (
     Planner,
     rrt_connect,
 )
+from geosyn.metrics.planning.coarse import COARSE_RAMP
 from geosyn.metrics.planning.planner import densify
 from geosyn.metrics.shaping import CapacityExceeded
 from geosyn.robots import load_robot
@@ -190,7 +191,7 @@ def test_coarse_bounds_ramp_from_the_ends_and_stop_at_fixed_spheres(planner: Pla
     np.testing.assert_allclose(bounds[np.abs(t - 0.5) < 0.2, 0], planner.coarse_margin)
     assert np.all(bounds[:, 1] == planner.coarse_margin)  # the empty slot
     slack = np.log(len(planner.term.spheres)) / planner.softmin  # type: ignore[operator]
-    first = bounds[np.argmin(t), 0] - planner.coarse_margin * t.min() / planner.COARSE_RAMP
+    first = bounds[np.argmin(t), 0] - planner.coarse_margin * t.min() / COARSE_RAMP
     assert exact - slack - 1e-12 <= first <= exact + 1e-12
     planner.term.set_obstacles([HalfSpace((0.0, 0.0, 1.0), -0.02)])  # 2 cm below the arm
     floor = planner.coarse_bounds(q0, q1)[:, 0]

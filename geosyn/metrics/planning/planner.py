@@ -68,7 +68,7 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.planning.anytime import ANYTIME_CHECKS
-from geosyn.metrics.planning.coarse import COARSE_RAMP, clearance_bounds
+from geosyn.metrics.planning.coarse import clearance_bounds
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import (
@@ -331,9 +331,6 @@ class Planner:
         if not self.sphere_check.self_pairs:
             return True
         return clearance >= 0.0
-
-    COARSE_RAMP = COARSE_RAMP
-    """Fraction of the path over which the coarse clearance bound rises (`coarse.COARSE_RAMP`)."""
 
     def bounds(self, col: Collocation, q0: np.ndarray, q1: np.ndarray, level: float) -> np.ndarray:
         """(P, m) clearance bounds [m] of the collocation ``col`` at its points, at

@@ -159,16 +159,10 @@ class ObstacleTerm(MetricTerm):
             raise InvalidTermArgument(f"gate {gate!r} is unknown; allowed: {', '.join(GATES)}")
         with term_arguments():
             self.capacity = check_int(capacity, "capacity", low=1)
-            self.gain = check_positive(gain, "gain")
-            self.cutoff = check_positive(cutoff, "cutoff", "m")
             self.d_min = check_positive(d_min, "d_min", "m")
             self.length = check_positive(length, "length", "m")
             self.epsilon = check_positive(epsilon, "epsilon")
             self.gate_speed = check_positive(gate_speed, "gate_speed", "m/s")
-        if self.d_min >= self.cutoff:
-            raise InvalidTermArgument(
-                f"d_min must be < cutoff [m], got d_min={d_min!r}, cutoff={cutoff!r}"
-            )
         self.profile = profile
         self.gate = gate
         self.velocity_dependent = gate != "none"
@@ -181,12 +175,13 @@ class ObstacleTerm(MetricTerm):
                     )
         self.spheres: tuple[CollisionSphere, ...] = ()
         self._sphere_joints: list[int] = []
-        n_slots = self.capacity * PARAMS_PER_OBSTACLE
+        n_slots = self._n_slots = self.capacity * PARAMS_PER_OBSTACLE
         self._p = ca.SX.sym("obstacle_params", n_slots + PROFILE_PARAMS)
         self._values = np.zeros(n_slots + PROFILE_PARAMS)
-        self._values[n_slots:] = (self.gain, self.cutoff)
         self._slots = self._values[:n_slots].reshape(self.capacity, PARAMS_PER_OBSTACLE)
         self._gain, self._cutoff = self._p[n_slots], self._p[n_slots + 1]
+        with term_arguments():
+            self._write_profile(check_positive(gain, "gain"), check_positive(cutoff, "cutoff", "m"))
         self._obstacles: list[Shape] = []
         self._clearance_call: Callable[..., tuple[np.ndarray, ...]] | None = None
         self.set_obstacles(obstacles)
@@ -271,12 +266,24 @@ class ObstacleTerm(MetricTerm):
         with term_arguments():
             g = self.gain if gain is None else check_positive(gain, "gain")
             c = self.cutoff if cutoff is None else check_positive(cutoff, "cutoff", "m")
-        if self.d_min >= c:
+        self._write_profile(g, c)
+
+    def _write_profile(self, gain: float, cutoff: float) -> None:
+        if self.d_min >= cutoff:
             raise InvalidTermArgument(
-                f"cutoff must be > d_min={self.d_min!r} [m], got cutoff={cutoff!r}"
+                f"d_min must be < cutoff [m], got d_min={self.d_min!r}, cutoff={cutoff!r}"
             )
-        self.gain, self.cutoff = g, c
-        self._values[self.capacity * PARAMS_PER_OBSTACLE :] = (g, c)
+        self._values[self._n_slots :] = (gain, cutoff)
+
+    @property
+    def gain(self) -> float:
+        """The profile's gain (a parameter: `set_profile` changes it)."""
+        return float(self._values[self._n_slots])
+
+    @property
+    def cutoff(self) -> float:
+        """The profile's cutoff [m] (a parameter: `set_profile` changes it)."""
+        return float(self._values[self._n_slots + 1])
 
     def move(self, index: int, center: Sequence[float] | np.ndarray) -> None:
         """Translate obstacle ``index`` (a parameter write; rebuilds nothing).
@@ -319,9 +326,7 @@ class ObstacleTerm(MetricTerm):
         """
         s = float(np.clip(s, 0.0, 1.0))
         values = self._values.copy()
-        slots = values[: self.capacity * PARAMS_PER_OBSTACLE].reshape(
-            self.capacity, PARAMS_PER_OBSTACLE
-        )
+        slots = values[: self._n_slots].reshape(self.capacity, PARAMS_PER_OBSTACLE)
         slots[:, 12:15] *= s
         slots[:, 15] = s * slots[:, 15] + (1.0 - s) * HOMOTOPY_RADIUS
         return values
