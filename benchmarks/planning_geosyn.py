@@ -15,13 +15,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 import planning_scenes as ps  # noqa: E402
 
+from geosyn import world as shapes  # noqa: E402
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
 from geosyn.robots import CollisionSphere, Robot, load_robot  # noqa: E402
-
-try:  # the shapes live in geosyn.world since the issue-9 layout, in shaping before it
-    from geosyn import world as shapes  # noqa: E402
-except ImportError:
-    from geosyn.metrics import shaping as shapes  # type: ignore[no-redef]  # noqa: E402
 
 
 class PlannerRun(NamedTuple):

@@ -72,7 +72,15 @@ def test_the_search_is_seeded_with_each_setting() -> None:
 
 @pytest.mark.parametrize(
     "domain",
-    [(1.0, 2.0, 1e-4), (0.0, 0.0, 0.1), (2.0, 0.6, 1.0), (np.inf, 0.6, 1e-4), (1.0, 0.5), "a"],
+    [
+        (1.0, 2.0, 1e-4),
+        (0.0, 0.0, 0.1),
+        (2.0, 0.6, 1.0),
+        (np.inf, 0.6, 1e-4),
+        (1.0, 0.5),
+        "a",
+        (True, 0.5, 0.1),  # a boolean is not a radius
+    ],
 )
 def test_a_bad_domain_is_refused_by_name(domain: object) -> None:
     with pytest.raises(InvalidArgument, match="domain"):

@@ -26,6 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
+from geosyn.core.validation import check_vec3
 
 __all__ = [
     "DYNAMIC_DOMAIN",
@@ -102,13 +103,9 @@ def check_domain(domain: tuple[float, float, float] | None) -> tuple[float, floa
     """``domain`` (see `rrt_connect`) as floats, or `InvalidArgument` naming what is allowed."""
     if domain is None:
         return None
-    try:
-        radius, smallest, alpha = (float(x) for x in domain)
-    except (TypeError, ValueError):
-        raise InvalidArgument(f"domain: (radius, smallest radius, alpha) or None, got {domain!r}"
-                              ) from None  # fmt: skip
-    if not (0.0 < smallest <= radius < math.inf and 0.0 <= alpha < 1.0):
-        raise InvalidArgument(f"domain: 0 < smallest radius <= radius (finite) [rad] and "
+    radius, smallest, alpha = check_vec3(domain, "domain")  # finite reals, no booleans
+    if not (0.0 < smallest <= radius and 0.0 <= alpha < 1.0):
+        raise InvalidArgument(f"domain: 0 < smallest radius <= radius [rad] and "
                               f"0 <= alpha < 1, got {domain!r}")  # fmt: skip
     return radius, smallest, alpha
 

@@ -19,6 +19,7 @@ from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_parts import CollocationResult
 from geosyn.metrics.planning.errors import InCollision, OutsideJointLimits
 from geosyn.metrics.planning.exact_path import PathAids, path_clearance
+from geosyn.metrics.planning.relax import OUTSIDE_TOL
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import CollisionSphere, Robot
@@ -35,9 +36,10 @@ __all__ = [
     "planning_geometry",
 ]
 
-LIMIT_TOL = 1e-9
+LIMIT_TOL = OUTSIDE_TOL
 """Distance [rad] beyond a joint limit that a sample of a plan (or a query's end) may
-lie (an NLP's bound tolerance), no more."""
+lie (an NLP's bound tolerance), no more: `relax.OUTSIDE_TOL`, the relaxation's own, so
+that a path it accepts within the limits is within them here too."""
 
 REPAIR_STEP = 0.005
 """Added to the sphere margin [m], beyond the exact penetration, when a plan fails the
