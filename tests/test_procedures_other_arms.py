@@ -18,7 +18,7 @@ import pytest
 
 from geosyn.experiments import load_config, run_experiment
 from geosyn.experiments.procedures.outcomes import fail_run, status_oks
-from geosyn.experiments.procedures.perception_reach import target_failures
+from geosyn.experiments.procedures.perception_targets import target_failures
 from geosyn.experiments.procedures.segments import (
     SegmentFailed,
     avoiding_sequence,
@@ -170,7 +170,7 @@ def test_a_missed_target_or_a_reference_outside_the_limits_is_a_named_failure():
     assert reason.startswith("missed the target") and "210 mm" in reason
     q[3, 2] = 3.5  # elbow beyond pi
     reasons = target_failures(robot, q, 0.004, params)
-    assert len(reasons) == 1 and "'elbow_joint' at 3.5" in reasons[0]
+    assert len(reasons) == 1 and "(elbow_joint) = 3.5000 rad" in reasons[0]
     # counted like any other run: its row's ok is 0, failed_runs counts it, claims go
     results = {"target_1__status": np.array("ok"), "target_2__status": np.array("ok")}
     fail_run(results, "target_2", reasons[0])

@@ -39,6 +39,12 @@ from geosyn.core.types import Vector
 from geosyn.experiments.procedures.base import Procedure, RunContext, check_required, register
 from geosyn.experiments.procedures.common import Duration
 from geosyn.experiments.procedures.outcomes import fail_run, run_status, status_oks
+from geosyn.experiments.procedures.perception_targets import (
+    ROWS,
+    map_vs_reach,
+    target_failures,
+    target_paths,
+)
 from geosyn.experiments.results.plots import COLORS, figure, save
 from geosyn.experiments.run import build as B
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
@@ -48,7 +54,6 @@ from geosyn.robots.kinematics import frame_position
 from geosyn.sim import CameraView, Simulation
 from geosyn.sim.camera_sensor import CameraSensor, Frames
 from geosyn.sim.perception import estimate_ball
-from geosyn.synergies import ReachOutsideLimits, reach
 from geosyn.synergies.perception_map import SynergyMap
 from geosyn.world import Sphere
 
@@ -187,17 +192,6 @@ class PerceptionController(Controller):
         truth = self.frames.true_positions[-1][1]
         self.log.append((t_img, est.position, truth, sol.map_error, sol.refined))
         return tau
-
-
-def target_paths(
-    smap: SynergyMap, p: PerceptionReachParams, seed: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """((N, 3) final target positions [m], (N, 3) start offsets [m]), seeded."""
-    finals, _ = smap.sample(p.n_targets, p.target_scale * p.weight_scale, seed + 1)
-    rng = np.random.default_rng(seed + 2)
-    d = rng.normal(size=(p.n_targets, 3))
-    d *= p.drift / np.linalg.norm(d, axis=1, keepdims=True)
-    return finals, d
 
 
 @register
@@ -399,60 +393,3 @@ class PerceptionReach(Procedure):
         )
         paths.append(save(fig, out_dir / "map_vs_reach.png"))
         return paths
-
-
-ROWS = ("final_error", "perception_error", "replans", "refined", "misses", "ok")
-
-
-def target_failures(
-    robot: Robot, q_ref: np.ndarray, final_error: float, p: PerceptionReachParams
-) -> list[str]:
-    """Why a target's run failed beyond the simulation's own status (none: it did not).
-
-    Args:
-        robot: the robot (its joint position limits).
-        q_ref: (T, n) the reference the controller tracked [rad].
-        final_error: distance of the hand from the true final target at the end [m].
-        p: the parameters (``success_radius`` [m]).
-    """
-    out = []
-    if not final_error <= p.success_radius:
-        out.append(
-            f"missed the target: the hand ends {final_error * 1e3:.4g} mm from it"
-            f" (success radius {p.success_radius * 1e3:.4g} mm)"
-        )
-    lo, hi = np.asarray(robot.q_min), np.asarray(robot.q_max)
-    q = np.asarray(q_ref, dtype=np.float64)
-    if q.ndim == 2 and q.shape[1] == lo.shape[0]:
-        over = np.nan_to_num(np.maximum(q - hi, 0.0) + np.maximum(lo - q, 0.0))
-        if over.size and float(over.max()) > 0.0:
-            k, j = np.unravel_index(int(np.argmax(over)), over.shape)
-            out.append(
-                f"the reference leaves the joint limits: joint {robot.joint_names[j]!r} at"
-                f" {q[k, j]:.4g} (limits [{lo[j]:.4g}, {hi[j]:.4g}]) at tick {int(k)}"
-            )
-    return out
-
-
-def map_vs_reach(
-    smap: SynergyMap, syns: list[Any], targets: np.ndarray, frame: str, robot: Robot, p: Any
-) -> dict[str, np.ndarray]:
-    """Error and time of the map's weights (unrefined) and of `reach` alone per target."""
-    map_err, map_t, reach_err, reach_t = [], [], [], []
-    for pt in targets:
-        c0 = time.perf_counter()
-        w = smap.weights(pt)
-        map_t.append(time.perf_counter() - c0)
-        map_err.append(float(np.linalg.norm(smap.endpoint(w) - pt)))
-        c0 = time.perf_counter()
-        try:
-            reach_err.append(reach(syns, pt, frame, robot, steps=p.steps, restarts=2).error)
-        except ReachOutsideLimits:  # counted in the summary (reach_outside_limits)
-            reach_err.append(float("nan"))
-        reach_t.append(time.perf_counter() - c0)
-    return {
-        "map_error": np.array(map_err),
-        "map_time": np.array(map_t),
-        "reach_error": np.array(reach_err),
-        "reach_time": np.array(reach_t),
-    }

@@ -107,9 +107,9 @@ def outside_limits(robot: Robot, path: np.ndarray) -> str:
     keeps them (the limits are a box: a segment between two samples inside is inside)."""
     path = np.atleast_2d(np.asarray(path, dtype=float))
     out = _beyond(robot, path)
-    if not np.any(out > LIMIT_TOL):
+    if not np.any(out > LIMIT_TOL):  # NaN samples are not counted here
         return ""
-    k, j = np.unravel_index(int(np.argmax(out)), out.shape)
+    k, j = np.unravel_index(int(np.nanargmax(out)), out.shape)
     return (
         f"sample {k} has joint {j} ({robot.joint_names[j]}) = {path[k, j]:.4f} rad, outside "
         f"its limits [{robot.q_min[j]:.4f}, {robot.q_max[j]:.4f}] rad"
