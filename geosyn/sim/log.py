@@ -14,6 +14,7 @@ read exactly these arrays.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -195,6 +196,10 @@ class SimResult:
         seed: the seed of the run's random generators.
         controller_notes: the controller's ``diagnostics.notes`` at the end of the run,
             ``"name: text"`` each (what it changed, modelled or guarded; () if none).
+        mesh_clearance: smallest exact clearance [m] of the robot file's collision
+            geometry to the obstacles over the run (`geosyn.sim.mesh_clearance`; negative:
+            penetration); NaN when not measured (no obstacles, no file geometry).
+        mesh_clearance_note: how ``mesh_clearance`` was measured, or why not.
     """
 
     t: np.ndarray
@@ -231,6 +236,8 @@ class SimResult:
     wall_time: float
     seed: int
     controller_notes: tuple[str, ...] = ()
+    mesh_clearance: float = math.nan
+    mesh_clearance_note: str = ""
 
     # -- summaries --------------------------------------------------------------------
     @property

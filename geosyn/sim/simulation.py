@@ -49,6 +49,7 @@ from geosyn.sim.divergence import SPEED_FACTOR, DivergenceCheck
 from geosyn.sim.file_scene import build_file_scene
 from geosyn.sim.log import SimResult
 from geosyn.sim.log_spool import LogWriter, open_log
+from geosyn.sim.mesh_clearance import MESH_RESOLUTION, MeshClearance, RunClearance
 from geosyn.sim.obstacles import obstacle_contact_force
 from geosyn.sim.scene import Scene, build_scene, torque_range
 from geosyn.world import Payload
@@ -83,6 +84,10 @@ class Simulation:
             actuators disabled, geosyn's torques applied as joint forces ``qfrc_applied``
             and clipped to ``robot.tau_max``), with the payloads, obstacles and contact
             added to the file as to the model.
+        mesh_resolution: joint-space step [rad] at which each run's motion is checked
+            on the robot file's collision geometry against the obstacles after the run
+            (`geosyn.sim.mesh_clearance`, ``SimResult.mesh_clearance``); None: not
+            checked (the result's note says so).
 
     Raises:
         InvalidArgument: a bad argument; the message names it.
@@ -106,6 +111,7 @@ class Simulation:
         torque_limits: bool = True,
         position_limits: bool = True,
         plant: str = "model",
+        mesh_resolution: float | None = MESH_RESOLUTION,
     ) -> None:
         disturbances = check_parts(robot, controller, disturbances)
         self.plant = check_choice(plant, ("model", "file"), "plant")
@@ -118,28 +124,17 @@ class Simulation:
         self.integrator = integrator
         self.torque_limits = bool(torque_limits)
         self._contact = bool(contact)
-        if self.plant == "file":
-            self.scene: Scene = build_file_scene(
-                robot,
-                timestep=control_dt / self.substeps,
-                integrator=integrator,
-                gravity=gravity,
-                limits=position_limits,
-                payloads=payloads,
-                obstacles=obstacles,
-                contact=contact,
-            )
-        else:
-            self.scene = build_scene(
-                robot,
-                payloads=payloads,
-                obstacles=obstacles,
-                timestep=control_dt / self.substeps,
-                integrator=integrator,
-                gravity=gravity,
-                contact=contact,
-                limits=position_limits,
-            )
+        build = build_file_scene if self.plant == "file" else build_scene  # same arguments
+        self.scene: Scene = build(
+            robot,
+            timestep=control_dt / self.substeps,
+            integrator=integrator,
+            gravity=gravity,
+            limits=position_limits,
+            payloads=payloads,
+            obstacles=obstacles,
+            contact=contact,
+        )
         self.model = self.scene.model
         self.data = mujoco.MjData(self.model)
         self.tau_min, self.tau_max = torque_range(self.scene, robot, self.plant, self.torque_limits)
@@ -153,6 +148,8 @@ class Simulation:
         self._pre_hooks = [d for d in self.disturbances if overrides(d, "before_tick")]
         self._zero_xfrc = any(d.applies_wrench for d in self.disturbances)
         self.divergence = DivergenceCheck(robot, self.data)
+        shapes = [o.shape for o in self.scene.obstacles]
+        self.mesh_check = RunClearance(robot, shapes, mesh_resolution)
 
     def _start(self, q0: Vector, v0: Vector, reference: ReferenceLike | None, seed: int) -> None:
         """Reset the model, the disturbances (reseeded) and the controller for a run."""
@@ -223,10 +220,11 @@ class Simulation:
             status, done, status_codes = self._loop(log, n_ticks, reference)
             wall = time.perf_counter() - wall0
             rows = log.finish(done)
+            mesh = self.mesh_check.measure(rows["t"], rows["q"])
         except BaseException:
             log.discard()  # a spool file never outlives a run that raised
             raise
-        return self._result(rows, n_ticks, status, status_codes, wall, seed)
+        return self._result(rows, n_ticks, status, status_codes, wall, seed, mesh)
 
     def _check_run(
         self,
@@ -430,8 +428,10 @@ class Simulation:
         status_codes: dict[str, int],
         wall: float,
         seed: int,
+        mesh: MeshClearance,
     ) -> SimResult:
-        """The `SimResult` of a run: its finished ``rows`` and the run's metadata."""
+        """The `SimResult` of a run: its finished ``rows``, the run's metadata and its
+        exact clearance ``mesh``."""
         d, sc, dt = self.data, self.scene, self.control_dt
         return SimResult(
             **rows,
@@ -448,6 +448,8 @@ class Simulation:
             wall_time=wall,
             seed=seed,
             controller_notes=controller_notes(self.controller),
+            mesh_clearance=mesh.clearance,
+            mesh_clearance_note=mesh.note,
         )
 
 

@@ -35,6 +35,7 @@ PLOTTED = (
     "effort",
     "mechanical_energy",
     "min_clearance",
+    "min_mesh_clearance",
 )
 
 

@@ -253,8 +253,9 @@ SIM_FIELDS = tuple(f for f in ARRAY_FIELDS if f not in _NOT_SAVED)
 
 
 def sim_arrays(prefix: str, res: SimResult) -> dict[str, np.ndarray]:
-    """The per-tick log of a run as ``{prefix}__{field}`` arrays, plus its status and its
-    metadata (``{prefix}__meta``: joint names, control period, ...).
+    """The per-tick log of a run as ``{prefix}__{field}`` arrays, plus its status, wall
+    time, exact clearance and metadata (``{prefix}__meta``: joint names, control period,
+    ...).
 
     The arrays are the result's own, not copies: a spooled run's stay read-only maps of
     its spool file (`geosyn.sim.log_spool`), written out a block at a time by the runner
@@ -262,6 +263,7 @@ def sim_arrays(prefix: str, res: SimResult) -> dict[str, np.ndarray]:
     out = {f"{prefix}__{f}": np.asarray(getattr(res, f)) for f in SIM_FIELDS}
     out[f"{prefix}__status"] = np.array(res.status)
     out[f"{prefix}__wall_time"] = np.array(res.wall_time)
+    out[f"{prefix}__mesh_clearance"] = np.array(res.mesh_clearance)
     out[f"{prefix}{RUN_META}"] = np.array(res.metadata_json())  # SimResult.load(path, run)
     return out
 

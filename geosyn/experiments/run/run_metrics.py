@@ -15,7 +15,11 @@ experiment stores in ``results.npz``) to named scalars:
   ``saturated_fraction`` their share of all pairs;
 - ``fallbacks``: number of ticks on which the controller used its fallback;
 - ``min_clearance`` [m]: the smallest signed distance of the robot's collision spheres to
-  the obstacles (``inf`` without obstacles);
+  the obstacles (``inf`` without obstacles), at every tick;
+- ``min_mesh_clearance`` [m]: the same for the robot file's own collision geometry
+  (meshes, primitives), exact (coal), at ticks at most 0.005 rad apart
+  (`geosyn.sim.mesh_clearance`); left out when not measured (a robot built in code: the
+  run log says why);
 - ``max_contact_force`` [N]: the largest total normal force of the robot-obstacle
   contacts (when the run logs ``contact_force``; 0 with visual-only obstacles);
 - ``wall_time`` [s] of the run;
@@ -77,6 +81,7 @@ UNITS: dict[str, str] = {
     "saturated_fraction": "1",
     "fallbacks": "count",
     "min_clearance": "m",
+    "min_mesh_clearance": "m",
     "max_contact_force": "N",
     "wall_time": "s",
     "feet_slip": "m",
@@ -260,6 +265,9 @@ def standard_metrics(
         out["max_contact_force"] = sums["max_contact"]
     if clearance is not None and clearance.size:
         out["min_clearance"] = sums["min_clearance"]
+    mesh = _array(run, "mesh_clearance")
+    if mesh is not None and not np.isnan(mesh):  # NaN: not measured (the run log says why)
+        out["min_mesh_clearance"] = float(mesh)
     for name in ("feet_slip", "feet_sink", "min_base_height"):  # floating robots only
         value = _array(run, name)
         if value is not None:

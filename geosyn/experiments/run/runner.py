@@ -89,12 +89,16 @@ def _run_statuses(results: dict[str, Any]) -> dict[str, str]:
     return {k[: -len(tail)]: str(v) for k, v in results.items() if k.endswith(tail)}
 
 
-def _controller_notes(results: dict[str, Any], run: str) -> list[str]:
-    """The controller notes stored with closed-loop run ``run`` (`SimResult.controller_notes`)."""
+def _run_notes(results: dict[str, Any], run: str) -> list[str]:
+    """The notes stored with closed-loop run ``run``: its controller's
+    (`SimResult.controller_notes`) and how its exact clearance was measured."""
     meta = results.get(f"{run}{RUN_META}")
     if meta is None:
         return []
-    return [str(n) for n in json.loads(str(meta)).get("controller_notes", [])]
+    meta = json.loads(str(meta))
+    notes = [f"controller note {n}" for n in meta.get("controller_notes", [])]
+    mesh = meta.get("mesh_clearance_note", "")
+    return notes + ([f"exact clearance on the robot file's geometry: {mesh}"] if mesh else [])
 
 
 def run_experiment(
@@ -214,8 +218,8 @@ def _write_results(
     save_npz(tmp / "results.npz", arrays)  # a spooled log a block at a time
     for name, status in _run_statuses(results).items():
         log.write(f"closed-loop run {name}: {status}")
-        for note in _controller_notes(results, name):
-            log.write(f"closed-loop run {name}: controller note {note}")
+        for note in _run_notes(results, name):
+            log.write(f"closed-loop run {name}: {note}")
     if cfg.outputs.csv:
         for path in write_csv(tmp, cfg.controller_labels(), arrays):
             log.write(f"wrote {path.relative_to(tmp)}")

@@ -36,6 +36,9 @@ class SimulationConfig(Section):
     integrator: Literal["implicitfast", "implicit", "Euler", "RK4"] = _SIMULATION["integrator"]
     torque_limits: bool = _SIMULATION["torque_limits"]
     position_limits: bool = _SIMULATION["position_limits"]
+    mesh_resolution: Annotated[float, Field(gt=0.0, le=1.0, allow_inf_nan=False)] | None = (
+        _SIMULATION["mesh_resolution"]
+    )
 
     @model_validator(mode="before")
     @classmethod
