@@ -316,7 +316,8 @@ def test_public_names_resolve():
 
 
 def test_contact_option_stops_the_robot_at_an_obstacle():
-    """With contact=True the hand is stopped by a box it is pushed into; without, it enters."""
+    """With contact=True the hand is stopped by a box it is pushed into; without, it enters.
+    What collides is the file's collision meshes (measured exactly, coal), not the capsules."""
     from geosyn.sim import Wrench
     from geosyn.world import Box
 
@@ -326,11 +327,11 @@ def test_contact_option_stops_the_robot_at_an_obstacle():
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, q0)
     hand = data.oMf[robot.frame_id("panda_hand")].translation
-    # a small slab 3 cm below the robot's lowest sphere above it, pushed down onto with 80 N
+    # a small slab 3 cm below the robot's lowest mesh point above it, pushed onto with 80 N
     half = (0.12, 0.12, 0.05)
-    probe = Simulation(robot, GravityPD(robot), obstacles=[Box(hand - [0, 0, 0.6], half)])
-    gap = probe.run(q0, None, 1e-3).clearance[0]
-    wall = Box(hand - [0, 0, 0.6 - gap + 0.03], half)
+    probe = Simulation(robot, GravityPD(robot), obstacles=[Box(hand - [0, 0, 0.3], half)])
+    gap = probe.run(q0, None, 1e-3).mesh_clearance  # the fingers nearest, not the base
+    wall = Box(hand - [0, 0, 0.3 - gap + 0.03], half)
     push = Wrench("panda_hand", force=(0, 0, -80.0))
     runs = {
         c: Simulation(
@@ -339,9 +340,13 @@ def test_contact_option_stops_the_robot_at_an_obstacle():
             obstacles=[wall],
             disturbances=[push],
             contact=c,
-        ).run(q0, None, 0.5)
+        )
         for c in (False, True)
     }
-    assert runs[False].clearance[0] == pytest.approx(0.03, abs=1e-6)
-    assert runs[False].clearance.min() < -0.05
-    assert runs[True].clearance.min() > -0.01
+    start = runs[False].run(q0, None, 1e-3).mesh_clearance
+    assert start == pytest.approx(0.03, abs=1e-6)
+    res = {c: sim.run(q0, None, 0.5) for c, sim in runs.items()}
+    assert res[False].mesh_clearance < -0.05
+    # MuJoCo's soft contact (default solref) lets the 80 N push sink the hull ~1 cm
+    assert res[True].mesh_clearance > -0.015
+    assert res[True].contact_force.max() > 80.0 > res[False].contact_force.max()

@@ -6,11 +6,13 @@ parameters. Payloads (`geosyn.world.Payload`) are extra bodies without joints, w
 a link; their mass can be changed during a run (`geosyn.sim.disturbances.PayloadChange`).
 Obstacles are the shapes of `geosyn.world`, as geoms in the world body
 (`geosyn.sim.obstacles`): visual only by default (clearance is measured, contact is not
-simulated), or colliding with the robot's capsules when ``contact=True``.
+simulated), or, with ``contact=True``, colliding with the robot file's own collision
+geometry (`geosyn.sim.collision_geoms`; the capsules for a robot built in code).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
@@ -26,6 +28,7 @@ from geosyn.robots.mjcf import body_name
 from geosyn.robots.mjcf import mjcf_number as _f
 from geosyn.robots.mjcf import mjcf_vector as _vec
 from geosyn.robots.robot import Robot
+from geosyn.sim.collision_geoms import CollisionGeoms, collision_geoms
 from geosyn.sim.errors import UnknownBody
 from geosyn.sim.obstacles import ROBOT_BIT, Clearance, ObstacleGeom, obstacle_geom
 from geosyn.world import Payload, Shape
@@ -235,8 +238,9 @@ def build_scene(
         timestep: physics time step [s], > 0.
         integrator: MuJoCo integrator: Euler, RK4, implicit or implicitfast.
         gravity: (3,) gravity [m/s^2]; defaults to ``robot.gravity``.
-        contact: obstacles collide with the robot's capsules and payloads (default:
-            visual only).
+        contact: obstacles collide with the robot and its payloads (default: visual
+            only): with the robot file's own collision geometry (`geosyn.sim.collision_geoms`),
+            or, for a robot without one, its capsules (warned).
         limits: finite joint position limits are enforced by MuJoCo.
         decor: add visual-only decoration for rendering: a sky, and a pedestal under the
             robot's base when its first joint is above the floor.
@@ -266,6 +270,11 @@ def build_scene(
         body_extra.setdefault(str(robot.model.names[jid]), []).append(
             _payload_body(p, name, placement)
         )
+    geoms = collision_geoms(robot) if contact else CollisionGeoms()
+    if contact and not geoms.from_file:
+        warnings.warn(f"robot {robot.name!r}: {geoms.note}", RuntimeWarning, stacklevel=2)
+    for joint, xml in geoms.bodies.items():
+        body_extra[joint] = [*body_extra.get(joint, []), xml]
     obstacle_geoms = tuple(obstacle_geom(o, i, contact) for i, o in enumerate(obstacles))
     world_extra = [o.xml for o in obstacle_geoms]
     if decor:
@@ -278,18 +287,22 @@ def build_scene(
         worldbody_extra="\n    ".join(world_extra),
         body_extra={k: "".join(v) for k, v in body_extra.items()},
     )
-    if decor:
-        xml = xml.replace("  <worldbody>", _SKY + "\n  <worldbody>", 1)
+    head = (_SKY + "\n" if decor else "") + (geoms.asset + "\n" if geoms.asset else "")
+    if head:
+        xml = xml.replace("  <worldbody>", head + "  <worldbody>", 1)
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as err:
         raise InvalidArgument(f"the scene of robot {robot.name!r} does not compile: {err}") from err
     if contact:
-        # Robot and payload geoms collide with obstacles only (not with each other).
-        # body_contype/body_conaffinity (OR of the body's geoms) filter the broad phase.
+        # Robot and payload geoms collide with obstacles only (not with each other); the
+        # capsules only when the file has no geometry. body_contype/body_conaffinity (OR
+        # of the body's geoms) filter the broad phase.
         for g in range(model.ngeom):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+            off = geoms.from_file and name.startswith("capsule")
             if model.geom_bodyid[g] != 0:
-                model.geom_contype[g] = ROBOT_BIT
+                model.geom_contype[g] = 0 if off else ROBOT_BIT
                 model.geom_conaffinity[g] = 0
         for b in range(model.nbody):
             geoms = model.geom_bodyid == b

@@ -138,8 +138,9 @@ _CONTACT = python_defaults(Simulation)["contact"]
 class SceneConfig(Strict):
     """Payload bodies and obstacles of the MuJoCo scene (also seen by shaping terms).
 
-    ``contact``: the obstacles collide with the robot and its payloads in MuJoCo
-    (``Simulation(contact=...)``); each run then logs the total obstacle contact force
+    ``contact``: the obstacles collide with the robot (the collision geometry of its
+    file, `geosyn.sim.collision_geoms`; the capsules of a robot built in code) and its
+    payloads in MuJoCo (``Simulation(contact=...)``); each run then logs the total obstacle contact force
     (``contact_force`` [N]) next to the clearance. False (the Python default): the
     obstacles are visual only and the robot passes through them (the clearance, negative
     inside, is still logged).
