@@ -24,6 +24,7 @@ from geosyn.metrics.shaping.base import MetricTerm
 from geosyn.metrics.shaping.errors import CapacityExceeded, InvalidTermArgument, term_arguments
 from geosyn.metrics.shaping.profiles import GATES, PROFILES
 from geosyn.robots.robot import CollisionSphere, Robot
+from geosyn.robots.sphere_cover import report_sphere_miss
 from geosyn.world.distance import rounded_box_distance
 from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
 from geosyn.world.smooth import smooth_rounded_box_distance
@@ -344,6 +345,7 @@ class ObstacleTerm(MetricTerm):
             )
         self._sphere_joints = [robot.joint_id(s.joint) for s in spheres]
         self.spheres = tuple(spheres)
+        report_sphere_miss(robot, self.spheres, "ObstacleTerm")  # warned once
 
     def _sphere_centers(self, q: ca.SX) -> list[ca.SX]:
         from geosyn.robots import symbolic

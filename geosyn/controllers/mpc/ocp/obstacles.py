@@ -32,6 +32,7 @@ import numpy as np
 from geosyn.core.errors import InvalidArgument
 from geosyn.robots import symbolic
 from geosyn.robots.robot import CollisionSphere, Robot
+from geosyn.robots.sphere_cover import report_sphere_miss
 from geosyn.world.distance import rounded_box_distance
 from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
 
@@ -81,6 +82,7 @@ class ObstacleSlots:
         self.spheres: tuple[CollisionSphere, ...] = tuple(robot.collision_spheres())
         if not self.spheres:
             raise InvalidArgument(f"obstacles: robot {robot.name!r} has no collision spheres")
+        report_sphere_miss(robot, self.spheres, "MPC clearance")  # warned once
         self._robot = robot
         self._values = np.zeros(self.capacity * SLOT_SIZE)
         self._obstacles: tuple[Shape, ...] = ()

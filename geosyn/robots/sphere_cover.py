@@ -1,0 +1,121 @@
+"""How much of a robot file's collision geometry a set of collision spheres leaves out.
+
+The obstacle terms of a shaped metric and the MPC's clearance keep *spheres* off the
+obstacles (by default `Robot.collision_spheres`, spheres along the capsules). Where the
+file's collision surfaces (`geosyn.robots.collision_geometry`) stand outside those
+spheres, a clearance the spheres keep is not the robot's. `sphere_miss` measures that
+(the largest distance of a surface point outside the spheres of its joint), and
+`report_sphere_miss` warns once about it, naming the link and how to cover it
+(`geosyn.robots.collision_spheres.file_spheres`, fitted to cover the surfaces).
+Objects fixed to the base are left out: no joint moves them, so no sphere on a joint
+can keep them clear.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+
+from geosyn.robots.collision_geometry import collision_objects, surface_points
+from geosyn.robots.errors import RobotFileError, RobotWarning
+from geosyn.robots.robot import CollisionSphere, Robot
+
+__all__ = ["MISS_TOL", "SphereMiss", "report_sphere_miss", "sphere_miss"]
+
+MISS_TOL = 1e-3
+"""A miss [m] up to which `report_sphere_miss` stays silent."""
+
+SPACING = 5e-3
+"""Largest edge [m] of the surface sampling (a surface point is within
+``SPACING / sqrt(3)`` of a sample)."""
+
+
+class SphereMiss(NamedTuple):
+    """What the spheres leave out of the file's moving collision surfaces.
+
+    Attributes:
+        distance: largest distance [m] of a sampled surface point outside the union of
+            the spheres on its joint, over the links with spheres (<= 0: covered); NaN
+            when the robot has no file geometry.
+        link: the link of that point ("" if none).
+        bare: moving links with collision geometry and no sphere on their joint.
+        why: why it was not measured ("" when it was).
+    """
+
+    distance: float
+    link: str
+    bare: tuple[str, ...] = ()
+    why: str = ""
+
+
+_CACHE: dict[tuple[object, ...], SphereMiss] = {}
+_REPORTED: set[tuple[object, ...]] = set()
+
+
+def sphere_miss(robot: Robot, spheres: Sequence[CollisionSphere]) -> SphereMiss:
+    """How far the file's collision surfaces of ``robot`` stand outside ``spheres``.
+
+    Computed once per robot file, joints and spheres in a process (it reads the meshes).
+    """
+    key = (robot.name, robot.source_file, tuple(robot.joint_names), tuple(spheres))
+    if key not in _CACHE:
+        _CACHE[key] = _measure(robot, spheres)
+    return _CACHE[key]
+
+
+def _measure(robot: Robot, spheres: Sequence[CollisionSphere]) -> SphereMiss:
+    try:
+        objects = collision_objects(robot)
+    except RobotFileError as err:
+        return SphereMiss(math.nan, "", (), str(err))
+    worst, link, bare = -math.inf, "", []
+    for obj in objects:
+        if obj.joint == "universe":
+            continue
+        mine = [s for s in spheres if s.joint == obj.joint]
+        if not mine:
+            bare.append(obj.link)
+            continue
+        c = np.array([s.center for s in mine], dtype=np.float64)
+        r = np.array([s.radius for s in mine], dtype=np.float64)
+        P = surface_points(obj, SPACING)  # in the joint frame, as the sphere centres
+        d2 = ((P[:, None, :] - c[None, :, :]) ** 2).sum(axis=2)
+        miss = float(np.max(np.min(np.sqrt(d2) - r[None, :], axis=1)))
+        if miss > worst:
+            worst, link = miss, obj.link
+    return SphereMiss(worst, link, tuple(dict.fromkeys(bare)))
+
+
+def report_sphere_miss(robot: Robot, spheres: Sequence[CollisionSphere], who: str) -> SphereMiss:
+    """`sphere_miss`, and a `RobotWarning` (once per robot, spheres and ``who``) when the
+    surfaces stand more than `MISS_TOL` outside the spheres.
+
+    Args:
+        robot: the robot.
+        spheres: the spheres ``who`` keeps clear.
+        who: what uses them, for the message (e.g. ``"ObstacleTerm"``).
+    """
+    miss = sphere_miss(robot, spheres)
+    key = (who, robot.name, robot.source_file, tuple(spheres))
+    if (miss.distance > MISS_TOL or miss.bare) and key not in _REPORTED:
+        _REPORTED.add(key)
+        parts = []
+        if miss.distance > MISS_TOL:
+            parts.append(
+                f"it stands up to {miss.distance * 1e3:.1f} mm outside them (link {miss.link!r})"
+            )
+        if miss.bare:
+            parts.append(f"links with no sphere: {list(miss.bare)}")
+        warnings.warn(
+            f"{who}: the {len(spheres)} collision spheres of robot {robot.name!r} leave out "
+            f"part of its collision geometry: {'; '.join(parts)}. The clearance they keep is "
+            "not the robot's; spheres=geosyn.robots.collision_spheres.file_spheres(robot)"
+            ".spheres covers it",
+            RobotWarning,
+            stacklevel=3,
+        )
+    return miss

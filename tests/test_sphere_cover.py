@@ -1,0 +1,84 @@
+"""How much of a file's collision geometry collision spheres leave out
+(robots/sphere_cover.py), against a closed form, and the warning the obstacle terms and
+the MPC's clearance give once when their spheres leave part of the robot out."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import pytest
+
+from geosyn.robots import CollisionSphere, RobotWarning, load_robot
+from geosyn.robots.collision_spheres import file_spheres
+from geosyn.robots.sphere_cover import report_sphere_miss, sphere_miss
+
+#: One hinge carrying a box (half-extents 0.1, 0.02, 0.03 at x = 0.1) and, on a second
+#: hinge, a ball of radius 0.02.
+ARM = """<mujoco model="box_arm">
+  <worldbody>
+    <body name="l1">
+      <joint name="j1" type="hinge" axis="0 0 1"/>
+      <inertial pos="0.1 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>
+      <geom name="slab" type="box" size="0.1 0.02 0.03" pos="0.1 0 0"/>
+      <body name="l2" pos="0.2 0 0">
+        <joint name="j2" type="hinge" axis="0 0 1"/>
+        <inertial pos="0.05 0 0" mass="0.5" diaginertia="0.001 0.001 0.001"/>
+        <geom name="ball" type="sphere" size="0.02" pos="0.05 0 0"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="j1"/><motor joint="j2"/></actuator>
+</mujoco>
+"""
+
+
+@pytest.fixture()
+def arm(tmp_path):
+    path = tmp_path / "box_arm.xml"
+    path.write_text(ARM)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RobotWarning)  # the file's missing limits
+        return load_robot(str(path))
+
+
+def test_the_miss_is_the_farthest_corner_outside_the_sphere(arm) -> None:
+    """A sphere of radius 0.05 at the slab's centre: the farthest surface points are its
+    corners, sqrt(0.1^2 + 0.02^2 + 0.03^2) from the centre (closed form, 1e-9 m); the
+    second link has no sphere and is named."""
+    miss = sphere_miss(arm, [CollisionSphere("j1", (0.1, 0.0, 0.0), 0.05)])
+    assert abs(miss.distance - (math.sqrt(0.1**2 + 0.02**2 + 0.03**2) - 0.05)) < 1e-9
+    assert miss.link == "l1" and miss.bare == ("l2",)
+    # a sphere that holds the ball: -(0.03 - 0.02) inside, the slab unchanged
+    both = sphere_miss(
+        arm,
+        [CollisionSphere("j1", (0.1, 0.0, 0.0), 0.05), CollisionSphere("j2", (0.05, 0, 0), 0.03)],
+    )
+    assert both.bare == () and both.link == "l1" and both.distance == miss.distance
+
+
+def test_the_fitted_spheres_leave_nothing_out_and_are_not_warned(arm) -> None:
+    fitted = file_spheres(arm).spheres
+    miss = sphere_miss(arm, fitted)
+    assert miss.distance <= -file_spheres(arm).margin + 1e-9 and miss.bare == ()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RobotWarning)
+        report_sphere_miss(arm, fitted, "test")
+
+
+def test_the_default_spheres_are_warned_once_per_user() -> None:
+    """The Panda's default spheres (along its capsules) leave out links 1 and 5 and
+    centimetres of others: the obstacle term says so once, naming them."""
+    from geosyn.metrics.shaping import ObstacleTerm
+
+    panda = load_robot("panda")
+    miss = sphere_miss(panda, panda.collision_spheres())
+    assert miss.distance > 0.01 and "panda_link5" in miss.bare
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        for _ in range(2):
+            ObstacleTerm((), capacity=1, spheres=panda.collision_spheres()[:-1]).bind(panda)
+    ours = [w for w in seen if w.category is RobotWarning and "ObstacleTerm" in str(w.message)]
+    (warned,) = ours  # once, though bound twice
+    text = str(warned.message)
+    assert "panda_link5" in text and f"the {len(panda.collision_spheres()) - 1} collision" in text
