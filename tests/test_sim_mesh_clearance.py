@@ -138,3 +138,8 @@ def test_checked_ticks_leave_no_row_farther_than_the_resolution(monkeypatch, blo
         monkeypatch.setattr(blocks, "SCAN_BLOCK", 10**6)  # the whole log as one block
         np.testing.assert_array_equal(checked_ticks(Q, res), ticks)
         monkeypatch.setattr(blocks, "SCAN_BLOCK", block)
+    # a NaN row (a diverged tick) does not stop the checks of the rows after it
+    Q_nan = np.cumsum(np.full((50, 2), 1e-3), axis=0)
+    Q_nan[20] = np.nan
+    ticks = checked_ticks(Q_nan, 0.005)
+    assert 21 in ticks and np.all(np.diff(ticks[ticks > 21]) <= 5)

@@ -73,7 +73,8 @@ def checked_ticks(q: np.ndarray, resolution: float) -> np.ndarray:
         block = np.asarray(q[rows], dtype=np.float64)
         ahead = block if prev is None else np.vstack([prev, block])
         step = np.abs(np.diff(ahead, axis=0)).max(axis=1) if len(ahead) > 1 else np.zeros(0)
-        path[rows.stop - len(step) : rows.stop] = step
+        # a step to or from a diverged (NaN) row counts as a full one: the next is checked
+        path[rows.stop - len(step) : rows.stop] = np.where(np.isfinite(step), step, resolution)
         prev = block[-1:]
     if n == 0:
         return np.zeros(0, dtype=np.int64)
