@@ -6,8 +6,10 @@ with the robot as its file describes it, as the planner and the exact clearance 
 the collision objects of the file (`geosyn.robots.collision_geometry`: URDF meshes and
 primitives, MJCF geoms) are added to the bodies of the joints that carry them, massless
 and invisible (MuJoCo collides a mesh as its convex hull, as coal does in
-`geosyn.world.exact_clearance`), and they, not the capsules, collide. A robot without
-file geometry (built in code) collides its capsules, and `CollisionGeoms.note` says so.
+`geosyn.world.exact_clearance`), and they, not the capsules, collide. Objects fixed to
+the base are left out: they sit in the world body with the obstacles, and MuJoCo does not
+collide a body with itself. A robot without file geometry on a moving link (built in
+code) collides its capsules, and `CollisionGeoms.note` says so.
 """
 
 from __future__ import annotations
@@ -37,19 +39,17 @@ class CollisionGeoms:
     Attributes:
         asset: ``<asset>`` element with the meshes ("" if none).
         bodies: geoms to add to the body of each joint, keyed by Pinocchio joint name.
-        world: geoms of objects fixed to the base (in the world body).
         note: what collides: the file's objects, or the capsules and why.
     """
 
     asset: str = ""
     bodies: dict[str, str] = field(default_factory=dict)
-    world: str = ""
     note: str = ""
 
     @property
     def from_file(self) -> bool:
-        """The robot's file geometry is there (else the capsules collide)."""
-        return bool(self.bodies or self.world)
+        """The robot's file geometry is there on a moving link (else the capsules collide)."""
+        return bool(self.bodies)
 
 
 def _shape(i: int, o: CollisionObject) -> tuple[str, str]:
@@ -78,8 +78,9 @@ def collision_geoms(robot: Robot) -> CollisionGeoms:
         return CollisionGeoms(note=f"the collision capsules collide ({err})")
     assets: list[str] = []
     bodies: dict[str, str] = {}
-    world: list[str] = []
     for i, o in enumerate(objects):
+        if o.joint == "universe":
+            continue  # fixed to the base (see the module doc)
         asset, shape = _shape(i, o)
         if asset:
             assets.append(asset)
@@ -89,10 +90,11 @@ def collision_geoms(robot: Robot) -> CollisionGeoms:
             f' quat="{_vec(quaternion_wxyz(T[:3, :3]))}" contype="0" conaffinity="0"'
             ' group="3" rgba="0.5 0.5 0.5 0" mass="0"/>'
         )
-        if o.joint == "universe":
-            world.append(geom)
-        else:
-            bodies[o.joint] = bodies.get(o.joint, "") + geom
-    note = f"the file's {len(objects)} collision objects collide (meshes as convex hulls)"
+        bodies[o.joint] = bodies.get(o.joint, "") + geom
+    if not bodies:
+        return CollisionGeoms(
+            note="the collision capsules collide (no file geometry on a moving link)"
+        )
+    note = f"the file's collision objects on {len(bodies)} joints collide (meshes as convex hulls)"
     asset_xml = f"  <asset>{''.join(assets)}</asset>" if assets else ""
-    return CollisionGeoms(asset_xml, bodies, "".join(world), note)
+    return CollisionGeoms(asset_xml, bodies, note)

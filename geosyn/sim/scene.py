@@ -270,10 +270,10 @@ def build_scene(
         body_extra.setdefault(str(robot.model.names[jid]), []).append(
             _payload_body(p, name, placement)
         )
-    geoms = collision_geoms(robot) if contact else CollisionGeoms()
-    if contact and not geoms.from_file:
-        warnings.warn(f"robot {robot.name!r}: {geoms.note}", RuntimeWarning, stacklevel=2)
-    for joint, xml in geoms.bodies.items():
+    file_geoms = collision_geoms(robot) if contact else CollisionGeoms()
+    if contact and not file_geoms.from_file:
+        warnings.warn(f"robot {robot.name!r}: {file_geoms.note}", RuntimeWarning, stacklevel=2)
+    for joint, xml in file_geoms.bodies.items():
         body_extra[joint] = [*body_extra.get(joint, []), xml]
     obstacle_geoms = tuple(obstacle_geom(o, i, contact) for i, o in enumerate(obstacles))
     world_extra = [o.xml for o in obstacle_geoms]
@@ -287,7 +287,7 @@ def build_scene(
         worldbody_extra="\n    ".join(world_extra),
         body_extra={k: "".join(v) for k, v in body_extra.items()},
     )
-    head = (_SKY + "\n" if decor else "") + (geoms.asset + "\n" if geoms.asset else "")
+    head = (_SKY + "\n" if decor else "") + (file_geoms.asset + "\n" if file_geoms.asset else "")
     if head:
         xml = xml.replace("  <worldbody>", head + "  <worldbody>", 1)
     try:
@@ -300,7 +300,7 @@ def build_scene(
         # of the body's geoms) filter the broad phase.
         for g in range(model.ngeom):
             name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
-            off = geoms.from_file and name.startswith("capsule")
+            off = file_geoms.from_file and name.startswith("capsule")
             if model.geom_bodyid[g] != 0:
                 model.geom_contype[g] = 0 if off else ROBOT_BIT
                 model.geom_conaffinity[g] = 0
