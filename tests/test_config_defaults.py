@@ -58,7 +58,6 @@ NOT_EXPOSED = {
     "QPController.dt": "simulation.control_dt",
     "ObstacleTerm.obstacles": "scene.obstacles",
     "ObstacleTerm.capacity": "one slot per obstacle of scene.obstacles",
-    "ObstacleTerm.spheres": "the robot's own collision spheres",
     "Simulation.payloads": "scene.payloads",
     "Simulation.obstacles": "scene.obstacles",
     "GeodesicMPC.obstacles": "scene.obstacles (with clearance_margin)",

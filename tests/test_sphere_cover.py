@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import warnings
 
+import numpy as np
 import pytest
 
 from geosyn.robots import CollisionSphere, RobotWarning, load_robot
@@ -63,7 +64,7 @@ def test_the_fitted_spheres_leave_nothing_out_and_are_not_warned(arm) -> None:
     assert miss.distance <= -file_spheres(arm).margin + 1e-9 and miss.bare == ()
     with warnings.catch_warnings():
         warnings.simplefilter("error", RobotWarning)
-        report_sphere_miss(arm, fitted, "test")
+        report_sphere_miss(arm, fitted, "test", "n/a")
 
 
 def test_the_default_spheres_are_warned_once_per_user() -> None:
@@ -82,3 +83,44 @@ def test_the_default_spheres_are_warned_once_per_user() -> None:
     (warned,) = ours  # once, though bound twice
     text = str(warned.message)
     assert "panda_link5" in text and f"the {len(panda.collision_spheres()) - 1} collision" in text
+
+
+def test_covering_spheres_are_asked_for_by_name_and_keep_the_meshes_clear() -> None:
+    """``spheres='file'`` (an obstacle term) and ``clearance_spheres='file'`` (the MPC's
+    slots, also from YAML) give the fitted spheres, silently; their clearance never
+    exceeds coal's exact distance of the meshes (they cover them), at seeded
+    configurations. Other strings, and 'file' for a robot built in code, are refused."""
+    from geosyn.controllers.mpc.ocp.obstacles import ObstacleSlots, obstacle_slots
+    from geosyn.core.errors import InvalidArgument
+    from geosyn.experiments.schema import MPCConfig
+    from geosyn.experiments.schema.metric import ObstacleTermConfig
+    from geosyn.metrics.shaping import ObstacleTerm
+    from geosyn.world import Box
+    from geosyn.world.exact_clearance import ExactClearance
+
+    panda = load_robot("panda")
+    box = Box((0.45, 0.1, 0.35), (0.05, 0.1, 0.05))
+    moving = tuple(s for s in file_spheres(panda).spheres if s.joint != "universe")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RobotWarning)
+        term = ObstacleTerm([box], capacity=1, spheres="file")
+        term.bind(panda)
+        slots = ObstacleSlots(panda, [box], spheres="file")
+    assert term.spheres == moving == slots.spheres
+    exact = ExactClearance(panda, near=1.0)
+    exact.set_obstacles([box])
+    rng = np.random.default_rng(11)
+    for _ in range(8):
+        q = rng.uniform(panda.q_min, panda.q_max)
+        assert term.min_clearance(q) <= exact.clearance(q)[0] + 1e-9
+    with pytest.raises(InvalidArgument, match="spheres"):
+        ObstacleTerm([box], capacity=1, spheres="capsules")
+    with pytest.raises(InvalidArgument, match="clearance_spheres='file'"):
+        ObstacleSlots(load_robot("planar2"), [box], spheres="file")
+    with pytest.raises(InvalidArgument, match="clearance_spheres needs clearance_margin"):
+        obstacle_slots(panda, None, None, "file")
+    assert ObstacleTermConfig(type="obstacle", spheres="file").kwargs()["spheres"] == "file"
+    mpc = MPCConfig.model_validate(
+        {"type": "mpc", "clearance_margin": 0.02, "clearance_spheres": "file"}
+    )
+    assert mpc.kwargs()["clearance_spheres"] == "file"

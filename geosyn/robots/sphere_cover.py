@@ -5,8 +5,8 @@ obstacles (by default `Robot.collision_spheres`, spheres along the capsules). Wh
 file's collision surfaces (`geosyn.robots.collision_geometry`) stand outside those
 spheres, a clearance the spheres keep is not the robot's. `sphere_miss` measures that
 (the largest distance of a surface point outside the spheres of its joint), and
-`report_sphere_miss` warns once about it, naming the link and how to cover it
-(`geosyn.robots.collision_spheres.file_spheres`, fitted to cover the surfaces).
+`report_sphere_miss` warns once about it, naming the link and how to ask for covering
+spheres (`resolve_spheres` with ``"file"``: `geosyn.robots.collision_spheres.file_spheres`).
 Objects fixed to the base are left out: no joint moves them, so no sphere on a joint
 can keep them clear.
 """
@@ -20,11 +20,19 @@ from typing import NamedTuple
 
 import numpy as np
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.robots.collision_geometry import collision_objects, surface_points
 from geosyn.robots.errors import RobotFileError, RobotWarning
 from geosyn.robots.robot import CollisionSphere, Robot
 
-__all__ = ["MISS_TOL", "SphereMiss", "report_sphere_miss", "sphere_miss"]
+__all__ = [
+    "MISS_TOL",
+    "SphereMiss",
+    "check_spheres",
+    "report_sphere_miss",
+    "resolve_spheres",
+    "sphere_miss",
+]
 
 MISS_TOL = 1e-3
 """A miss [m] up to which `report_sphere_miss` stays silent."""
@@ -90,7 +98,56 @@ def _measure(robot: Robot, spheres: Sequence[CollisionSphere]) -> SphereMiss:
     return SphereMiss(worst, link, tuple(dict.fromkeys(bare)))
 
 
-def report_sphere_miss(robot: Robot, spheres: Sequence[CollisionSphere], who: str) -> SphereMiss:
+def check_spheres(
+    spheres: Sequence[CollisionSphere] | str | None, name: str
+) -> tuple[CollisionSphere, ...] | str | None:
+    """``spheres`` as `resolve_spheres` takes it (None, ``"file"`` or a tuple of
+    `CollisionSphere`), or `InvalidArgument` naming ``name`` and what is allowed."""
+    if spheres is None or spheres == "file":
+        return spheres
+    if isinstance(spheres, str):
+        raise InvalidArgument(f"{name}: None, 'file' or CollisionSphere's, got {spheres!r}")
+    out = tuple(spheres)
+    for i, s in enumerate(out):
+        if not isinstance(s, CollisionSphere):
+            raise InvalidArgument(f"{name}[{i}] must be a CollisionSphere, got {type(s).__name__}")
+    return out
+
+
+def resolve_spheres(
+    robot: Robot, spheres: Sequence[CollisionSphere] | str | None, name: str
+) -> tuple[CollisionSphere, ...]:
+    """The spheres an obstacle term or the MPC's clearance keeps clear.
+
+    Args:
+        robot: the robot.
+        spheres: None: ``robot.collision_spheres()`` (along its capsules); ``"file"``:
+            spheres fitted to cover the file's collision geometry
+            (`geosyn.robots.collision_spheres.file_spheres`, cached on disk; those on the
+            fixed base left out: no joint moves them); or the spheres themselves.
+        name: the argument's name, for the error message.
+
+    Raises:
+        InvalidArgument: another string or object (`check_spheres`), or ``"file"`` for a
+            robot with no file geometry.
+    """
+    spheres = check_spheres(spheres, name)
+    if spheres is None:
+        return tuple(robot.collision_spheres())
+    if isinstance(spheres, str):  # "file"
+        from geosyn.robots.collision_spheres import file_spheres  # reads the meshes
+
+        try:
+            fitted = file_spheres(robot)
+        except RobotFileError as err:
+            raise InvalidArgument(f"{name}='file': {err}") from err
+        return tuple(s for s in fitted.spheres if s.joint != "universe")
+    return tuple(spheres)
+
+
+def report_sphere_miss(
+    robot: Robot, spheres: Sequence[CollisionSphere], who: str, fix: str
+) -> SphereMiss:
     """`sphere_miss`, and a `RobotWarning` (once per robot, spheres and ``who``) when the
     surfaces stand more than `MISS_TOL` outside the spheres.
 
@@ -98,6 +155,7 @@ def report_sphere_miss(robot: Robot, spheres: Sequence[CollisionSphere], who: st
         robot: the robot.
         spheres: the spheres ``who`` keeps clear.
         who: what uses them, for the message (e.g. ``"ObstacleTerm"``).
+        fix: how the user asks for covering spheres there (for the message).
     """
     miss = sphere_miss(robot, spheres)
     key = (who, robot.name, robot.source_file, tuple(spheres))
@@ -113,8 +171,7 @@ def report_sphere_miss(robot: Robot, spheres: Sequence[CollisionSphere], who: st
         warnings.warn(
             f"{who}: the {len(spheres)} collision spheres of robot {robot.name!r} leave out "
             f"part of its collision geometry: {'; '.join(parts)}. The clearance they keep is "
-            "not the robot's; spheres=geosyn.robots.collision_spheres.file_spheres(robot)"
-            ".spheres covers it",
+            f"not the robot's; spheres covering it: {fix}",
             RobotWarning,
             stacklevel=3,
         )

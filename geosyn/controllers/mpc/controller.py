@@ -76,7 +76,7 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_choice, check_float, check_positive, check_vector
 from geosyn.metrics.base import Metric
-from geosyn.robots.robot import Robot
+from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.shapes import Shape
 
 __all__ = ["GeodesicMPC"]
@@ -149,6 +149,8 @@ class GeodesicMPC(Controller):
         obstacles: `geosyn.world` shapes (`Sphere`, `Box`, ...; `set_obstacles` moves
             them). None with ``clearance_margin``: a shaped metric's obstacle terms
             (transitional), read at every solve.
+        clearance_spheres: the spheres kept clear: None (the robot's), ``"file"`` (covering
+            its file's collision geometry) or the spheres (`ObstacleSlots`).
         tracking: ``"euclidean"`` or ``"metric"``: the errors in the kinetic-energy
             metric's norm at the reference (`geosyn.controllers.mpc.ocp.costs.StateTracking`;
             the weights then carry [1/(kg m^2)] more).
@@ -198,6 +200,7 @@ class GeodesicMPC(Controller):
         max_solve_time: float = 1.0,
         clearance_margin: float | None = None,
         obstacles: Sequence[Shape] | None = None,
+        clearance_spheres: Sequence[CollisionSphere] | str | None = None,
         tracking: str = "euclidean",
         joint_limit_guard: bool = True,
         reference: Reference | None = None,
@@ -217,7 +220,7 @@ class GeodesicMPC(Controller):
         self.hessian = check_choice(hessian, HESSIANS, "hessian")
         self.kp, self.kd = check_gain(kp, n, "kp"), check_gain(kd, n, "kd")
         self.plan_tolerance = check_float(plan_tolerance, "plan_tolerance", low=0.0, unit="rad")
-        self.obstacles = obstacle_slots(robot, s.clearance_margin, obstacles)
+        self.obstacles = obstacle_slots(robot, s.clearance_margin, obstacles, clearance_spheres)
         self.N, self.dt, self.control, self.effort = s.N, s.dt, s.control, s.effort
         if not isinstance(joint_limit_guard, bool):
             raise InvalidArgument(

@@ -136,7 +136,8 @@ class MPCConfig(_ControllerBase):
     a section of the family's options, e.g. ``{type: ddp, warm_iterations: 2}`` or
     ``{type: ipopt, max_iter: 100, plugin_options: {...}}`` (`NLPSolverConfig`,
     `DDPSolverConfig`); ``clearance_margin`` [m] (``solver: ddp``) keeps the scene's
-    obstacles away. ``solver`` null (default): ``ddp`` with ``control: torque`` (the
+    obstacles away from the robot's collision spheres (``clearance_spheres: file``: from
+    spheres covering its file's collision geometry, more of them). ``solver`` null (default): ``ddp`` with ``control: torque`` (the
     fastest torque-level solver) wherever the DDP solves the problem, ``fatrop``
     otherwise (acceleration control, ``hessian: exact``). ``joint_limit_guard`` (default
     true): every torque passes the joint-limit guard, which keeps joint positions and
@@ -163,6 +164,7 @@ class MPCConfig(_ControllerBase):
     plan_tolerance: NonNegFloat = _MPC["plan_tolerance"]
     max_solve_time: PositiveFloat = _MPC["max_solve_time"]
     clearance_margin: PositiveFloat | None = _MPC["clearance_margin"]
+    clearance_spheres: Literal["file"] | None = _MPC["clearance_spheres"]
     tracking: Literal["euclidean", "metric"] = _MPC["tracking"]
     joint_limit_guard: bool = _MPC["joint_limit_guard"]
 

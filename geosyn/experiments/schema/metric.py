@@ -50,8 +50,9 @@ class LoadTermConfig(Section):
 
 
 class ObstacleTermConfig(Section):
-    """`ObstacleTerm` over the scene's obstacles (one slot per obstacle; the robot's own
-    collision spheres). ``length``/``epsilon`` shape the ``rmp`` profile, ``gate_speed``
+    """`ObstacleTerm` over the scene's obstacles (one slot per obstacle). ``spheres``: null
+    (the robot's collision spheres, along its capsules) or ``file`` (spheres covering its
+    file's collision geometry, more of them). ``length``/``epsilon`` shape the ``rmp`` profile, ``gate_speed``
     the ``approach`` gate; ``distance`` picks the signed distance (``exact``: C1,
     ``smooth``: C-infinity)."""
 
@@ -66,6 +67,7 @@ class ObstacleTermConfig(Section):
     gate: Literal["none", "approach"] = _OBSTACLE["gate"]
     gate_speed: PositiveFloat = _OBSTACLE["gate_speed"]
     distance: Literal["exact", "smooth"] = _OBSTACLE["distance"]
+    spheres: Literal["file"] | None = _OBSTACLE["spheres"]
 
 
 class JointLimitTermConfig(Section):

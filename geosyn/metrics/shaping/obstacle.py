@@ -19,12 +19,13 @@ import casadi as ca
 import numpy as np
 
 from geosyn.core.calls import numpy_function as _numpy_call
+from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_int, check_positive, check_vector
 from geosyn.metrics.shaping.base import MetricTerm
 from geosyn.metrics.shaping.errors import CapacityExceeded, InvalidTermArgument, term_arguments
 from geosyn.metrics.shaping.profiles import GATES, PROFILES
 from geosyn.robots.robot import CollisionSphere, Robot
-from geosyn.robots.sphere_cover import report_sphere_miss
+from geosyn.robots.sphere_cover import check_spheres, report_sphere_miss, resolve_spheres
 from geosyn.world.distance import rounded_box_distance
 from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
 from geosyn.world.smooth import smooth_rounded_box_distance
@@ -112,7 +113,8 @@ class ObstacleTerm(MetricTerm):
         obstacles: initial obstacles, shapes of `geosyn.world` (`Sphere`, `Box`,
             `Capsule`, `HalfSpace`).
         capacity: number of obstacle slots, >= 1.
-        spheres: robot collision spheres; None uses ``robot.collision_spheres()``.
+        spheres: robot collision spheres; None: ``robot.collision_spheres()``; ``"file"``:
+            spheres covering the file's collision geometry (`geosyn.robots.sphere_cover.resolve_spheres`).
         profile: name of the weight profile in `PROFILES`.
         gain: profile gain [kg m^2 for "inverse_square", kg for "rmp"], > 0.
         cutoff: distance beyond which an obstacle contributes nothing [m], > 0.
@@ -134,7 +136,7 @@ class ObstacleTerm(MetricTerm):
         self,
         obstacles: Sequence[Shape] = (),
         capacity: int = 16,
-        spheres: Sequence[CollisionSphere] | None = None,
+        spheres: Sequence[CollisionSphere] | str | None = None,
         *,
         profile: str = "inverse_square",
         gain: float = 1e-3,
@@ -167,13 +169,10 @@ class ObstacleTerm(MetricTerm):
         self.profile = profile
         self.gate = gate
         self.velocity_dependent = gate != "none"
-        self._spheres_arg = None if spheres is None else tuple(spheres)
-        if self._spheres_arg is not None:
-            for i, s in enumerate(self._spheres_arg):
-                if not isinstance(s, CollisionSphere):
-                    raise InvalidTermArgument(
-                        f"spheres[{i}] must be a CollisionSphere, got {type(s).__name__}"
-                    )
+        try:
+            self._spheres_arg = check_spheres(spheres, "spheres")
+        except InvalidArgument as err:
+            raise InvalidTermArgument(str(err)) from None
         self.spheres: tuple[CollisionSphere, ...] = ()
         self._sphere_joints: list[int] = []
         n_slots = self._n_slots = self.capacity * PARAMS_PER_OBSTACLE
@@ -338,14 +337,15 @@ class ObstacleTerm(MetricTerm):
 
     # -- binding and symbolic form ---------------------------------------------------
     def _on_bind(self, robot: Robot) -> None:
-        spheres = robot.collision_spheres() if self._spheres_arg is None else self._spheres_arg
+        spheres = resolve_spheres(robot, self._spheres_arg, "spheres")
         if not spheres:
             raise InvalidTermArgument(
                 f"robot {robot.name!r} has no collision spheres; pass spheres= explicitly"
             )
         self._sphere_joints = [robot.joint_id(s.joint) for s in spheres]
         self.spheres = tuple(spheres)
-        report_sphere_miss(robot, self.spheres, "ObstacleTerm")  # warned once
+        fix = "spheres='file' (YAML: the obstacle term's spheres: file)"
+        report_sphere_miss(robot, self.spheres, "ObstacleTerm", fix)  # warned once
 
     def _sphere_centers(self, q: ca.SX) -> list[ca.SX]:
         from geosyn.robots import symbolic

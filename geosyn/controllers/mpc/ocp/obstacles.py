@@ -32,7 +32,7 @@ import numpy as np
 from geosyn.core.errors import InvalidArgument
 from geosyn.robots import symbolic
 from geosyn.robots.robot import CollisionSphere, Robot
-from geosyn.robots.sphere_cover import report_sphere_miss
+from geosyn.robots.sphere_cover import report_sphere_miss, resolve_spheres
 from geosyn.world.distance import rounded_box_distance
 from geosyn.world.shapes import ROUNDED_BOX_SIZE, Shape, check_shape
 
@@ -56,11 +56,13 @@ class ObstacleSlots:
     """World shapes in a fixed number of slots, and the symbolic clearance to them.
 
     Args:
-        robot: the robot; its collision spheres (``robot.collision_spheres()``) are
-            what keeps clear.
+        robot: the robot.
         obstacles: `geosyn.world` shapes (`Sphere`, `Box`, `Capsule`, `Cylinder` as its
             enclosing capsule, `HalfSpace`).
         capacity: number of slots (>= len(obstacles)); None: one per obstacle.
+        spheres: the robot's spheres kept clear: None (``robot.collision_spheres()``),
+            ``"file"`` (covering its file's collision geometry) or the spheres
+            (`geosyn.robots.sphere_cover.resolve_spheres`).
 
     Raises:
         InvalidArgument: no obstacles and no capacity, a capacity below the obstacle
@@ -69,7 +71,11 @@ class ObstacleSlots:
     """
 
     def __init__(
-        self, robot: Robot, obstacles: Sequence[Shape], capacity: int | None = None
+        self,
+        robot: Robot,
+        obstacles: Sequence[Shape],
+        capacity: int | None = None,
+        spheres: Sequence[CollisionSphere] | str | None = None,
     ) -> None:
         obstacles = list(obstacles)
         self.capacity = len(obstacles) if capacity is None else int(capacity)
@@ -79,10 +85,11 @@ class ObstacleSlots:
                 "least one shape (a geosyn.world Sphere, Box, Capsule, ...) and no more "
                 "than the capacity"
             )
-        self.spheres: tuple[CollisionSphere, ...] = tuple(robot.collision_spheres())
+        self.spheres = resolve_spheres(robot, spheres, "clearance_spheres")
         if not self.spheres:
             raise InvalidArgument(f"obstacles: robot {robot.name!r} has no collision spheres")
-        report_sphere_miss(robot, self.spheres, "MPC clearance")  # warned once
+        fix = "clearance_spheres='file' (in YAML too)"
+        report_sphere_miss(robot, self.spheres, "MPC clearance", fix)  # warned once
         self._robot = robot
         self._values = np.zeros(self.capacity * SLOT_SIZE)
         self._obstacles: tuple[Shape, ...] = ()
@@ -143,18 +150,24 @@ class ObstacleSlots:
 
 
 def obstacle_slots(
-    robot: Robot, margin: float | None, obstacles: Sequence[Shape] | None
+    robot: Robot,
+    margin: float | None,
+    obstacles: Sequence[Shape] | None,
+    spheres: Sequence[CollisionSphere] | str | None = None,
 ) -> ObstacleSlots | None:
     """`GeodesicMPC`'s slots of ``obstacles`` (None without them; the backend names what
     is missing when ``clearance_margin`` is set: obstacles reach the MPC as shapes, never
     through its metric).
 
     Raises:
-        InvalidArgument: ``obstacles`` without a ``margin`` (``clearance_margin``).
+        InvalidArgument: ``obstacles`` or ``spheres`` without a ``margin``
+            (``clearance_margin``).
     """
     if obstacles is not None and margin is None:
         raise InvalidArgument("obstacles need clearance_margin (the clearance [m] kept)")
-    return None if obstacles is None else ObstacleSlots(robot, obstacles)
+    if spheres is not None and margin is None:
+        raise InvalidArgument("clearance_spheres needs clearance_margin (and obstacles)")
+    return None if obstacles is None else ObstacleSlots(robot, obstacles, spheres=spheres)
 
 
 def clearance_digest(fun: ca.Function) -> str:
