@@ -22,6 +22,7 @@ penetration.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
@@ -146,10 +147,18 @@ def obstacle_contact_force(
 
 
 # -- clearance ------------------------------------------------------------------------
+_ROUNDED = (world.Sphere, world.Box, world.Capsule)
+"""Shapes whose rounded box is exactly themselves (a half-space's is a large box, a
+cylinder's its enclosing capsule)."""
+
+
 class Clearance:
     """Minimum signed distance between the robot's collision spheres and the obstacles.
 
-    Built once per scene; each call only evaluates (allocates a few (S, 3) arrays).
+    Built once per scene; each call only evaluates (allocates a few (O, S, 3) arrays).
+    Spheres, boxes and capsules are measured together, as rounded boxes
+    (`geosyn.world.shapes`: the same exact distance to round-off); cylinders and
+    half-spaces each by their own formula (`geosyn.world.signed_distance`).
     """
 
     def __init__(
@@ -168,6 +177,11 @@ class Clearance:
         )
         self.centers = np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3)
         self.radii = np.array([s.radius for s in spheres], dtype=np.float64)
+        batched = [o.shape for o in self.obstacles if isinstance(o.shape, _ROUNDED)]
+        self._others = tuple(o for o in self.obstacles if not isinstance(o.shape, _ROUNDED))
+        P = np.array([b.rounded_box() for b in batched], dtype=np.float64).reshape(-1, 16)
+        self._c, self._R = P[:, None, 0:3], P[:, 3:12].reshape(-1, 3, 3)  # world-from-box
+        self._h, self._r = P[:, None, 12:15], P[:, 15:16] + self.radii[None, :]
 
     def sphere_centers(self, xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
         """(S, 3) world positions of the sphere centres [m] from MuJoCo body poses.
@@ -184,9 +198,14 @@ class Clearance:
         if not self.obstacles or len(self.radii) == 0:
             return float("inf")
         pts = self.sphere_centers(xpos, xmat)
-        return float(
-            min(float(np.min(o.signed_distance(pts) - self.radii)) for o in self.obstacles)
-        )
+        best = math.inf
+        if len(self._R):  # p = R^T (x - c) per obstacle: (O, S, 3)
+            p = np.abs(np.matmul(pts[None, :, :] - self._c, self._R)) - self._h
+            sd = np.sqrt((np.maximum(p, 0.0) ** 2).sum(axis=2)) + np.minimum(p.max(axis=2), 0.0)
+            best = float((sd - self._r).min())
+        for o in self._others:
+            best = min(best, float(np.min(o.signed_distance(pts) - self.radii)))
+        return best
 
 
 __all__ = ["GEOMS", "ROBOT_BIT", "Clearance", "ObstacleGeom", "obstacle_geom"]
