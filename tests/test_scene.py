@@ -157,7 +157,8 @@ def test_clearance_matches_obstacle_term():
 @pytest.mark.parametrize("which", range(len(OBSTACLES) + 1))
 def test_each_shapes_clearance_matches_the_obstacle_term(which):
     """Each shape alone (the batched rounded boxes and the per-shape formulas: a
-    half-space, a cylinder measured exactly), from MuJoCo body poses, against the
+    half-space, a cylinder measured exactly), from MuJoCo body poses and, given q, by the
+    compiled sphere check, against the
     shaping term's CasADi clearance (Pinocchio kinematics) or, for the cylinder, the
     closed form at the spheres' centres from Pinocchio; 1e-9 m at seeded configurations."""
     from geosyn.world import Cylinder, signed_distance
@@ -184,7 +185,11 @@ def test_each_shapes_clearance_matches_the_obstacle_term(which):
             expected = float(
                 np.min(signed_distance(cylinder, centres) - [s.radius for s in spheres])
             )
-        assert scene.clearance(d.xpos, d.xmat) == pytest.approx(expected, abs=1e-9)
+        assert scene.clearance(d.xpos, d.xmat) == pytest.approx(expected, abs=1e-9)  # numpy
+        # given q: the compiled check for spheres, boxes and capsules (numpy for the rest)
+        assert scene.clearance(d.xpos, d.xmat, q) == pytest.approx(expected, abs=1e-9)
+    compiled = isinstance(shape, (Sphere, Box, Capsule))
+    assert (scene.clearance._native is not None) == compiled
 
 
 def test_clearance_inf_without_obstacles():

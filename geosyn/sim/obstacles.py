@@ -22,9 +22,12 @@ penetration.
 
 from __future__ import annotations
 
+import functools
 import math
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import mujoco
@@ -155,10 +158,13 @@ cylinder's its enclosing capsule)."""
 class Clearance:
     """Minimum signed distance between the robot's collision spheres and the obstacles.
 
-    Built once per scene; each call only evaluates (allocates a few (O, S, 3) arrays).
-    Spheres, boxes and capsules are measured together, as rounded boxes
-    (`geosyn.world.shapes`: the same exact distance to round-off); cylinders and
-    half-spaces each by their own formula (`geosyn.world.signed_distance`).
+    Built once per scene; each call only evaluates. With spheres, boxes and capsules only,
+    a call given the joint positions runs the planner's compiled sphere check
+    (`geosyn.metrics.planning.sphere_native`: its own kinematics, ~4 µs); otherwise, or
+    where that check cannot model the robot (warned once), numpy on MuJoCo's body poses:
+    spheres, boxes and capsules together as rounded boxes (`geosyn.world.shapes`: the same
+    exact distance to round-off), cylinders and half-spaces each by their own formula
+    (`geosyn.world.signed_distance`).
     """
 
     def __init__(
@@ -182,6 +188,9 @@ class Clearance:
         P = np.array([b.rounded_box() for b in batched], dtype=np.float64).reshape(-1, 16)
         self._c, self._R = P[:, None, 0:3], P[:, 3:12].reshape(-1, 3, 3)  # world-from-box
         self._h, self._r = P[:, None, 12:15], P[:, 15:16] + self.radii[None, :]
+        self._native = (
+            _native_check(robot, spheres, batched) if batched and not self._others else None
+        )
 
     def sphere_centers(self, xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
         """(S, 3) world positions of the sphere centres [m] from MuJoCo body poses.
@@ -193,10 +202,18 @@ class Clearance:
         R = xmat[self.body_ids].reshape(-1, 3, 3)
         return xpos[self.body_ids] + np.einsum("sij,sj->si", R, self.centers)
 
-    def __call__(self, xpos: np.ndarray, xmat: np.ndarray) -> float:
-        """Minimum clearance [m] (``inf`` without obstacles or spheres; < 0 penetrating)."""
+    def __call__(self, xpos: np.ndarray, xmat: np.ndarray, q: np.ndarray | None = None) -> float:
+        """Minimum clearance [m] (``inf`` without obstacles or spheres; < 0 penetrating).
+
+        Args:
+            xpos: (nbody, 3) body positions [m] (``MjData.xpos``).
+            xmat: (nbody, 9) body orientations, row-major (``MjData.xmat``).
+            q: (nq,) the same state's joint positions [rad], for the compiled check.
+        """
         if not self.obstacles or len(self.radii) == 0:
             return float("inf")
+        if self._native is not None and q is not None:
+            return float(self._native.clearances(q.reshape(1, -1))[0])
         pts = self.sphere_centers(xpos, xmat)
         best = math.inf
         if len(self._R):  # p = R^T (x - c) per obstacle: (O, S, 3)
@@ -206,6 +223,28 @@ class Clearance:
         for o in self._others:
             best = min(best, float(np.min(o.signed_distance(pts) - self.radii)))
         return best
+
+
+def _native_check(robot: Robot, spheres: Sequence[Any], shapes: Sequence[world.Shape]) -> Any:
+    """The planner's compiled sphere check of ``spheres`` against ``shapes``, or None
+    (warned once per reason) where it cannot model the robot or no compiler is there."""
+    from geosyn.core.codegen import CodegenError
+    from geosyn.metrics.planning.sphere_native import NativeSphereCheck
+
+    try:
+        check = NativeSphereCheck(robot, spheres)
+    except (ValueError, CodegenError) as err:
+        _warn_numpy(f"{type(err).__name__}: {err}")
+        return None
+    check.set_obstacles(shapes)
+    return check
+
+
+@functools.cache
+def _warn_numpy(why: str) -> None:
+    warnings.warn(
+        f"simulation clearance in numpy (slower per tick): {why}", RuntimeWarning, stacklevel=5
+    )
 
 
 __all__ = ["GEOMS", "ROBOT_BIT", "Clearance", "ObstacleGeom", "obstacle_geom"]

@@ -376,7 +376,7 @@ class Simulation:
             mujoco.mj_mulM(m, d, mv, d.qvel)
             ke_log[j] = 0.5 * float(d.qvel @ mv)
             if clearance is not None:
-                clear_log[j] = clearance(d.xpos, d.xmat)
+                clear_log[j] = clearance(d.xpos, d.xmat, q)
             if contact_geoms and rk4:  # mj_forward solved this tick's contact forces
                 contact_log[j] = obstacle_contact_force(m, d, contact_geoms, contact_buf)
             if n_pay:
