@@ -150,6 +150,8 @@ def test_clearance_matches_obstacle_term():
         mujoco.mj_kinematics(scene.model, d)
         c = scene.clearance(d.xpos, d.xmat)
         assert c == pytest.approx(term.min_clearance(q), abs=1e-9)
+        # given q: the compiled check for the rounded shapes, numpy for the half-space
+        assert scene.clearance(d.xpos, d.xmat, q) == pytest.approx(c, abs=1e-9)
         values.append(c)
     assert len(set(np.round(values, 6))) == 5
 

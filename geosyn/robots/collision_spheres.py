@@ -102,6 +102,12 @@ class SphereModel:
     cached: bool = False
 
     @property
+    def moving(self) -> tuple[CollisionSphere, ...]:
+        """The spheres on moving links: those on the fixed base (``"universe"``) left out,
+        since no joint can change their clearance."""
+        return tuple(s for s in self.spheres if s.joint != "universe")
+
+    @property
     def max_reach(self) -> float:
         """Largest distance [m] a sphere reaches beyond its link's convex hull."""
         return max(self.reach)

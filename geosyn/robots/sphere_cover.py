@@ -141,7 +141,7 @@ def resolve_spheres(
             fitted = file_spheres(robot)
         except RobotFileError as err:
             raise InvalidArgument(f"{name}='file': {err}") from err
-        return tuple(s for s in fitted.spheres if s.joint != "universe")
+        return fitted.moving
     return tuple(spheres)
 
 

@@ -158,12 +158,12 @@ cylinder's its enclosing capsule)."""
 class Clearance:
     """Minimum signed distance between the robot's collision spheres and the obstacles.
 
-    Built once per scene; each call only evaluates. With spheres, boxes and capsules only,
-    a call given the joint positions runs the planner's compiled sphere check
-    (`geosyn.metrics.planning.sphere_native`: its own kinematics, ~4 µs); otherwise, or
-    where that check cannot model the robot (warned once), numpy on MuJoCo's body poses:
-    spheres, boxes and capsules together as rounded boxes (`geosyn.world.shapes`: the same
-    exact distance to round-off), cylinders and half-spaces each by their own formula
+    Built once per scene; each call only evaluates. Spheres, boxes and capsules: given
+    the joint positions, the planner's compiled sphere check
+    (`geosyn.metrics.planning.sphere_native`: its own kinematics, ~4 µs); without them, or
+    where that check cannot model the robot (warned once), numpy on MuJoCo's body poses,
+    all together as rounded boxes (`geosyn.world.shapes`: the same exact distance to
+    round-off). Cylinders and half-spaces: numpy, each by its own formula
     (`geosyn.world.signed_distance`).
     """
 
@@ -188,9 +188,7 @@ class Clearance:
         P = np.array([b.rounded_box() for b in batched], dtype=np.float64).reshape(-1, 16)
         self._c, self._R = P[:, None, 0:3], P[:, 3:12].reshape(-1, 3, 3)  # world-from-box
         self._h, self._r = P[:, None, 12:15], P[:, 15:16] + self.radii[None, :]
-        self._native = (
-            _native_check(robot, spheres, batched) if batched and not self._others else None
-        )
+        self._native = _native_check(robot, spheres, batched) if batched else None
 
     def sphere_centers(self, xpos: np.ndarray, xmat: np.ndarray) -> np.ndarray:
         """(S, 3) world positions of the sphere centres [m] from MuJoCo body poses.
@@ -212,11 +210,13 @@ class Clearance:
         """
         if not self.obstacles or len(self.radii) == 0:
             return float("inf")
-        if self._native is not None and q is not None:
-            return float(self._native.clearances(q.reshape(1, -1))[0])
+        best, compiled = math.inf, False
+        if self._native is not None and q is not None:  # the spheres, boxes and capsules
+            best, compiled = float(self._native.clearances(q.reshape(1, -1))[0]), True
+            if not self._others:
+                return best
         pts = self.sphere_centers(xpos, xmat)
-        best = math.inf
-        if len(self._R):  # p = R^T (x - c) per obstacle: (O, S, 3)
+        if len(self._R) and not compiled:  # p = R^T (x - c) per obstacle: (O, S, 3)
             p = np.abs(np.matmul(pts[None, :, :] - self._c, self._R)) - self._h
             sd = np.sqrt((np.maximum(p, 0.0) ** 2).sum(axis=2)) + np.minimum(p.max(axis=2), 0.0)
             best = float((sd - self._r).min())

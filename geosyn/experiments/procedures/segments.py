@@ -207,7 +207,7 @@ def planning_spheres(robot: Robot, held: Payload | None) -> tuple[CollisionSpher
     if held is None:
         return None
     try:
-        spheres = tuple(s for s in file_spheres(robot).spheres if s.joint != "universe")
+        spheres = file_spheres(robot).moving
     except RobotFileError:
         spheres = tuple(robot.collision_spheres())
     return (*spheres, held_sphere(robot, held))

@@ -73,9 +73,7 @@ def planning_geometry(
         )
     from geosyn.robots.collision_spheres import file_spheres
 
-    model = file_spheres(robot)
-    moving = tuple(s for s in model.spheres if s.joint != "universe")
-    return moving, exact, ""
+    return file_spheres(robot).moving, exact, ""
 
 
 def exact_check(
