@@ -15,6 +15,7 @@ here: a primitive keeps its kind and sizes, a mesh its vertices and faces.
 from __future__ import annotations
 
 import hashlib
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -172,7 +173,8 @@ def collision_objects(robot: Robot) -> tuple[CollisionObject, ...]:
 
     Returns:
         The objects, in file order; objects on locked joints move with the joint that
-        carries them in ``robot.model``.
+        carries them in ``robot.model``. Read once per robot object and file version;
+        their arrays are read-only (shared).
 
     Raises:
         RobotFileError: no source file, an unreadable file or mesh, a link that is not a
@@ -184,10 +186,28 @@ def collision_objects(robot: Robot) -> tuple[CollisionObject, ...]:
             "geometry; pass collision spheres explicitly"
         )
     path = Path(robot.source_file)
+    try:
+        stat = path.stat()
+        stamp: tuple[object, ...] = (str(path), stat.st_mtime_ns, stat.st_size)
+    except OSError:
+        stamp = (str(path),)  # the read below names the problem
+    hit = _READ.get(id(robot))
+    if hit is not None and hit[0]() is robot and hit[1] == stamp:
+        return hit[2]
     objects = _from_urdf(robot, path) if path.suffix.lower() == ".urdf" else _from_mjcf(robot, path)
     if not objects:
         raise RobotFileError(f"robot file {path} has no collision geometry", path)
-    return tuple(objects)
+    for o in objects:  # shared by every caller from now on
+        for arr in (o.placement, o.size, o.vertices, o.faces):
+            arr.setflags(write=False)
+    key = id(robot)
+    _READ[key] = (weakref.ref(robot, lambda _: _READ.pop(key, None)), stamp, tuple(objects))
+    return _READ[key][2]
+
+
+#: The objects read per robot object (while it lives) and file stamp: the scene's contact
+#: geoms, the exact checks and the sphere fits of one robot read its meshes once.
+_READ: dict[int, tuple[weakref.ref[Robot], tuple[object, ...], tuple[CollisionObject, ...]]] = {}
 
 
 def geometry_digest(objects: tuple[CollisionObject, ...]) -> str:
