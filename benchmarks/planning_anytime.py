@@ -22,6 +22,14 @@ the paths that touch the meshes (< 0) or collide for geodex's checker, and the p
 a sample outside the URDF's joint position limits (geodex's checker tests its own, the
 same numbers for the Panda).
 
+``--margin M`` gives geosyn's `Planner` that margin instead of its default (a variant, said
+in the output). ``--problem geodex`` makes geosyn solve geodex's own problem instead of
+the robot's: geodex's 59 spheres (`planning_geodex.geodex_sphere_model`) as the planner's
+spheres, the robot without its file (so no exact check on the URDF meshes: the spheres
+decide, as geodex's checker does) and ``--margin`` (default 1 mm: geodex keeps none, and
+geosyn's sampled checks need a little between their samples). It tells how near geosyn's
+search comes to geodex's on the problem geodex solves, apart from the geometry.
+
 Run: ``bash benchmarks/setup_geodex.sh && nice -n 10 .venv/bin/python
 benchmarks/planning_anytime.py`` (results in ``runs/planning/anytime.json``).
 """
@@ -29,6 +37,7 @@ benchmarks/planning_anytime.py`` (results in ``runs/planning/anytime.json``).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -43,7 +52,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 import planning_scenes as ps  # noqa: E402
 from planning import ROOT, metric_length  # noqa: E402
-from planning_geodex import geodex_run  # noqa: E402
+from planning_geodex import geodex_run, geodex_sphere_model  # noqa: E402
 from planning_geosyn import CAPACITY, GRIPPERS, benchmark_robot, to_geosyn  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
@@ -120,6 +129,12 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--gripper", choices=sorted(GRIPPERS), default="open",
                    help="the Panda's fingers (planning_geosyn.GRIPPERS; geodex's Panda is open)")  # fmt: skip
     p.add_argument("--out", default=str(ROOT / "runs" / "planning" / "anytime.json"))
+    p.add_argument("--margin", type=float, default=None,
+                   help="geosyn's Planner margin [m] (default: the Planner's; 0.001 with "
+                   "--problem geodex)")  # fmt: skip
+    p.add_argument("--problem", choices=("robot", "geodex"), default="robot",
+                   help="robot: the default Planner on the URDF's own geometry; geodex: "
+                   "geodex's own problem (its spheres, no mesh check; module docstring)")  # fmt: skip
     p.add_argument("--no-matched", dest="matched", action="store_false",
                    help="skip geosyn's runs with geodex's measured wall time as the budget")  # fmt: skip
     args = p.parse_args(argv)
@@ -130,9 +145,21 @@ def main(argv: list[str] | None = None) -> None:
     work = Path(tempfile.mkdtemp(prefix="geosyn-anytime-"))
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f} at start")
     robot = benchmark_robot(args.gripper)
+    options: dict[str, object] = {}
+    if args.problem == "geodex":  # its spheres decide: the robot without its file
+        options["spheres"] = tuple(
+            s for s in geodex_sphere_model(robot, work)[0] if s.joint != "universe"
+        )
+        args.margin = 0.001 if args.margin is None else args.margin
+    if args.margin is not None:
+        options["margin"] = args.margin
+        print(f"geosyn: problem {args.problem}, margin {args.margin:g} m (not the default Planner)")
+    planning_robot = (
+        dataclasses.replace(robot, source_file=None) if args.problem == "geodex" else robot
+    )
     metric = KineticEnergyMetric(robot)
     t0 = time.perf_counter()
-    planner = Planner(metric, capacity=CAPACITY)
+    planner = Planner(KineticEnergyMetric(planning_robot), capacity=CAPACITY, **options)
     build = time.perf_counter() - t0
     t0 = time.perf_counter()
     for k in sorted({len(sc.obstacles) for sc in scenes}):
