@@ -18,8 +18,10 @@ Printed per budget: paths returned (geosyn: how many of them are its sampled pla
 collocated: ``Plan.seed == "sampled"``), median and largest wall time to the returned
 path (geosyn: also its CPU time and its first feasible path's time), the length ratio
 geosyn / geodex on the scenes both solved, how many of them geosyn is <= geodex on, and
-the paths that touch the meshes (< 0) or collide for geodex's checker, and the paths with
-a sample outside the URDF's joint position limits (geodex's checker tests its own, the
+the paths that touch the meshes (< 0) or collide for geodex's checker, geosyn's paths whose
+clearance of the meshes is certified >= 0 between the resampled configurations too
+(`geosyn.metrics.planning.certify`), and the paths with a sample outside the URDF's joint
+position limits (geodex's checker tests its own, the
 same numbers for the Panda).
 
 ``--margin M`` gives geosyn's `Planner` that margin instead of its default (a variant, said
@@ -56,7 +58,7 @@ from planning_geodex import geodex_run, geodex_sphere_model  # noqa: E402
 from planning_geosyn import CAPACITY, GRIPPERS, benchmark_robot, to_geosyn  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
-from geosyn.metrics.planning import Planner, PlanningError  # noqa: E402
+from geosyn.metrics.planning import Planner, PlanningError, certified_clearance  # noqa: E402
 from geosyn.metrics.planning.verify import outside_limits  # noqa: E402
 from geosyn.world.exact_clearance import ExactClearance  # noqa: E402
 
@@ -111,7 +113,8 @@ def _summary(T: float, r: dict, g: dict[str, dict], s: dict[str, dict]) -> None:
         f"{_median(ratios):7.3f} [{min(ratios, default=math.nan):.3f}, "
         f"{max(ratios, default=math.nan):.3f}] {sum(x <= 1.0 for x in ratios):4d}/{len(both):<3d} | "
         f"{sum(g[n]['mesh_clearance'] < 0 for n in g_ok):6d}/{sum(s[n]['mesh_clearance'] < 0 for n in s_ok):<7d} "
-        f"{sum(not s[n]['geodex_free'] for n in s_ok):10d} | "
+        f"{sum(not s[n]['geodex_free'] for n in s_ok):10d} "
+        f"{sum(s[n]['certified_clearance'] >= 0 for n in s_ok):5d}/{len(s_ok):<3d} | "
         f"{sum(g[n]['outside_limits'] for n in g_ok):6d}/{sum(s[n]['outside_limits'] for n in s_ok):<6d}"
     )  # fmt: skip
 
@@ -196,6 +199,7 @@ def main(argv: list[str] | None = None) -> None:
         mesh.set_obstacles([to_geosyn(ob) for ob in ps.scene_by_name(name).obstacles])
         row["length"] = metric_length(metric, path)
         row["mesh_clearance"] = mesh.path_clearance(path, args.check_step).clearance
+        row["certified_clearance"] = certified_clearance(mesh, path, args.check_step).bound
         row["geodex_free"] = bool(gcheck[key]["collision_free"])
         row["outside_limits"] = bool(outside_limits(robot, path))  # the URDF's position limits
         row.pop("path", None)
@@ -203,7 +207,7 @@ def main(argv: list[str] | None = None) -> None:
           f"distance to the URDF collision meshes; paths resampled every {args.check_step:g} rad")  # fmt: skip
     print(f"{'T [s]':>6s} {'load':>5s} | {'gdx ok':>6s} {'gdx wall med/max':>16s} | "
           f"{'gsy ok':>6s} {'smp':>3s} {'gsy wall med/max':>16s} {'cpu med':>7s} {'1st med':>7s} | "
-          f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s} | "
+          f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s} {'cert gsy':>9s} | "
           f"{'limits gdx/gsy':>13s}")  # fmt: skip
     for who in [w for w in WHO[1:] if w in next(iter(runs.values()))]:
         if who == "geosyn_matched":

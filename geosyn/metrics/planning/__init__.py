@@ -7,6 +7,7 @@ checks the result between nodes. A goal may be a joint vector or an end-effector
 or pose with tolerances (`EndEffectorGoal`, solved by inverse kinematics: `goals`).
 """
 
+from geosyn.metrics.planning.certify import CertifiedClearance, certified_clearance
 from geosyn.metrics.planning.errors import (
     GoalUnreachable,
     InCollision,
@@ -19,6 +20,7 @@ from geosyn.metrics.planning.planner import Plan, Planner
 from geosyn.metrics.planning.rrt import rrt_connect, shortcut
 
 __all__ = [
+    "CertifiedClearance",
     "EndEffectorGoal",
     "GoalUnreachable",
     "IKSolution",
@@ -28,6 +30,7 @@ __all__ = [
     "Plan",
     "Planner",
     "PlanningError",
+    "certified_clearance",
     "ik_solutions",
     "rrt_connect",
     "shortcut",
