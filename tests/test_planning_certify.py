@@ -9,14 +9,17 @@ two checked configurations (its signed distance is minus its radius: an invarian
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
-from geosyn.metrics.planning import Planner, certified_clearance
-from geosyn.metrics.planning.certify import displacement_weights
+from geosyn.metrics.planning import NoPathFound, Plan, Planner, certified_clearance
+from geosyn.metrics.planning.certify import certified_plan, displacement_weights
+from geosyn.metrics.planning.verify import feasible_result
 from geosyn.robots import load_robot
 from geosyn.world import Box, Sphere
 from geosyn.world.exact_clearance import ExactClearance
@@ -98,12 +101,10 @@ def test_certificate_never_above_the_fine_exact_clearance(panda) -> None:  # typ
     assert seen == {"clear": 4, "collides": 1}  # and one clear by 0.15 mm: either way
 
 
-def test_certificate_finds_a_collision_between_checked_configurations(panda) -> None:  # type: ignore[no-untyped-def]
-    """A ball on the outer corner of the left fingertip pad (a box) at HOME; the path's two
-    checked configurations move the pad 25 mm either way along its thin axis: the check
-    sees 7 mm of clearance at both, the certificate halves the segment and measures minus
-    the ball's radius at HOME (1e-9 m)."""
-    robot, exact = panda
+def _pad_crossing(robot, exact: ExactClearance) -> tuple[Sphere, np.ndarray]:  # type: ignore[no-untyped-def]
+    """A ball on the outer corner of the left fingertip pad (a box) at HOME, and a path of
+    one segment through HOME whose ends move the pad 25 mm either way along its thin
+    axis (the ball is then 7 mm clear of the robot at both ends)."""
     data = robot.model.createData()
     k = max(i for i, o in enumerate(exact.objects) if o.link == "panda_leftfinger")
     pad = exact.objects[k]
@@ -118,15 +119,66 @@ def test_certificate_finds_a_collision_between_checked_configurations(panda) -> 
                          for e in np.eye(7)])  # fmt: skip
     dq = np.linalg.pinv(J) @ M.rotation[:, 1]  # the pad's centre along its thin axis, 1 m/unit
     corner = M.rotation @ (pad.size * [1.0, -1.0, 1.0]) + M.translation  # on the outer face
-    exact.set_obstacles([Sphere(center=tuple(corner), radius=BALL)])
+    return Sphere(center=tuple(corner), radius=BALL), np.array(
+        [HOME - 0.025 * dq, HOME + 0.025 * dq]
+    )
+
+
+def test_certificate_finds_a_collision_between_checked_configurations(panda) -> None:  # type: ignore[no-untyped-def]
+    """The pad crossing (`_pad_crossing`) checked at its two ends only: the check sees
+    7 mm of clearance, the certificate halves the segment and measures minus the ball's
+    radius at HOME (the ball is centred on a corner of the convex pad; 1e-9 m)."""
+    robot, exact = panda
+    ball, path = _pad_crossing(robot, exact)
+    exact.set_obstacles([ball])
     assert exact.clearance(HOME)[0] == pytest.approx(-BALL, abs=1e-9)
-    path = np.array([HOME - 0.025 * dq, HOME + 0.025 * dq])
     step = float(np.abs(path[1] - path[0]).max())  # one checked segment
     assert exact.path_clearance(path, step).clearance > 0.005  # the two ends: missed
     cert = certified_clearance(exact, path, step)
     assert cert.collision and cert.bound < 0.0
     assert cert.sampled == pytest.approx(-BALL, abs=1e-9)  # the first midpoint is HOME
     assert cert.halved >= 1 and cert.measured == 2 + cert.halved
+
+
+@pytest.fixture(scope="module")
+def planner(panda) -> Planner:  # type: ignore[no-untyped-def]
+    robot, _ = panda  # test_planning_exact's planner: its node functions are cached once
+    return Planner(KineticEnergyMetric(robot), capacity=1, spheres=robot.collision_spheres(),
+                   coarse_nodes=0)  # fmt: skip
+
+
+def test_plan_with_certify_reports_a_lower_bound(planner: Planner) -> None:
+    """A plan past a ball 3 cm from the hand's straight swing, certified: its bound is
+    clear, below its own exact clearance and below coal's on the URDF meshes 20x finer
+    than the planner's check (1e-9 m); its attempts say so."""
+    qa, qb = HOME.copy(), HOME.copy()
+    qa[0], qb[0] = -0.6, 0.6
+    data = planner.robot.model.createData()
+    pin.forwardKinematics(planner.robot.model, data, HOME)
+    hand = data.oMi[planner.robot.joint_id("panda_joint7")].translation
+    ball = Sphere(center=tuple(hand + [0.0, 0.0, 0.12]), radius=0.03)
+    plan = planner.plan(qa, qb, [ball], budget=1.0, certify=True)
+    assert 0.0 <= plan.certified_clearance <= plan.exact_clearance + 1e-12
+    exact = ExactClearance(planner.robot)
+    exact.set_obstacles([ball])
+    assert (
+        plan.certified_clearance
+        <= exact.path_clearance(plan.q, planner.exact_resolution / 20).clearance + 1e-9
+    )
+    assert any("certified between" in a for a in plan.attempts)
+    assert math.isnan(planner.plan(qa, qb, [ball], budget=1.0).certified_clearance)  # not asked
+
+
+def test_a_plan_colliding_between_checked_configurations_is_refused(
+    panda, planner: Planner
+) -> None:  # type: ignore[no-untyped-def]
+    """A plan whose path is the pad crossing (`_pad_crossing`, at the planner's 5 mrad
+    step): `certified_plan` refuses it with `NoPathFound`, never returns it as free."""
+    robot, _ = panda
+    ball, path = _pad_crossing(robot, planner.exact)
+    plan = Plan(feasible_result(planner.metric, path, "planted"), "planted", math.nan, 0.0, ())
+    with pytest.raises(NoPathFound, match="between its checked configurations"):
+        certified_plan(planner, plan, [ball], 1.0)
 
 
 def test_planner_certify_refuses_a_robot_without_file_geometry() -> None:

@@ -12,6 +12,7 @@ from geosyn.experiments import ConfigError, load_config, run_experiment
 from geosyn.experiments.config.loader import validate_config
 from geosyn.experiments.run.build import build_robot
 from geosyn.world import Box, signed_distance
+from geosyn.world.exact_clearance import ExactClearance
 
 
 def test_ur5_box_push_qp_reports_tracking_recovery_clearance_and_effort(tmp_path):
@@ -216,6 +217,15 @@ def test_planned_reference_goes_around_the_box_the_geodesic_goes_through(tmp_pat
     assert straight.summary["qp.min_clearance"] < 0.0  # the geodesic passes through the box
     margin = 0.01  # the planner's default margin [m]
     assert planned.summary["planned_clearance"] >= 0.5 * margin
+    # certified between the checked configurations: a lower bound of the plan's exact
+    # clearance and of coal's on the URDF meshes 20x finer (1e-9 m); still clear
+    certified = planned.summary["planned_certified_clearance"]
+    assert 0.0 <= certified <= planned.summary["planned_clearance"] + 1e-12
+    with np.load(planned.path / "results.npz") as d:
+        q_plan = d["reference__q"]
+    exact = ExactClearance(build_robot(validate_config(data)))
+    exact.set_obstacles([Box((0.45, 0.45, 0.2), (0.08, 0.08, 0.08))])
+    assert certified <= exact.path_clearance(q_plan, 0.005 / 20).clearance + 1e-9
     assert planned.summary["qp.min_clearance"] > 0.5 * margin  # and the executed run too
     assert planned.summary["qp.max_error"] < 1e-3
     with np.load(planned.path / "results.npz") as d:

@@ -66,6 +66,7 @@ class Tracking(Procedure):
         "reference_coupling_residual": "rad",
         "planned_clearance": "m",
         "planned_sphere_clearance": "m",
+        "planned_certified_clearance": "m",
     }
 
     @classmethod
@@ -93,6 +94,8 @@ class Tracking(Procedure):
                 exact if math.isfinite(exact) else plan.check_clearance
             )
             out["reference__planned_sphere_clearance"] = np.array(plan.check_clearance)
+            # between the checked configurations too (NaN without file geometry)
+            out["reference__planned_certified_clearance"] = np.array(plan.certified_clearance)
         else:
             synergies = B.build_synergies(cfg, metric, robot)
             ref, geo = R.build_reference(cfg, metric, synergies)
@@ -122,6 +125,9 @@ class Tracking(Procedure):
             out["planned_clearance"] = float(results["reference__planned_clearance"])
         if "reference__planned_sphere_clearance" in results:
             out["planned_sphere_clearance"] = float(results["reference__planned_sphere_clearance"])
+        certified = float(results.get("reference__planned_certified_clearance", np.nan))
+        if np.isfinite(certified):
+            out["planned_certified_clearance"] = certified
         return out
 
     def plot(

@@ -129,6 +129,7 @@ KEPT_WHEN_FAILED = frozenset(
         "energy_unshaped_metric",
         "planned_clearance",
         "planned_sphere_clearance",
+        "planned_certified_clearance",
     }
 )
 

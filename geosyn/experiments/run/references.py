@@ -268,7 +268,9 @@ def planned_reference(
 ) -> tuple[GeodesicReference, Plan]:
     """The planner's collision-free path from ``ref.q_start`` to ``ref.goal`` as a reference.
 
-    The path's samples, uniform in the planner's time, are stretched over ``ref.duration``
+    The plan is certified between its checked configurations (``plan.certified_clearance``;
+    refused when found colliding there). The path's samples, uniform in the planner's
+    time, are stretched over ``ref.duration``
     [s]; velocities are their central differences (one-sided at the ends), interpolated
     by cubic Hermite splines; ``time_scale`` and ``rest_to_rest`` act as for a geodesic.
 
@@ -285,9 +287,8 @@ def planned_reference(
             " joints and its path leaves q = S z + c; use a 'log' or 'goals' reference"
         )
     planner = Planner(metric, capacity=max(1, len(obstacles)), margin=ref.margin, nodes=ref.nodes)
-    plan = planner.plan(
-        np.array(ref.q_start), ref.planner_goal(), obstacles, budget=ref.budget, seed=seed
-    )
+    plan = planner.plan(np.array(ref.q_start), ref.planner_goal(), obstacles,
+                        budget=ref.budget, seed=seed, certify=True)  # fmt: skip
     t = np.asarray(plan.result.t, dtype=np.float64)
     t = (t - t[0]) * (ref.duration / (t[-1] - t[0]))
     q = np.asarray(plan.q, dtype=np.float64)

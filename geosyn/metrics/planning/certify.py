@@ -28,20 +28,30 @@ could be shown, lower where the halvings ran out or a collision was measured).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_float, check_positive
+from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.exact_path import PathAids, configuration_clearances
+from geosyn.metrics.planning.plan import Plan
 from geosyn.world.exact_clearance import ExactClearance, checked_configurations
+from geosyn.world.shapes import Shape
+
+if TYPE_CHECKING:
+    from geosyn.metrics.planning.planner import Planner
 
 __all__ = [
     "MAX_HALVINGS",
     "CertifiedClearance",
     "certified_clearance",
+    "certified_plan",
     "displacement_weights",
+    "planner_certificate",
 ]
 
 MAX_HALVINGS = 12
@@ -156,3 +166,45 @@ def certified_clearance(
     if len(Q) == 1:
         bound = float(c[0])
     return CertifiedClearance(bound, sampled, measured, halved, sampled < 0.0)
+
+
+def planner_certificate(planner: Planner, path: np.ndarray, obstacles: Sequence[Shape],
+                        target: float = 0.0) -> CertifiedClearance:  # fmt: skip
+    """`certified_clearance` of ``path`` (T, n) [rad] to ``obstacles`` on ``planner``'s
+    exact geometry at its ``exact_resolution`` (`Planner.certify`)."""
+    if planner.exact is None:
+        raise InvalidArgument(
+            f"certify: robot {planner.robot.name!r} has no file collision geometry "
+            f"({planner.geometry_note})"
+        )
+    obstacles = tuple(obstacles)
+    planner.exact.set_obstacles(obstacles)
+    planner.sampling.set_obstacles(obstacles)  # the aids' sphere bounds
+    return certified_clearance(planner.exact, path, planner.exact_resolution, target=target,
+                               aids=planner.sampling.aids)  # fmt: skip
+
+
+def certified_plan(planner: Planner, plan: Plan, obstacles: Sequence[Shape],
+                   budget: float) -> Plan:  # fmt: skip
+    """``plan`` (of a query of ``budget`` [s]) with its ``certified_clearance`` and a line
+    in its ``attempts`` (a robot without file geometry: NaN, and the line says why).
+
+    Raises:
+        NoPathFound: a collision measured between the checked configurations (the
+            plan is refused, never returned as free).
+    """
+    if planner.exact is None:
+        why = f"not certified: no file collision geometry ({planner.geometry_note})"
+        return plan._replace(attempts=(*plan.attempts, why))
+    t0 = time.perf_counter()
+    cert = planner_certificate(planner, plan.q, obstacles)
+    line = (f"certified between its checked configurations: clearance >= {cert.bound:.4f} m "
+            f"({cert.measured} configurations measured, {cert.halved} segments halved, "
+            f"{time.perf_counter() - t0:.3f} s)")  # fmt: skip
+    if cert.collision:
+        raise NoPathFound(
+            f"the plan collides between its checked configurations (exact clearance "
+            f"{cert.sampled:.4f} m measured there): refused",
+            budget=budget, elapsed=plan.wall_time, attempts=(*plan.attempts, line),
+        )  # fmt: skip
+    return plan._replace(certified_clearance=cert.bound, attempts=(*plan.attempts, line))

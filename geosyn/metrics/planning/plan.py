@@ -51,6 +51,9 @@ class Plan(NamedTuple):
             bounds everywhere, coal where they are closest); never negative for a
             returned plan (a self-colliding path is refused); at most `SELF_NEAR`
             (0.02 m: "at least" that); NaN when the robot has no file geometry.
+        certified_clearance: a lower bound [m] of ``exact_clearance`` between the checked
+            configurations too (`geosyn.metrics.planning.certify`), with
+            ``Planner.plan(..., certify=True)``; NaN otherwise or without file geometry.
     """
 
     result: CollocationResult
@@ -64,6 +67,7 @@ class Plan(NamedTuple):
     first_feasible_time: float = math.nan
     nlp_build_time: float = 0.0
     self_clearance: float = math.nan
+    certified_clearance: float = math.nan
 
     @property
     def q(self) -> np.ndarray:

@@ -68,7 +68,7 @@ from geosyn.core.validation import check_float, check_int, check_positive, check
 from geosyn.metrics.base import Metric, check_metric
 from geosyn.metrics.geodesic.collocation import Collocation, CollocationResult
 from geosyn.metrics.planning.anytime import ANYTIME_CHECKS
-from geosyn.metrics.planning.certify import CertifiedClearance, certified_clearance
+from geosyn.metrics.planning.certify import CertifiedClearance, certified_plan, planner_certificate
 from geosyn.metrics.planning.coarse import clearance_bounds
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
@@ -359,22 +359,13 @@ class Planner:
         certified between its configurations checked ``exact_resolution`` apart, on the
         robot file's own collision geometry (`geosyn.metrics.planning.certify`: a bound
         of how far any point of the robot moves between them; segments halved until
-        their bound reaches ``target`` [m], >= 0). Not part of a query (4-40 ms on the
-        Panda benchmark scenes, measured).
+        their bound reaches ``target`` [m], >= 0). Not part of a query's budget (4-40 ms
+        on the Panda benchmark scenes, measured).
 
         Raises:
             InvalidArgument: the robot has no file geometry (nothing exact to certify).
         """
-        if self.exact is None:
-            raise InvalidArgument(
-                f"certify: robot {self.robot.name!r} has no file collision geometry "
-                f"({self.geometry_note})"
-            )
-        obstacles = tuple(obstacles)
-        self.exact.set_obstacles(obstacles)
-        self.sampling.set_obstacles(obstacles)  # the aids' sphere bounds
-        return certified_clearance(self.exact, path, self.exact_resolution, target=target,
-                                   aids=self.sampling.aids)  # fmt: skip
+        return planner_certificate(self, path, obstacles, target)
 
     def _check_end(self, q: np.ndarray, which: str) -> None:
         check_end(self.robot, self.term, self.exact, q, which)
@@ -389,6 +380,7 @@ class Planner:
         *,
         budget: float = 5.0,
         seed: int = 0,
+        certify: bool = False,
     ) -> Plan:
         """Plan from ``q0`` to ``q1`` around ``obstacles`` within ``budget`` seconds.
 
@@ -406,6 +398,9 @@ class Planner:
                 ``"feasible"``, verified like every plan); with more, collocation makes
                 the minimum-energy path (``"constrained"`` or ``"geodesic"``).
             seed: seed of the sampling fallback.
+            certify: also certify the returned path between its checked configurations
+                (`certify`, after the budget: ``plan.certified_clearance``); a path
+                found colliding there is refused (`NoPathFound`), never returned.
 
         Returns:
             The plan; ``plan.result.kind`` says whether it is a geodesic or a
@@ -424,7 +419,8 @@ class Planner:
         obstacles = tuple(obstacles)
         if isinstance(q1, EndEffectorGoal):
             budget, seed = check_positive(budget, "budget", "s"), check_int(seed, "seed")
-            return plan_to_goal(self, q0, q1, obstacles, budget=budget, seed=seed)
+            plan = plan_to_goal(self, q0, q1, obstacles, budget=budget, seed=seed)
+            return certified_plan(self, plan, obstacles, budget) if certify else plan
         q1 = check_vector(q1, n, "q1")
         budget = check_positive(budget, "budget", "s")
         seed = check_int(seed, "seed")
@@ -440,4 +436,5 @@ class Planner:
             if self.term is not self._full_term:
                 self._full_term.set_obstacles(obstacles)
             self.term = self._full_term
-        return plan._replace(nlp_build_time=built)
+        plan = plan._replace(nlp_build_time=built)
+        return certified_plan(self, plan, obstacles, budget) if certify else plan
