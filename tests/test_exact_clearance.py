@@ -99,7 +99,14 @@ def test_the_exact_check_reads_every_collision_geom_of_the_file(arm) -> None:  #
     _, robot = arm
     exact = ExactClearance(robot)
     kinds = sorted(o.kind for o in exact.objects)
-    assert kinds == ["box", "capsule", "cylinder", "ellipsoid", "mesh", "sphere"]  # "decor" is visual only
+    assert kinds == [
+        "box",
+        "capsule",
+        "cylinder",
+        "ellipsoid",
+        "mesh",
+        "sphere",
+    ]  # "decor" is visual only
 
 
 def test_clearance_equals_mujocos_own_distance(arm) -> None:  # type: ignore[no-untyped-def]

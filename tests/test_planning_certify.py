@@ -194,3 +194,9 @@ def test_certified_clearance_refuses_bad_arguments(panda) -> None:  # type: igno
         certified_clearance(exact, np.array([HOME, HOME]), 0.0)
     with pytest.raises(InvalidArgument, match="target"):
         certified_clearance(exact, np.array([HOME, HOME]), 0.005, target=-1.0)
+    with pytest.raises(InvalidArgument, match=r"path: a \(T, 7\) array.*non-finite"):
+        certified_clearance(exact, np.array([HOME, HOME * np.nan]), 0.005)
+    with pytest.raises(InvalidArgument, match=r"path: a \(T, 7\) array"):
+        certified_clearance(exact, np.zeros((3, 6)), 0.005)
+    with pytest.raises(InvalidArgument, match="path"):
+        certified_clearance(exact, "not a path", 0.005)

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
-from geosyn.core.validation import check_float, check_positive
+from geosyn.core.validation import check_float, check_positive, check_real_array
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.exact_path import PathAids, configuration_clearances
 from geosyn.metrics.planning.plan import Plan
@@ -143,7 +143,13 @@ def certified_clearance(
     """
     resolution = check_positive(resolution, "resolution", "rad")
     target = check_float(target, "target", low=0.0)
-    path = np.atleast_2d(np.asarray(path, dtype=float))
+    path = np.atleast_2d(check_real_array(path, "path"))
+    n = exact.robot.model.nq
+    if path.ndim != 2 or path.shape[1] != n or not np.all(np.isfinite(path)):
+        raise InvalidArgument(
+            f"path: a (T, {n}) array of finite joint positions [rad], got shape {path.shape}"
+            + ("" if np.all(np.isfinite(path)) else " with non-finite entries")
+        )
     Q = checked_configurations(path, resolution)
     if not exact._obstacles:
         return CertifiedClearance(math.inf, math.inf, len(Q), 0, False)
