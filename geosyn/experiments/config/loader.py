@@ -40,7 +40,7 @@ from geosyn.experiments.config.start_clearance import start_inside_errors
 from geosyn.experiments.errors import ConfigError
 from geosyn.experiments.procedures import PROCEDURES
 from geosyn.experiments.procedures.base import ignored_sections
-from geosyn.experiments.run.scene import build_payloads
+from geosyn.experiments.run.scene import build_payloads, mjcf_obstacles
 from geosyn.experiments.schema import ExperimentConfig, RobotConfig, consistency_errors
 from geosyn.robots import load_robot
 from geosyn.sim import build_scene
@@ -191,10 +191,19 @@ def _get(data: Any, path: str) -> Any:
 
 
 def scene_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
-    """Names that only the built scene can check: payload frames, pushed bodies, load frames.
+    """Names that only the built scene can check: the MuJoCo scene file, payload frames,
+    pushed bodies, load frames.
 
     Builds the MuJoCo scene once (only when a push or wrench names a body).
     """
+    if cfg.scene.mjcf is not None:  # the file loads and gives obstacles
+        try:
+            file = mjcf_obstacles(cfg)
+        except GeosynError as err:
+            return [("scene.mjcf.file", f"{cfg.scene.mjcf.file}: {err}")]
+        if file is not None and not file.shapes:
+            left = "; ".join(file.skipped) or "it has no geoms"
+            return [("scene.mjcf.file", f"{cfg.scene.mjcf.file}: no static geom to use ({left})")]
     frames = [f.name for f in robot.model.frames]
     for i, p in enumerate(cfg.scene.payloads):
         if (
@@ -366,6 +375,13 @@ def load_config(
     for text in overrides:
         key, value = parse_override(text)
         apply_override(data, key, value)
+    scene = data.get("scene")
+    mjcf = scene.get("mjcf") if isinstance(scene, dict) else None
+    if isinstance(mjcf, dict) and isinstance(mjcf.get("file"), str):
+        # a scene file path is relative to the config file too (then made absolute)
+        file = Path(mjcf["file"])
+        if not file.is_absolute() and (path.parent / file).is_file():
+            mjcf["file"] = str((path.parent / file).resolve())
     return validate_config(data, path.name, allow_unused), path
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from geosyn.experiments.run.scene import build_obstacles
+from geosyn.experiments.run.scene import build_obstacles, mjcf_obstacles, obstacle_field
 from geosyn.experiments.schema import ExperimentConfig
 from geosyn.robots import Robot
 from geosyn.world import signed_distance
@@ -59,21 +59,23 @@ def skeleton_points(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 
 def start_inside_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, str]]:
-    """``(scene.obstacles.<i>, reason)`` for an obstacle the robot starts inside."""
+    """``(scene.obstacles.<i>, reason)`` (or ``scene.mjcf (geom ...)``) for an obstacle the
+    robot starts inside."""
     start = start_configuration(cfg)
-    if start is None or not cfg.scene.obstacles:
+    if start is None or not cfg.scene.has_obstacles:
         return []
     field, q = start
     if q.shape != (robot.model.nq,) or not np.all(np.isfinite(q)):
         return []  # another check reports it
     points = skeleton_points(robot, q)
-    for i, shape in enumerate(build_obstacles(cfg)):
+    file = mjcf_obstacles(cfg)
+    for i, shape in enumerate(build_obstacles(cfg, file)):
         depth = -float(np.min(signed_distance(shape, points)))
         if depth > DEPTH:
             return [
                 (
-                    f"scene.obstacles.{i}",
-                    f"the robot starts inside this {cfg.scene.obstacles[i].type}: at {field}"
+                    obstacle_field(cfg, i, file),
+                    f"the robot starts inside this {type(shape).__name__.lower()}: at {field}"
                     f" its skeleton reaches {depth:.3g} m deep into it (allowed: at most"
                     f" {DEPTH:g} m); move the obstacle or the start configuration",
                 )

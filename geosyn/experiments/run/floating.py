@@ -124,7 +124,7 @@ def floating_problems(cfg: S.ExperimentConfig, robot: Robot) -> list[tuple[str, 
             errors.append((f"disturbances.{i}.point", "a push on the base acts at its origin"))
     if cfg.robot.plant != "model":
         errors.append(("robot.plant", "a floating robot is simulated on geosyn's model"))
-    if cfg.scene.obstacles or cfg.scene.payloads or cfg.metric.terms:
+    if cfg.scene.has_obstacles or cfg.scene.payloads or cfg.metric.terms:
         errors.append(
             ("scene", "a floating robot stands on a flat floor: no obstacles, payloads or terms")
         )

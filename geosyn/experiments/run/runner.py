@@ -171,8 +171,10 @@ def _run_into(
         params = proc.Params.model_validate(cfg.params)
         log = _start_log(cfg, proc, tmp, out)
         with progress_bars(progress) as factory:
-            ctx = RunContext(cfg, params, build_run_scene(cfg), tmp, cfg.outputs.video, factory)
             with log.warnings(), spool_directory(tmp):  # long runs' logs: in the run dir
+                # the scene inside the log's warnings too (a scene file's enclosed geoms)
+                ctx = RunContext(cfg, params, build_run_scene(cfg), tmp, cfg.outputs.video,
+                                 factory)  # fmt: skip
                 results = proc.run(ctx)
         summary, videos = _write_results(ctx, proc, results, log)
         wall = time.perf_counter() - t0

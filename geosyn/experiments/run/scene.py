@@ -5,11 +5,13 @@ cameras.
 objects once per run (the runner calls it); the same `BuiltScene` is handed to the metric
 builder (obstacle and load terms), the controllers (an MPC's clearance), the simulation
 and the videos, so no consumer rebuilds its own slice from the YAML. `build_obstacles`
-and `build_payloads` are the only places a config obstacle or payload becomes a shape.
+and `build_payloads` are the only places a config obstacle or payload becomes a shape
+(`build_obstacles` also reads ``scene.mjcf``, a MuJoCo scene file's static geoms).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -17,7 +19,17 @@ from typing import Any
 from geosyn.experiments import schema as S
 from geosyn.robots import Robot, load_robot
 from geosyn.sim import CameraView
-from geosyn.world import Box, Capsule, HalfSpace, Payload, Shape, Sphere, rotation_from_rpy
+from geosyn.world import (
+    Box,
+    Capsule,
+    HalfSpace,
+    MjcfObstacles,
+    Payload,
+    Shape,
+    Sphere,
+    load_mjcf_obstacles,
+    rotation_from_rpy,
+)
 
 OBSTACLES: dict[str, Callable[[Any], Shape]] = {
     "sphere": lambda o: Sphere(tuple(o.center), o.radius),
@@ -35,9 +47,30 @@ def build_robot(cfg: S.ExperimentConfig) -> Robot:
     return load_robot(cfg.robot.name, **cfg.robot.options.model_dump(exclude_none=True))
 
 
-def build_obstacles(cfg: S.ExperimentConfig) -> list[Shape]:
-    """Obstacles of the scene as `geosyn.world` shapes."""
-    return [OBSTACLES[o.type](o) for o in cfg.scene.obstacles]
+def mjcf_obstacles(cfg: S.ExperimentConfig) -> MjcfObstacles | None:
+    """The static geoms of the config's MuJoCo scene file (``scene.mjcf``), or None.
+
+    Raises:
+        geosyn.world.InvalidGeometry: MuJoCo cannot load the file.
+    """
+    m = cfg.scene.mjcf
+    return None if m is None else load_mjcf_obstacles(m.file, visual=m.visual)
+
+
+def build_obstacles(cfg: S.ExperimentConfig, file: MjcfObstacles | None = None) -> list[Shape]:
+    """Obstacles of the scene as `geosyn.world` shapes: ``scene.obstacles`` in order, then
+    the MuJoCo scene file's (``file``, read from ``scene.mjcf`` when None)."""
+    file = mjcf_obstacles(cfg) if file is None else file
+    return [OBSTACLES[o.type](o) for o in cfg.scene.obstacles] + list(file.shapes if file else ())
+
+
+def obstacle_field(cfg: S.ExperimentConfig, index: int, file: MjcfObstacles | None) -> str:
+    """The config field of obstacle ``index`` of `build_obstacles`: ``scene.obstacles.<i>``,
+    or ``scene.mjcf`` and the file's geom name."""
+    n = len(cfg.scene.obstacles)
+    if index < n or file is None:
+        return f"scene.obstacles.{index}"
+    return f"scene.mjcf (geom {file.names[index - n]!r})"
 
 
 def build_payloads(cfg: S.ExperimentConfig, robot: Robot) -> list[Payload]:
@@ -76,9 +109,18 @@ def build_run_scene(cfg: S.ExperimentConfig, robot: Robot | None = None) -> Buil
     Cost: loads the robot (when not given) and builds the shapes; no MuJoCo model.
     """
     robot = build_robot(cfg) if robot is None else robot
+    file, m = mjcf_obstacles(cfg), cfg.scene.mjcf
+    if file is not None and m is not None and (file.approximated or file.skipped):
+        warnings.warn(  # said, never dropped silently
+            f"scene.mjcf: {m.file}: {len(file.shapes)} obstacle(s) read"
+            + (f"; enclosed: {'; '.join(file.approximated)}" if file.approximated else "")
+            + (f"; left out: {'; '.join(file.skipped)}" if file.skipped else ""),
+            UserWarning,
+            stacklevel=2,
+        )
     return BuiltScene(
         robot=robot,
-        obstacles=tuple(build_obstacles(cfg)),
+        obstacles=tuple(build_obstacles(cfg, file)),
         payloads=tuple(build_payloads(cfg, robot)),
         contact=cfg.scene.contact,
         plant=cfg.robot.plant,
@@ -92,4 +134,6 @@ __all__ = [
     "build_payloads",
     "build_robot",
     "build_run_scene",
+    "mjcf_obstacles",
+    "obstacle_field",
 ]

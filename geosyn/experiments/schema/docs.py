@@ -84,7 +84,12 @@ FIELD_DOCS: dict[str, dict[str, tuple[str, str]]] = {
     "SceneConfig": {
         "payloads": ("", "rigid payloads welded to links"),
         "obstacles": ("", "obstacles (seen by obstacle terms and the clearance)"),
+        "mjcf": ("", "more obstacles: the static geoms of a MuJoCo scene file"),
         "contact": ("", "obstacles collide with the robot in MuJoCo (false: visual only)"),
+    },
+    "MjcfObstaclesConfig": {
+        "file": ("", "the MJCF scene file (a path relative to the config file)"),
+        "visual": ("", "also its visual-only geoms (contype and conaffinity 0)"),
     },
     "SphereConfig": {"center": ("m", "(3,) centre"), "radius": ("m", "radius")},
     "BoxConfig": {

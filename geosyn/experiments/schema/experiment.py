@@ -156,10 +156,14 @@ def consistency_errors(cfg: ExperimentConfig, nv: int) -> list[tuple[str, str]]:
     for i, term in enumerate(cfg.metric.terms):
         if term.type == "load" and term.payload is not None and term.payload >= n_pay:
             errors.append(_out_of_range(f"metric.terms.{i}.payload", term.payload, n_pay))
-        if term.type == "obstacle" and not cfg.scene.obstacles:
-            errors.append((f"metric.terms.{i}", "an obstacle term needs scene.obstacles"))
-    if cfg.scene.contact and not cfg.scene.obstacles:
-        errors.append(("scene.contact", "true needs scene.obstacles (there is nothing to collide)"))
+        if term.type == "obstacle" and not cfg.scene.has_obstacles:
+            errors.append(
+                (f"metric.terms.{i}", "an obstacle term needs scene.obstacles or scene.mjcf")
+            )
+    if cfg.scene.contact and not cfg.scene.has_obstacles:
+        errors.append(
+            ("scene.contact", "true needs scene.obstacles or scene.mjcf (nothing to collide)")
+        )
     for i, dist in enumerate(cfg.disturbances):
         if (
             dist.type == "payload_change"

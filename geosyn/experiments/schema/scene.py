@@ -12,7 +12,7 @@ from geosyn.experiments.schema.section import Section, Strict, python_defaults
 from geosyn.experiments.schema.values import FiniteFloat, NonNegFloat, PositiveFloat, Vec3
 from geosyn.robots import BUILTINS
 from geosyn.sim import Simulation
-from geosyn.world import Payload
+from geosyn.world import Payload, load_mjcf_obstacles
 
 
 class RobotOptions(Strict):
@@ -135,6 +135,17 @@ class PayloadConfig(Section):
 _CONTACT = python_defaults(Simulation)["contact"]
 
 
+class MjcfObstaclesConfig(Strict):
+    """Obstacles from a MuJoCo scene file (`geosyn.world.load_mjcf_obstacles`): MuJoCo
+    compiles it, and every geom welded to its world body becomes a shape, after
+    ``scene.obstacles``. A mesh or ellipsoid geom becomes its enclosing box; those and
+    the geoms left out (of moving bodies; visual-only ones unless ``visual``) are listed
+    in the run log. ``file``: a path, relative to the config file."""
+
+    file: str
+    visual: bool = python_defaults(load_mjcf_obstacles)["visual"]
+
+
 class SceneConfig(Strict):
     """Payload bodies and obstacles of the MuJoCo scene (also seen by shaping terms).
 
@@ -148,13 +159,20 @@ class SceneConfig(Strict):
 
     payloads: list[PayloadConfig] = []
     obstacles: list[ObstacleConfig] = []
+    mjcf: MjcfObstaclesConfig | None = None
     contact: bool = _CONTACT
+
+    @property
+    def has_obstacles(self) -> bool:
+        """Whether the scene lists obstacles or reads them from a MuJoCo scene file."""
+        return bool(self.obstacles) or self.mjcf is not None
 
 
 __all__ = [
     "BoxConfig",
     "CapsuleConfig",
     "HalfSpaceConfig",
+    "MjcfObstaclesConfig",
     "ObstacleConfig",
     "PayloadConfig",
     "RobotConfig",
