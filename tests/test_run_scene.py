@@ -133,7 +133,8 @@ def test_a_mujoco_scene_file_gives_the_obstacles_of_a_planned_run(tmp_path):
 
 
 def test_a_bad_mujoco_scene_file_is_one_clear_error(tmp_path):
-    """A file MuJoCo cannot load, and one with nothing static in it: refused by field."""
+    """A file MuJoCo cannot load, one with nothing static in it, and one whose box holds
+    the robot's start: refused by field (the last names the geom)."""
     import pytest
 
     from geosyn.experiments import ConfigError
@@ -145,3 +146,6 @@ def test_a_bad_mujoco_scene_file_is_one_clear_error(tmp_path):
     </body></worldbody></mujoco>"""
     with pytest.raises(ConfigError, match=r"scene\.mjcf\.file.*no static geom.*wheel"):
         load_config(_ur5_scene_config(tmp_path, moving_only))
+    around_base = '<mujoco><worldbody><geom name="vault" type="box" size="0.3 0.3 0.3"/>'
+    with pytest.raises(ConfigError, match=r"scene\.mjcf \(geom 'vault'\).*starts inside this box"):
+        load_config(_ur5_scene_config(tmp_path, around_base + "</worldbody></mujoco>"))
