@@ -124,9 +124,10 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda:
     independent of the planner's checker), its reported first feasible time within the
     budget's 10 %; in the metric no shorter than the geodesic between its ends (the
     log map by shooting, an independent solver: no path is shorter; 1 % for the
-    midpoint rule on its nodes) and at most 10 % longer than the collocation of a long
-    budget (which keeps the margin on the spheres, while a sampled plan may be
-    tightened on the meshes, so it may be the shorter)."""
+    midpoint rule on its nodes) and at most 10 % longer than the plan of a long budget
+    (the lowest-energy of its collocations and sampled plans: here a sampled one, pushed
+    out and tightened on the meshes, at energy 2.011 against the collocations' 2.045,
+    which keep the margin on the spheres)."""
     robot, planner, q0, q1 = panda
     referee = _mesh_referee(robot, BLOCK)
     assert referee(0.5 * (q0 + q1)) < 0.0  # the straight line collides
@@ -136,7 +137,7 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda:
     dense = checked_configurations(plan.q, 0.005)
     assert min(referee(q) for q in dense) > 0.0
     long = planner.plan(q0, q1, [BLOCK], budget=20.0)
-    assert long.result.kind == "constrained" and long.seed != "sampled"
+    assert any("collocation from" in a for a in long.attempts)  # the NLPs had their turn
     metric = planner.metric
     length = _metric_length(metric, plan.q)
     assert length >= 0.99 * distance(metric, q0, q1)

@@ -65,6 +65,18 @@ class NoPathFound(PlanningError):
         self.elapsed = float(elapsed)
         self.attempts = attempts
 
+    @classmethod
+    def after(cls, budget: float, elapsed: float, attempts: tuple[str, ...]) -> NoPathFound:
+        """The refusal of a query of ``budget`` [s] that spent ``elapsed`` [s] on
+        ``attempts``, with what to try next."""
+        return cls(
+            f"no collision-free path from the start to the goal within the {budget:g} s "
+            f"budget ({elapsed:.2f} s spent): " + "; ".join(attempts) + ". Try a larger "
+            "budget, a smaller margin, or check that the goal is reachable (not enclosed "
+            "by obstacles)",
+            budget, elapsed, attempts,
+        )  # fmt: skip
+
 
 class GoalUnreachable(PlanningError):
     """No configuration reaches an end-effector goal within its tolerances, inside the

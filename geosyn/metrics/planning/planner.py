@@ -12,7 +12,8 @@ One query, within a stated time budget:
    `geosyn.metrics.planning.query`), whose path is also RRT-Connect's first seed in 3.;
    with less than `query.MIN_COLLOCATION` left after it, the rest of the budget relaxes
    it further and tries other seeds (bumped straight lines and RRT-Connect paths, by
-   turns) instead of 2.-3.; with more, the same for `query.POLISH_FIRST` of it first;
+   turns; then the same on a thinner sphere model, pushed out on the exact geometry:
+   `geosyn.metrics.planning.thin`) instead of 2.-3.; with more, the same for `query.POLISH_FIRST` of it first;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
    (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the
@@ -84,6 +85,7 @@ from geosyn.metrics.planning.self_collision import (
     check_self_end,
     path_self_clearance,
 )
+from geosyn.metrics.planning.thin import ThinSearch
 from geosyn.metrics.planning.verify import (
     check_end,
     planning_geometry,
@@ -265,6 +267,12 @@ class Planner:
         built = len(self._collocations)
         self._build_nlps()
         return time.perf_counter() - t0 if len(self._collocations) > built else 0.0
+
+    @functools.cached_property
+    def thin(self) -> ThinSearch:
+        """The thinner sphere model of the polishing's extra seeds
+        (`geosyn.metrics.planning.thin`; built on first use, a few ms)."""
+        return ThinSearch.for_planner(self)
 
     @functools.cached_property
     def self_collision(self) -> SelfCollision | None:

@@ -14,20 +14,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geosyn.metrics.planning.sampled import POLISH_GAIN, POLISH_PATIENCE, pull_taut, relaxed_line
+from geosyn.metrics.planning.sampled import (
+    POLISH_GAIN,
+    POLISH_PATIENCE,
+    SphereSearch,
+    pull_taut,
+    relaxed_line,
+)
 from geosyn.metrics.planning.smoothing import metric_length
-
-if TYPE_CHECKING:
-    from geosyn.metrics.planning.planner import Planner
 
 __all__ = ["taut_seeds"]
 
 
-def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
+def taut_seeds(planner: SphereSearch, q0: np.ndarray, q1: np.ndarray, seed: int,
                path: np.ndarray | None, length: float, left: Callable[[], float],
                reserve: float, rrt: Callable[[int, float], np.ndarray | None],
                attempts: list[str], start: int = 1,
@@ -37,7 +39,8 @@ def taut_seeds(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
     or (None, ``length``, "", the next seed's number).
 
     Args:
-        planner: the planner, its query set (obstacles, ends: `Sampling.start`).
+        planner: the planner (or a thinner sphere model of it), its query set (obstacles,
+            ends: `Sampling.start`).
         q0: (n,) start [rad].
         q1: (n,) goal [rad].
         seed: the query's seed (the bumps' and the RRT-Connect paths').

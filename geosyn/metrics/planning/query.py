@@ -11,8 +11,9 @@ stages then get the time left (none when less than `MIN_COLLOCATION` is left: th
 sampled path, if any, is then relaxed further, and other seeds are pulled taut by
 turns, straight lines bent by a random bump
 (`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
-then verified: `Query.polish`; with more, it is polished so for `POLISH_FIRST` of the
-budget before the collocations start), and the kept plan is the best verified one by
+then verified: `Query.polish`, and seeds searched on a thinner sphere model pushed out on
+the exact geometry, `geosyn.metrics.planning.thin`; with more, it is polished so for
+`POLISH_FIRST` of the budget before the collocations start), and the kept plan is the best verified one by
 the homotopy rule below (the sampled plan is one of the "other seeds": never kept when
 longer than the straight line's solution). ``Plan.first_feasible_time`` says when the
 first verified plan was found.
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,6 +56,7 @@ from geosyn.metrics.planning.sampled import (
     pull_taut,
 )
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
+from geosyn.metrics.planning.thin import thinner_plan
 from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
 from geosyn.metrics.planning.verify import (
     REPAIR_STEP,
@@ -238,11 +241,19 @@ class Query:
         RRT-Connect paths by turns, valid on the spheres) is tightened on the exact
         geometry when more than `EXACT_MIN_TIME` is left (`exact_tighten`), verified
         once, and kept if it passes and is shorter than ``plan`` (else the untightened
-        one, verified in turn). All within ``budget`` [s] when less than the time left."""
-        p, end = self.p, time.perf_counter() + budget
+        one, verified in turn); then, with time left, seeds on a thinner sphere model
+        pushed out on the exact geometry (`geosyn.metrics.planning.thin.thinner_plan`).
+        All within ``budget`` [s] when less than the time left."""
+        end = time.perf_counter() + budget
 
         def left() -> float:
             return min(self.left(), end - time.perf_counter())
+
+        return thinner_plan(self, self._polish_on_spheres(plan, left), left)
+
+    def _polish_on_spheres(self, plan: Plan, left: Callable[[], float]) -> Plan:
+        """`polish` on the planner's own spheres, then the exact tightening."""
+        p = self.p
 
         def rrt(index: int, seconds: float) -> np.ndarray | None:
             return self._rrt(index, seconds)[0]
@@ -438,11 +449,4 @@ class Query:
 
     def refusal(self) -> NoPathFound:
         """`NoPathFound` listing what was tried."""
-        elapsed = time.perf_counter() - self.t0
-        return NoPathFound(
-            f"no collision-free path from the start to the goal within the {self.budget:g} s "
-            f"budget ({elapsed:.2f} s spent): " + "; ".join(self.attempts) + ". Try a larger "
-            "budget, a smaller margin, or check that the goal is reachable (not enclosed "
-            "by obstacles)",
-            self.budget, elapsed, tuple(self.attempts),
-        )  # fmt: skip
+        return NoPathFound.after(self.budget, time.perf_counter() - self.t0, tuple(self.attempts))

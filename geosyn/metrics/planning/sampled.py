@@ -18,7 +18,7 @@ optimisation from random restarts, as CHOMP (Ratliff et al., ICRA 2009) and Traj
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -27,7 +27,23 @@ from geosyn.metrics.planning.rrt import string_pull
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut
 
 if TYPE_CHECKING:
-    from geosyn.metrics.planning.planner import Planner
+    from geosyn.metrics.base import Metric
+    from geosyn.metrics.planning.sampling import Sampling
+    from geosyn.robots.robot import Robot
+
+
+class SphereSearch(Protocol):
+    """What the sampled search reads of a planner (`geosyn.metrics.planning.planner.Planner`,
+    or `geosyn.metrics.planning.thin.ThinSearch`'s thinner sphere model): its sampling
+    checks, the margin its paths are tightened to [m], the samples of a path less one,
+    the metric and the robot."""
+
+    sampling: Sampling
+    margin: float
+    nodes: int
+    metric: Metric
+    robot: Robot
+
 
 __all__ = [
     "POLISH_GAIN",
@@ -41,6 +57,7 @@ __all__ = [
     "SAMPLED_SMALL",
     "SAMPLED_TRIES",
     "TIGHTEN_AFTER",
+    "SphereSearch",
     "bumped_line",
     "pull_taut",
     "relax_taut",
@@ -107,7 +124,7 @@ scenes it shortened relaxed paths by 1-5 % in 25-70 ms, their exact clearance st
 at 14 mm or more (measured)."""
 
 
-def pull_taut(planner: Planner, path: np.ndarray, budget: float,
+def pull_taut(planner: SphereSearch, path: np.ndarray, budget: float,
               seed: int) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """(taut, rough): ``path`` (T, n) [rad] with its vertices skipped (`string_pull`),
     shortened by `SAMPLED_TRIES` partial shortcuts in the metric (rough), then
@@ -127,7 +144,7 @@ def pull_taut(planner: Planner, path: np.ndarray, budget: float,
     return (taut if taut is not None else x), rough  # None only for an invalid seed
 
 
-def relax_taut(planner: Planner, x: np.ndarray, budget: float,
+def relax_taut(planner: SphereSearch, x: np.ndarray, budget: float,
                seed_valid: bool = True) -> np.ndarray | None:  # fmt: skip
     """The samples ``x`` (T, n) [rad] relaxed (`metric_relax`, penalty below
     `geosyn.metrics.planning.relax.RELAX_DELTA`, in `TIGHTEN_AFTER` of ``budget`` [s])
@@ -153,7 +170,7 @@ def relax_taut(planner: Planner, x: np.ndarray, budget: float,
     return taut
 
 
-def _valid(planner: Planner, x: np.ndarray) -> bool:
+def _valid(planner: SphereSearch, x: np.ndarray) -> bool:
     """Whether every segment of ``x`` (T, n) passes the sampling check at the
     relaxation's resolution."""
     seg = planner.sampling.segment_valid
@@ -172,7 +189,7 @@ def bumped_line(q0: np.ndarray, q1: np.ndarray, samples: int, q_min: np.ndarray,
     return x
 
 
-def relaxed_line(planner: Planner, q0: np.ndarray, q1: np.ndarray, seed: int,
+def relaxed_line(planner: SphereSearch, q0: np.ndarray, q1: np.ndarray, seed: int,
                  index: int, budget: float) -> np.ndarray | None:  # fmt: skip
     """`bumped_line` ``index`` (``nodes + 1`` samples) pushed out of the obstacles and
     pulled taut (`relax_taut`) within ``budget`` [s]: (nodes + 1, n) [rad] valid on the

@@ -1,0 +1,92 @@
+"""Seeds searched on a thinner sphere model, pushed out and tightened on the exact geometry
+(`geosyn.metrics.planning.thin`).
+
+Referees: coal's distance between every collision object of the Panda URDF (placed by
+Pinocchio's own kinematics) and the block, by brute force (`test_planning_tighten._brute`,
+no bounds, no pruning), and the geodesic between the ends (the log map by shooting): no
+path is shorter in the metric.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_planning_anytime import _metric_length
+from test_planning_tighten import BLOCK, HOME, _brute
+
+from geosyn.metrics import KineticEnergyMetric
+from geosyn.metrics.geodesic.energy import distance
+from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning.exact_path import checked_configurations
+from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINK, exact_push
+from geosyn.metrics.planning.tighten import EXACT_FLOOR
+from geosyn.robots import load_robot
+from geosyn.world import Sphere
+
+
+@pytest.fixture(scope="module")
+def planner() -> Planner:
+    return Planner(KineticEnergyMetric(load_robot("panda")), capacity=1)
+
+
+def _ends() -> tuple[np.ndarray, np.ndarray]:
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.9, 0.9  # the straight line swings the hand through the block
+    return q0, q1
+
+
+def test_the_thinner_model_is_the_covering_spheres_shrunk(planner: Planner) -> None:
+    """Same centres; radii less `THIN_SHRINK`, at least `THIN_MIN_RADIUS` (the check's
+    own arrays; the Panda's covering spheres are 22-78 mm); a far ball's sphere clearance
+    is larger by exactly the shrink (1e-12 m)."""
+    thick, thin = planner.sampling.check, planner.thin.sampling.check
+    np.testing.assert_array_equal(thin._centre, thick._centre)
+    expected = np.maximum(thick._radius - THIN_SHRINK, THIN_MIN_RADIUS)
+    np.testing.assert_array_equal(thin._radius, expected)
+    far = [Sphere((2.0, 0.0, 0.5), 0.1)]
+    thick.set_obstacles(far)
+    thin.set_obstacles(far)
+    gap = thin.clearances(HOME[None])[0] - thick.clearances(HOME[None])[0]
+    assert abs(gap - THIN_SHRINK) < 1e-12
+
+
+def test_a_path_through_the_block_is_pushed_out_on_the_meshes(planner: Planner) -> None:
+    """The straight line through the block (its middle 1-2 cm deep in it), pushed out:
+    every configuration of the exact check keeps the floor on the brute-force referee
+    (1e-6 m), the ends are kept, the path stays within the limits."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    q0, q1 = _ends()
+    line = np.linspace(q0, q1, planner.nodes + 1)
+    assert _brute(robot, exact, 0.5 * (q0 + q1)) < 0.0
+    planner.term.set_obstacles([BLOCK])
+    planner.sampling.start([BLOCK], q0, q1)
+    try:
+        pushed = exact_push(planner, line, 2.0)
+    finally:
+        planner.sampling.finish()
+    assert pushed is not None
+    np.testing.assert_array_equal(pushed[[0, -1]], line[[0, -1]])
+    floor = EXACT_FLOOR * planner.margin
+    lowest = min(
+        _brute(robot, exact, q) for q in checked_configurations(pushed, planner.exact_resolution)
+    )
+    assert lowest >= floor - 1e-6
+    assert np.all(pushed >= robot.q_min) and np.all(pushed <= robot.q_max)
+
+
+def test_a_plan_from_the_thinner_spheres_is_verified_and_says_so(planner: Planner) -> None:
+    """At a 1 s budget round the block the plan comes through the thinner search's rounds
+    (its attempts say so); whatever it keeps keeps the floor on the brute-force referee at
+    every configuration of its exact check, and is no shorter than the geodesic between
+    its ends (1 % for the midpoint rule on its samples)."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    q0, q1 = _ends()
+    plan = planner.plan(q0, q1, [BLOCK], budget=1.0, seed=0)
+    assert any(a.startswith("thinner spheres:") for a in plan.attempts)
+    lowest = min(
+        _brute(robot, exact, q) for q in checked_configurations(plan.q, planner.exact_resolution)
+    )
+    assert lowest >= EXACT_FLOOR * planner.margin - 1e-6
+    assert _metric_length(planner.metric, plan.q) >= 0.99 * distance(planner.metric, q0, q1)
