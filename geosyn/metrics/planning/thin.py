@@ -133,15 +133,16 @@ class ThinSearch:
             return self.sampling.connect(q0, q1, lo, hi, seconds, seed + index)[0]
 
         self.sampling.start(obstacles, q0, q1)
+        own: list[str] = []  # the search's own lines, said as this model's
         try:
             first = rrt(0, 0.3 * budget)
             if first is None:
-                attempts.append("thinner spheres: RRT-Connect found no path")
+                own.append("RRT-Connect found no path")
                 return None
-            path, _, _, _ = taut_seeds(self, q0, q1, seed, first, math.inf, left, 0.0, rrt,
-                                       attempts)  # fmt: skip
+            path, _, _, _ = taut_seeds(self, q0, q1, seed, first, math.inf, left, 0.0, rrt, own)
         finally:
             self.sampling.finish()
+            attempts.extend(f"thinner spheres: {line}" for line in own)
         return path
 
 
