@@ -92,6 +92,7 @@ def test_tightening_shortens_and_keeps_the_floor_on_the_meshes(
     q0[0], q1[0] = -0.9, 0.9  # the straight line swings the hand through the block
     with monkeypatch.context() as m:  # a 0.2 s plan was tightened already on a fast machine
         m.setattr(query, "exact_tighten", lambda p, path, budget: np.asarray(path, dtype=float))
+        m.setattr(query, "thinner_plan", lambda q, plan, left: plan)  # it tightens too
         path = np.asarray(planner.plan(q0, q1, [BLOCK], budget=0.2, seed=0).q)
     planner.term.set_obstacles([BLOCK])
     planner.sampling.start([BLOCK], q0, q1)
