@@ -18,7 +18,7 @@ from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.geodesic.energy import distance
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.exact_path import checked_configurations
-from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINK, exact_push
+from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINKS, exact_push
 from geosyn.metrics.planning.tighten import EXACT_FLOOR
 from geosyn.robots import load_robot
 from geosyn.world import Sphere
@@ -35,19 +35,22 @@ def _ends() -> tuple[np.ndarray, np.ndarray]:
     return q0, q1
 
 
-def test_the_thinner_model_is_the_covering_spheres_shrunk(planner: Planner) -> None:
-    """Same centres; radii less `THIN_SHRINK`, at least `THIN_MIN_RADIUS` (the check's
-    own arrays; the Panda's covering spheres are 22-78 mm); a far ball's sphere clearance
-    is larger by exactly the shrink (1e-12 m)."""
-    thick, thin = planner.sampling.check, planner.thin.sampling.check
-    np.testing.assert_array_equal(thin._centre, thick._centre)
-    expected = np.maximum(thick._radius - THIN_SHRINK, THIN_MIN_RADIUS)
-    np.testing.assert_array_equal(thin._radius, expected)
+def test_the_thinner_models_are_the_covering_spheres_shrunk(planner: Planner) -> None:
+    """One model a shrink of `THIN_SHRINKS`: same centres; radii less the shrink, at least
+    `THIN_MIN_RADIUS` (the check's own arrays; the Panda's covering spheres are 22-78 mm);
+    a far ball's sphere clearance is larger by exactly the shrink (1e-12 m)."""
+    thick = planner.sampling.check
     far = [Sphere((2.0, 0.0, 0.5), 0.1)]
     thick.set_obstacles(far)
-    thin.set_obstacles(far)
-    gap = thin.clearances(HOME[None])[0] - thick.clearances(HOME[None])[0]
-    assert abs(gap - THIN_SHRINK) < 1e-12
+    assert len(planner.thin) == len(THIN_SHRINKS)
+    for model, shrink in zip(planner.thin, THIN_SHRINKS, strict=True):
+        thin = model.sampling.check
+        np.testing.assert_array_equal(thin._centre, thick._centre)
+        expected = np.maximum(thick._radius - shrink, THIN_MIN_RADIUS)
+        np.testing.assert_array_equal(thin._radius, expected)
+        thin.set_obstacles(far)
+        gap = thin.clearances(HOME[None])[0] - thick.clearances(HOME[None])[0]
+        assert abs(gap - shrink) < 1e-12
 
 
 def test_a_path_through_the_block_is_pushed_out_on_the_meshes(planner: Planner) -> None:

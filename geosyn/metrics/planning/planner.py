@@ -85,7 +85,7 @@ from geosyn.metrics.planning.self_collision import (
     check_self_end,
     path_self_clearance,
 )
-from geosyn.metrics.planning.thin import ThinSearch
+from geosyn.metrics.planning.thin import THIN_SHRINKS, ThinSearch
 from geosyn.metrics.planning.verify import (
     check_end,
     planning_geometry,
@@ -269,10 +269,10 @@ class Planner:
         return time.perf_counter() - t0 if len(self._collocations) > built else 0.0
 
     @functools.cached_property
-    def thin(self) -> ThinSearch:
-        """The thinner sphere model of the polishing's extra seeds
-        (`geosyn.metrics.planning.thin`; built on first use, a few ms)."""
-        return ThinSearch.for_planner(self)
+    def thin(self) -> tuple[ThinSearch, ...]:
+        """The thinner sphere models of the polishing's extra seeds, one a round
+        (`geosyn.metrics.planning.thin.THIN_SHRINKS`; built on first use, a few ms)."""
+        return tuple(ThinSearch.for_planner(self, shrink) for shrink in THIN_SHRINKS)
 
     @functools.cached_property
     def self_collision(self) -> SelfCollision | None:

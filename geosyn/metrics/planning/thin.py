@@ -6,8 +6,8 @@ them (`geosyn.robots.collision_spheres`): a passage that is open on the meshes c
 on the spheres, and the path the sampled search pulls taut round them is the one the
 exact tightening (`geosyn.metrics.planning.tighten`) starts from and only moves locally.
 Here the same search (`geosyn.metrics.planning.polish.taut_seeds`: RRT-Connect paths and
-bumped straight lines, pulled taut) runs on the covering spheres shrunk by `THIN_SHRINK`
-(they no longer cover the meshes: a guide, not a check) at a margin of `THIN_MARGIN`; its
+bumped straight lines, pulled taut) runs on the covering spheres shrunk (`THIN_SHRINKS`:
+they no longer cover the meshes, a guide, not a check) at a margin of `THIN_MARGIN`; its
 shortest path is then pushed out of the obstacles on the exact geometry (the relaxation,
 `geosyn.metrics.planning.relax.metric_relax`, with coal's clearances below twice the
 planner's margin, keeping the first and then the lowest-energy iterate whose whole path
@@ -52,15 +52,18 @@ __all__ = [
     "THIN_PATIENCE",
     "THIN_SEARCH",
     "THIN_SEED_STRIDE",
-    "THIN_SHRINK",
+    "THIN_SHRINKS",
     "ThinSearch",
     "exact_push",
     "thinner_plan",
 ]
 
-THIN_SHRINK = 0.015
-"""Radius [m] taken off every covering sphere for the thinner model (5 mm changed little
-on the Panda scenes; 15 mm found the ways round that geodex's thinner spheres find)."""
+THIN_SHRINKS = (0.015, 0.025)
+"""Radius [m] taken off every covering sphere for the thinner models, one a round by turns.
+On the Panda scenes (largest length against geodex's at 0.3 / 1 / 2 s, measured): 5 mm
+changed little; 15 mm alone 1.004 / 1.005 / 1.003; 20 mm alone 1.021 / 0.998 / 1.003;
+25 mm alone 1.029 / 0.998 / 1.004: the first round, all a 0.3 s budget has, is best at
+15 mm, later rounds find more at 25 mm."""
 
 THIN_MIN_RADIUS = 0.005
 """Least radius [m] of a thinner sphere."""
@@ -107,10 +110,11 @@ class ThinSearch:
     robot: Robot
 
     @classmethod
-    def for_planner(cls, planner: Planner) -> ThinSearch:
-        """The thinner model of ``planner``'s spheres (allocates the sampling check)."""
+    def for_planner(cls, planner: Planner, shrink: float) -> ThinSearch:
+        """The model of ``planner``'s spheres less ``shrink`` [m] (allocates the sampling
+        check)."""
         spheres = tuple(
-            CollisionSphere(s.joint, s.center, max(s.radius - THIN_SHRINK, THIN_MIN_RADIUS))
+            CollisionSphere(s.joint, s.center, max(s.radius - shrink, THIN_MIN_RADIUS))
             for s in planner.term.spheres
         )
         sampling = Sampling(planner.robot, spheres, None, THIN_MARGIN)
@@ -195,7 +199,8 @@ def thinner_plan(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
         if spare < THIN_MIN_TIME or stale >= THIN_PATIENCE:
             break
         seed = query.seed + THIN_SEED_STRIDE * round_
-        path = p.thin.shortest(query.q0, query.q1, tuple(p.term.obstacles), seed,
+        model = p.thin[round_ % len(p.thin)]
+        path = model.shortest(query.q0, query.q1, tuple(p.term.obstacles), seed,
                                THIN_SEARCH * spare, query.attempts)  # fmt: skip
         pushed = None if path is None else exact_push(p, path, left() - 2.0 * reserve)
         length = metric_length(p.metric, best.q)
