@@ -12,14 +12,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from test_planning_anytime import _metric_length
-from test_planning_tighten import BLOCK, HOME, _brute
+from test_planning_tighten import BLOCK, HOME, _brute, block_query
 
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.geodesic.energy import distance
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.exact_path import checked_configurations
-from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINKS, exact_push
-from geosyn.metrics.planning.tighten import EXACT_FLOOR
+from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINKS
+from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_push
 from geosyn.robots import load_robot
 from geosyn.world import Sphere
 
@@ -62,12 +62,8 @@ def test_a_path_through_the_block_is_pushed_out_on_the_meshes(planner: Planner) 
     q0, q1 = _ends()
     line = np.linspace(q0, q1, planner.nodes + 1)
     assert _brute(robot, exact, 0.5 * (q0 + q1)) < 0.0
-    planner.term.set_obstacles([BLOCK])
-    planner.sampling.start([BLOCK], q0, q1)
-    try:
+    with block_query(planner, q0, q1):
         pushed = exact_push(planner, line, 2.0)
-    finally:
-        planner.sampling.finish()
     assert pushed is not None
     np.testing.assert_array_equal(pushed[[0, -1]], line[[0, -1]])
     floor = EXACT_FLOOR * planner.margin

@@ -11,8 +11,10 @@ tolerance in the referee).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
+from collections.abc import Iterator
 
 import coal
 import numpy as np
@@ -39,6 +41,18 @@ BLOCK = Box((0.36, 0.0, 0.52), (0.05, 0.05, 0.05))  # where the hand passes at j
 @pytest.fixture(scope="module")
 def planner() -> Planner:
     return Planner(KineticEnergyMetric(load_robot("panda")), capacity=1)
+
+
+@contextlib.contextmanager
+def block_query(planner: Planner, q0: np.ndarray, q1: np.ndarray) -> Iterator[None]:
+    """The planner set up as in a query from ``q0`` to ``q1`` round `BLOCK` (its term's
+    obstacles, its sampling's ends), for the stages a query calls."""
+    planner.term.set_obstacles([BLOCK])
+    planner.sampling.start([BLOCK], q0, q1)
+    try:
+        yield
+    finally:
+        planner.sampling.finish()
 
 
 def _brute(robot: Robot, exact: ExactClearance, q: np.ndarray) -> float:
@@ -94,12 +108,8 @@ def test_tightening_shortens_and_keeps_the_floor_on_the_meshes(
         m.setattr(query, "exact_tighten", lambda p, path, budget: np.asarray(path, dtype=float))
         m.setattr(query, "thinner_plan", lambda q, plan, left: plan)  # it tightens too
         path = np.asarray(planner.plan(q0, q1, [BLOCK], budget=0.2, seed=0).q)
-    planner.term.set_obstacles([BLOCK])
-    planner.sampling.start([BLOCK], q0, q1)
-    try:
+    with block_query(planner, q0, q1):
         tight = exact_tighten(planner, path, 2.0)
-    finally:
-        planner.sampling.finish()
 
     def lowest(p: np.ndarray) -> float:
         return min(_brute(robot, exact, q)

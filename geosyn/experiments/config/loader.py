@@ -367,22 +367,25 @@ def load_config(
     data = read_yaml(path)
     robot = data.get("robot")
     if isinstance(robot, dict) and isinstance(robot.get("name"), str):
-        # a robot file path is relative to the config file (then made absolute)
-        name = Path(robot["name"])
-        if name.suffix.lower() in (".urdf", ".xml", ".mjcf") and not name.is_absolute():
-            if (path.parent / name).is_file():
-                robot["name"] = str((path.parent / name).resolve())
+        if Path(robot["name"]).suffix.lower() in (".urdf", ".xml", ".mjcf"):  # not a built-in
+            robot["name"] = _beside(path, robot["name"])
     for text in overrides:
         key, value = parse_override(text)
         apply_override(data, key, value)
     scene = data.get("scene")
     mjcf = scene.get("mjcf") if isinstance(scene, dict) else None
     if isinstance(mjcf, dict) and isinstance(mjcf.get("file"), str):
-        # a scene file path is relative to the config file too (then made absolute)
-        file = Path(mjcf["file"])
-        if not file.is_absolute() and (path.parent / file).is_file():
-            mjcf["file"] = str((path.parent / file).resolve())
+        mjcf["file"] = _beside(path, mjcf["file"])
     return validate_config(data, path.name, allow_unused), path
+
+
+def _beside(config: Path, name: str) -> str:
+    """A file path of a config: relative to the config file (made absolute) when such a
+    file exists there, else as written."""
+    file = Path(name)
+    if not file.is_absolute() and (config.parent / file).is_file():
+        return str((config.parent / file).resolve())
+    return name
 
 
 def dump_config(cfg: ExperimentConfig) -> str:

@@ -11,6 +11,8 @@ and `build_payloads` are the only places a config obstacle or payload becomes a 
 
 from __future__ import annotations
 
+import functools
+import os
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -50,11 +52,27 @@ def build_robot(cfg: S.ExperimentConfig) -> Robot:
 def mjcf_obstacles(cfg: S.ExperimentConfig) -> MjcfObstacles | None:
     """The static geoms of the config's MuJoCo scene file (``scene.mjcf``), or None.
 
+    A file is compiled once per version (its path, size and modification time): the
+    config's checks and the run read it several times.
+
     Raises:
         geosyn.world.InvalidGeometry: MuJoCo cannot load the file.
     """
     m = cfg.scene.mjcf
-    return None if m is None else load_mjcf_obstacles(m.file, visual=m.visual)
+    if m is None:
+        return None
+    try:
+        st = os.stat(m.file)
+        stamp = (st.st_mtime_ns, st.st_size)
+    except OSError:  # not a file: MuJoCo's own error names it
+        return load_mjcf_obstacles(m.file, visual=m.visual)
+    return _read_mjcf(m.file, m.visual, stamp)
+
+
+@functools.lru_cache(maxsize=16)
+def _read_mjcf(file: str, visual: bool, stamp: tuple[int, int]) -> MjcfObstacles:
+    """`load_mjcf_obstacles` of one version (``stamp``) of a file (its shapes are frozen)."""
+    return load_mjcf_obstacles(file, visual=visual)
 
 
 def build_obstacles(cfg: S.ExperimentConfig, file: MjcfObstacles | None = None) -> list[Shape]:

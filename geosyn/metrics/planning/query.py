@@ -55,6 +55,7 @@ from geosyn.metrics.planning.sampled import (
     SAMPLED_SMALL,
     pull_taut,
 )
+from geosyn.metrics.planning.sampling import sampling_box
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
 from geosyn.metrics.planning.thin import thinner_plan
 from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
@@ -202,9 +203,7 @@ class Query:
     def _rrt(self, index: int, budget: float) -> tuple[np.ndarray | None, int]:
         """RRT-Connect seed ``seed + index`` within ``budget`` [s] (`rrt_connect`)."""
         p, q0, q1 = self.p, self.q0, self.q1
-        # the sampling box: the limits, or within pi of start and goal where infinite
-        lo = np.maximum(p.robot.q_min, np.minimum(q0, q1) - np.pi)
-        hi = np.minimum(p.robot.q_max, np.maximum(q0, q1) + np.pi)
+        lo, hi = sampling_box(p.robot, q0, q1)
         return p.sampling.connect(q0, q1, lo, hi, budget, self.seed + index)
 
     def sampled(self) -> Plan | None:

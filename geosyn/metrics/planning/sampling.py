@@ -40,6 +40,7 @@ __all__ = [
     "SAMPLING_SLACK",
     "SELF_UNINFORMATIVE",
     "Sampling",
+    "sampling_box",
     "uninformative_slack",
 ]
 
@@ -78,6 +79,14 @@ def uninformative_slack(check: SphereCheck, links: Sequence[str],
     of = dict(zip(dict.fromkeys(links), reach, strict=True))
     slack = np.array([of[a] + of[b] for a, b in check.self_pairs])
     return np.where(overlap > SELF_UNINFORMATIVE, slack, 0.0)
+
+
+def sampling_box(robot: Robot, q0: np.ndarray, q1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((n,), (n,)) the box [rad] a query's RRT-Connect samples from ``q0`` to ``q1`` (n,):
+    the joint limits, or within pi of start and goal where they are infinite."""
+    lo = np.maximum(robot.q_min, np.minimum(q0, q1) - np.pi)
+    hi = np.minimum(robot.q_max, np.maximum(q0, q1) + np.pi)
+    return lo, hi
 
 
 class Sampling:

@@ -8,12 +8,9 @@ exact tightening (`geosyn.metrics.planning.tighten`) starts from and only moves 
 Here the same search (`geosyn.metrics.planning.polish.taut_seeds`: RRT-Connect paths and
 bumped straight lines, pulled taut) runs on the covering spheres shrunk (`THIN_SHRINKS`:
 they no longer cover the meshes, a guide, not a check) at a margin of `THIN_MARGIN`; its
-shortest path is then pushed out of the obstacles on the exact geometry (the relaxation,
-`geosyn.metrics.planning.relax.metric_relax`, with coal's clearances below twice the
-planner's margin, keeping the first and then the lowest-energy iterate whose whole path
-keeps `geosyn.metrics.planning.tighten.EXACT_FLOOR` times the margin at the exact check's
-resolution) and tightened there (`exact_tighten`). The query verifies it like every
-plan and keeps it only when it is shorter (`geosyn.metrics.planning.query.Query.polish`).
+shortest path is then pushed out of the obstacles and tightened on the exact geometry
+(`geosyn.metrics.planning.tighten.exact_push`). The query verifies it like every plan and
+keeps it only when it is shorter (`geosyn.metrics.planning.query.Query.polish`).
 
 On the Panda benchmark scenes (`benchmarks/RESULTS.md`, issue 22, twelfth round) this
 found ways round that the covering spheres had shut: at a 2 s budget, 1.006 of geodex's
@@ -31,13 +28,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geosyn.metrics.base import Metric
-from geosyn.metrics.planning.exact_path import configuration_clearances, path_clearance
 from geosyn.metrics.planning.polish import taut_seeds
-from geosyn.metrics.planning.relax import metric_relax
 from geosyn.metrics.planning.sampled import POLISH_GAIN
-from geosyn.metrics.planning.sampling import Sampling
-from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
-from geosyn.metrics.planning.tighten import EXACT_FD_STEP, EXACT_FLOOR, exact_tighten
+from geosyn.metrics.planning.sampling import Sampling, sampling_box
+from geosyn.metrics.planning.smoothing import metric_length
+from geosyn.metrics.planning.tighten import exact_push
 from geosyn.robots.robot import CollisionSphere, Robot
 
 if TYPE_CHECKING:
@@ -54,7 +49,6 @@ __all__ = [
     "THIN_SEED_STRIDE",
     "THIN_SHRINKS",
     "ThinSearch",
-    "exact_push",
     "thinner_plan",
 ]
 
@@ -126,9 +120,7 @@ class ThinSearch:
         search pulls taut on the thinner spheres round ``obstacles`` within ``budget``
         [s], or None (nothing found)."""
         end = time.perf_counter() + budget
-        lo, hi = self.robot.q_min, self.robot.q_max
-        lo = np.maximum(lo, np.minimum(q0, q1) - np.pi)  # as the query's own box
-        hi = np.minimum(hi, np.maximum(q0, q1) + np.pi)
+        lo, hi = sampling_box(self.robot, q0, q1)
 
         def left() -> float:
             return end - time.perf_counter()
@@ -150,39 +142,6 @@ class ThinSearch:
         return path
 
 
-def exact_push(planner: Planner, path: np.ndarray, budget: float) -> np.ndarray | None:
-    """``path`` (T, n) [rad] pushed out of the query's obstacles on the exact geometry and
-    tightened there within ``budget`` [s] (module docstring): (nodes + 1, n) [rad] whose
-    every configuration of the exact check keeps `EXACT_FLOOR` times the margin, or None
-    (not brought out, or no exact geometry). Costs about 2 n T exact clearances a step."""
-    exact, aids = planner.exact, planner.sampling.aids
-    if exact is None or budget <= 0.0:
-        return None
-    end = time.perf_counter() + budget
-    floor = EXACT_FLOOR * planner.margin
-    exact.set_obstacles(planner.term.obstacles)
-    x = even_in_metric(planner.metric, path, planner.nodes + 1)
-    x[0], x[-1] = path[0], path[-1]
-
-    def ok(y: np.ndarray) -> bool:
-        return bool(
-            path_clearance(exact, y, planner.exact_resolution, aids=aids).clearance >= floor
-        )
-
-    def clearances(Q: np.ndarray) -> np.ndarray:
-        return configuration_clearances(exact, Q, aids)
-
-    if not ok(x):
-        x = metric_relax(
-            lambda a, b, r: True, clearances, planner.metric, x, budget=0.6 * budget,
-            delta=2.0 * planner.margin, seed_valid=False, path_ok=ok, fd_step=EXACT_FD_STEP,
-            bounds=(planner.robot.q_min, planner.robot.q_max),
-        )  # fmt: skip
-        if not ok(x):
-            return None
-    return exact_tighten(planner, x, max(end - time.perf_counter(), 0.0))
-
-
 def thinner_plan(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     """``plan`` (the polishing's result), or the shortest of the thinner search's paths
     (module docstring) that passes the query's checks and is shorter in the metric.
@@ -193,27 +152,29 @@ def thinner_plan(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     p, best, stale = query.p, plan, 0
     if p.exact is None:
         return plan
-    for round_ in range(10**6):
+    length, rounds = metric_length(p.metric, plan.q), 0
+    while stale < THIN_PATIENCE:
         reserve = 1.5 * query.check_time + 0.005
         spare = left() - 2.0 * reserve
-        if spare < THIN_MIN_TIME or stale >= THIN_PATIENCE:
+        if spare < THIN_MIN_TIME:
             break
-        seed = query.seed + THIN_SEED_STRIDE * round_
-        model = p.thin[round_ % len(p.thin)]
-        path = model.shortest(query.q0, query.q1, tuple(p.term.obstacles), seed,
-                               THIN_SEARCH * spare, query.attempts)  # fmt: skip
+        model = p.thin[rounds % len(p.thin)]
+        path = model.shortest(query.q0, query.q1, tuple(p.term.obstacles),
+                              query.seed + THIN_SEED_STRIDE * rounds, THIN_SEARCH * spare,
+                              query.attempts)  # fmt: skip
+        rounds += 1
         pushed = None if path is None else exact_push(p, path, left() - 2.0 * reserve)
-        length = metric_length(p.metric, best.q)
-        if pushed is None or metric_length(p.metric, pushed) >= length:
+        new = math.inf if pushed is None else metric_length(p.metric, pushed)
+        how = f"the thinner spheres' path (round {rounds}) pushed out and tightened on the exact geometry"
+        better = None
+        if pushed is not None and new < length:
+            better = query.verified(pushed, how, resample=False)
+        if pushed is None or better is None:
             stale += 1
             continue
-        how = f"the thinner spheres' path (round {round_ + 1}) pushed out and tightened on the exact geometry"
-        better = query.verified(pushed, how, resample=False)
-        if better is None:
-            stale += 1
-            continue
-        stale = stale + 1 if metric_length(p.metric, pushed) > (1.0 - POLISH_GAIN) * length else 0
-        query.sampled_path, best = pushed, better
-    query.attempts.append(f"thinner spheres: {round_} round(s), the plan "
-                          + ("shortened" if best is not plan else "not shortened"))  # fmt: skip
+        stale = stale + 1 if new > (1.0 - POLISH_GAIN) * length else 0
+        query.sampled_path, best, length = pushed, better, new
+    if rounds:
+        query.attempts.append(f"thinner spheres: {rounds} round(s), the plan "
+                              + ("shortened" if best is not plan else "not shortened"))  # fmt: skip
     return best

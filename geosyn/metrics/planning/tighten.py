@@ -16,12 +16,15 @@ follows, as for every plan.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from geosyn.metrics.planning.exact_path import configuration_clearances, path_clearance
 from geosyn.metrics.planning.relax import metric_relax
+from geosyn.metrics.planning.smoothing import even_in_metric
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
@@ -31,6 +34,8 @@ __all__ = [
     "EXACT_FLOOR",
     "EXACT_KEEP",
     "EXACT_MIN_TIME",
+    "PUSH_DELTA",
+    "exact_push",
     "exact_tighten",
 ]
 
@@ -49,23 +54,29 @@ polishing relaxes on the spheres first and the tightening gets what is left beyo
 `EXACT_MIN_TIME`): on the Panda scenes tightening shortened the kept path by
 1-4 %, a new RRT-Connect path in the last 0.1 s seldom did (measured)."""
 
+PUSH_DELTA = 2.0
+"""Clearance below which `exact_push` penalises a sample, in margins (it pushes the path
+out past the floor, so that the tightening then has a valid start)."""
+
 EXACT_FD_STEP = 1e-4
 """Central-difference step [rad] of the exact clearances' gradients (coal's distances,
 GJK to 1e-9 m: 1e-5 relative error in the gradient)."""
 
 
-def exact_tighten(planner: Planner, path: np.ndarray, budget: float) -> np.ndarray:
-    """``path`` (T, n) [rad] (valid for the query set on ``planner``: its obstacles on
-    the exact checker and the sampling aids) relaxed on the exact clearances within
-    ``budget`` [s] (module docstring); ``path`` itself when the planner has no exact
-    geometry, no margin, or no step keeps the floor.
+class _ExactTerms(NamedTuple):
+    """What a relaxation on the exact geometry asks, for the query set on a planner."""
 
-    Each step costs about 2 n T exact clearances (its gradient) plus an exact check of
-    the path per trial (3-20 ms on the Panda scenes).
-    """
+    floor: float  # [m] every configuration of the exact check keeps this
+    clearances: Callable[[np.ndarray], np.ndarray]  # (K, n) -> (K,) exact clearances [m]
+    path_ok: Callable[[np.ndarray], bool]  # a whole path (T, n) keeps the floor
+
+
+def _exact_terms(planner: Planner) -> _ExactTerms | None:
+    """The exact terms of ``planner``'s query (its obstacles set on the exact checker), or
+    None without exact geometry or margin."""
     exact, aids = planner.exact, planner.sampling.aids
-    if exact is None or planner.margin <= 0.0 or budget <= 0.0:
-        return np.asarray(path, dtype=float)
+    if exact is None or planner.margin <= 0.0:
+        return None
     floor = EXACT_FLOOR * planner.margin
     exact.set_obstacles(planner.term.obstacles)
 
@@ -77,10 +88,51 @@ def exact_tighten(planner: Planner, path: np.ndarray, budget: float) -> np.ndarr
             path_clearance(exact, x, planner.exact_resolution, aids=aids).clearance >= floor
         )
 
-    if not path_ok(path):  # e.g. a path that came nearer on the spheres: nothing to keep
-        return np.asarray(path, dtype=float)
+    return _ExactTerms(floor, clearances, path_ok)
+
+
+def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float,
+           delta: float, valid: bool) -> np.ndarray:  # fmt: skip
+    """`metric_relax` of ``path`` on the exact terms within the joint limits: tightening
+    (``valid``: every step keeps the floor) or pushing out (the first iterate that keeps
+    it, then lower ones)."""
     return metric_relax(
-        lambda a, b, r: True, clearances, planner.metric, path, budget=budget,
-        delta=planner.margin, stay_valid=True, path_ok=path_ok, fd_step=EXACT_FD_STEP,
-        bounds=(planner.robot.q_min, planner.robot.q_max),
+        lambda a, b, r: True, terms.clearances, planner.metric, path, budget=budget,
+        delta=delta, stay_valid=valid, seed_valid=valid, path_ok=terms.path_ok,
+        fd_step=EXACT_FD_STEP, bounds=(planner.robot.q_min, planner.robot.q_max),
     )  # fmt: skip
+
+
+def exact_tighten(planner: Planner, path: np.ndarray, budget: float) -> np.ndarray:
+    """``path`` (T, n) [rad] (valid for the query set on ``planner``: its obstacles on
+    the exact checker and the sampling aids) relaxed on the exact clearances within
+    ``budget`` [s] (module docstring); ``path`` itself when the planner has no exact
+    geometry, no margin, or no step keeps the floor.
+
+    Each step costs about 2 n T exact clearances (its gradient) plus an exact check of
+    the path per trial (3-20 ms on the Panda scenes).
+    """
+    terms = _exact_terms(planner)
+    if terms is None or budget <= 0.0 or not terms.path_ok(path):
+        return np.asarray(path, dtype=float)  # e.g. nearer on the spheres: nothing to keep
+    return _relax(planner, terms, path, budget, planner.margin, valid=True)
+
+
+def exact_push(planner: Planner, path: np.ndarray, budget: float) -> np.ndarray | None:
+    """``path`` (T, n) [rad], which may cross the query's obstacles, as ``nodes + 1``
+    samples even in the metric, pushed out of them on the exact clearances (penalty below
+    `PUSH_DELTA` times the margin; the first iterate that keeps the floor at every
+    configuration of the exact check, then lower ones) and tightened (`exact_tighten`)
+    within ``budget`` [s]: (nodes + 1, n) [rad], or None (not brought out in time, or no
+    exact geometry)."""
+    terms = _exact_terms(planner)
+    if terms is None or budget <= 0.0:
+        return None
+    end = time.perf_counter() + budget
+    x = even_in_metric(planner.metric, path, planner.nodes + 1)
+    x[0], x[-1] = path[0], path[-1]
+    if not terms.path_ok(x):
+        x = _relax(planner, terms, x, 0.6 * budget, PUSH_DELTA * planner.margin, valid=False)
+        if not terms.path_ok(x):
+            return None
+    return _relax(planner, terms, x, max(end - time.perf_counter(), 0.0), planner.margin, True)
