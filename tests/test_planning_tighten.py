@@ -28,6 +28,8 @@ from geosyn.metrics.planning.exact_path import (
     configuration_clearances,
     path_clearance,
 )
+from geosyn.metrics.planning.polish import SHORT_SEEDS, taut_seeds
+from geosyn.metrics.planning.sampling import sampling_box
 from geosyn.metrics.planning.smoothing import metric_length
 from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_tighten
 from geosyn.robots import Robot, load_robot
@@ -156,3 +158,44 @@ def test_a_passed_deadline_leaves_the_exact_check_undecided(planner: Planner) ->
     assert abs(full.clearance - brute) < 1e-6 and full.clearance < 0.0
     late = path_clearance(exact, path, 0.05, time.perf_counter() - 1.0, planner.sampling.aids)
     assert math.isnan(late.clearance) and late.checked == 0
+
+
+def _seeds(planner: Planner, path: np.ndarray, most: int) -> tuple[list[int], int, list[str]]:
+    """(the RRT-Connect seeds' indices made, the next seed's number, the attempts) of
+    `taut_seeds` from ``path`` round the block with ``most``, 20 s on its clock (far more
+    than the seeds take, < 1 s)."""
+    q0, q1 = path[0], path[-1]
+    lo, hi = sampling_box(planner.robot, q0, q1)
+    made: list[int] = []
+
+    def rrt(index: int, seconds: float) -> np.ndarray | None:
+        made.append(index)
+        return planner.sampling.connect(q0, q1, lo, hi, seconds, index)[0]
+
+    attempts: list[str] = []
+    end = time.perf_counter() + 20.0
+    shortest, _, _, after = taut_seeds(
+        planner, q0, q1, 0, path, math.inf, lambda: end - time.perf_counter(), 0.0, rrt,
+        attempts, 1, most,
+    )  # fmt: skip
+    assert shortest is not None  # the sampled path at least, pulled taut
+    return made, after, attempts
+
+
+def test_a_short_polishing_pulls_only_its_seeds_taut(planner: Planner) -> None:
+    """`taut_seeds` with ``most`` (a query too short to keep `EXACT_KEEP` back for the
+    tightening passes `SHORT_SEEDS`): the sampled path and ``most`` seeds after it are
+    pulled taut, bumped lines and RRT-Connect paths by turns (1: the first bump, no
+    RRT-Connect path; 3: bump, RRT-Connect path #1, bump), never more however much time
+    is left, and the next seed's number says where a later search goes on."""
+    q0, q1 = HOME.copy(), HOME.copy()
+    q0[0], q1[0] = -0.9, 0.9
+    assert SHORT_SEEDS == 1
+    with block_query(planner, q0, q1):
+        lo, hi = sampling_box(planner.robot, q0, q1)
+        path, _ = planner.sampling.connect(q0, q1, lo, hi, 5.0, 0)
+        assert path is not None and len(path) > 2  # round the block
+        for most, rrts in ((1, []), (3, [1])):
+            made, after, attempts = _seeds(planner, path, most)
+            assert made == rrts and after == 1 + most
+            assert attempts[-1].startswith("polishing stopped after")

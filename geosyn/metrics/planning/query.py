@@ -45,7 +45,7 @@ from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.coarse import coarse_to_fine
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.polish import taut_seeds
+from geosyn.metrics.planning.polish import SHORT_SEEDS, taut_seeds
 from geosyn.metrics.planning.rrt import shortcut
 from geosyn.metrics.planning.sampled import (
     SAMPLED_CHECK_SHARE,
@@ -234,12 +234,12 @@ class Query:
 
     def polish(self, plan: Plan, budget: float = math.inf) -> Plan:
         """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
-        the last one's; `EXACT_KEEP` more kept back when more than twice that is left):
-        the shortest of its path relaxed further and other seeds pulled taut
-        (`geosyn.metrics.planning.polish.taut_seeds`: bumped straight lines and
-        RRT-Connect paths by turns, valid on the spheres) is tightened on the exact
-        geometry when more than `EXACT_MIN_TIME` is left (`exact_tighten`), verified
-        once, and kept if it passes and is shorter than ``plan`` (else the untightened
+        the last one's; `EXACT_KEEP` more kept back when more than twice that is left,
+        else only `SHORT_SEEDS` other seeds): the shortest of its path relaxed further
+        and other seeds pulled taut (`geosyn.metrics.planning.polish.taut_seeds`: bumped
+        straight lines and RRT-Connect paths by turns, valid on the spheres) is
+        tightened on the exact geometry when more than `EXACT_MIN_TIME` is left
+        (`exact_tighten`), verified once, and kept if it passes and is shorter than ``plan`` (else the untightened
         one, verified in turn); then, with time left, seeds on a thinner sphere model
         pushed out on the exact geometry (`geosyn.metrics.planning.thin.thinner_plan`).
         All within ``budget`` [s] when less than the time left."""
@@ -260,9 +260,10 @@ class Query:
         reserve = 1.5 * self.check_time + 0.005
         ample = p.exact is not None and left() - 2.0 * reserve > 2.0 * EXACT_KEEP
         keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
+        most = SHORT_SEEDS if p.exact is not None and not ample else None
         shortest, length, how, self.restart = taut_seeds(
             p, self.q0, self.q1, self.seed, self.sampled_path, metric_length(p.metric, plan.q),
-            lambda: left() - keep, reserve, rrt, self.attempts, self.restart,
+            lambda: left() - keep, reserve, rrt, self.attempts, self.restart, most,
         )  # fmt: skip
         base = shortest if shortest is not None else np.asarray(plan.q)
         if (
