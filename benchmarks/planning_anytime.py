@@ -1,7 +1,7 @@
 """Benchmark: metric length vs wall-time budget, geosyn's default `Planner` and geodex on
 the same scenes in one run (issue 22, "anytime behaviour").
 
-For each budget ``T`` (default 0.05, 0.1, 0.3, 1, 2 s), in turn: geodex plans every scene
+For each budget ``T`` (default 0.05, 0.1, 0.2, 0.3, 1, 2 s), in turn: geodex plans every scene
 with ``PlanSettings.time = T`` (its venv, `planning_geodex.geodex_run`), then geosyn's
 default ``Planner(KineticEnergyMetric(panda))`` (the gripper open, as geodex's Panda:
 `planning_geosyn.benchmark_robot`) plans every scene with ``budget=T``
@@ -125,7 +125,7 @@ def _median(xs: list[float]) -> float:
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description="length vs budget, geosyn and geodex")
-    p.add_argument("--budgets", default="0.05,0.1,0.3,1,2", help="budgets T [s]")
+    p.add_argument("--budgets", default="0.05,0.1,0.2,0.3,1,2", help="budgets T [s]")
     p.add_argument("--scenes", default="", help="comma-separated scene names (default: all)")
     p.add_argument("--check-step", type=float, default=2e-3, help="resampling step [rad]")
     p.add_argument("--geodex-seed", type=int, default=1)
