@@ -40,7 +40,6 @@ from typing import Annotated, Any
 
 import numpy as np
 import pinocchio as pin
-from matplotlib.patches import Circle, Rectangle
 from pydantic import Field
 
 from geosyn.controllers import ComputedTorque, Controller, JointTrajectoryReference
@@ -55,9 +54,11 @@ from geosyn.experiments.procedures.segments import (
     path_clearance,
     task_sequence,
 )
+from geosyn.experiments.results.obstacle_view import draw_obstacles
 from geosyn.experiments.results.plots import COLORS, figure, save, tracking_error_plot
 from geosyn.experiments.results.run_video import MARKERS
 from geosyn.experiments.run import build as B
+from geosyn.experiments.run.scene import build_obstacles
 from geosyn.experiments.schema import ExperimentConfig, PositiveFloat, Strict, Vec3
 from geosyn.metrics import KineticEnergyMetric, Metric
 from geosyn.metrics.planning import Planner
@@ -343,15 +344,13 @@ class PickAndPlace(Procedure):
             h = results[f"plan_{n}__hand"]
             axes[0].plot(h[:, 1], h[:, 2], color=c, label=n)
         axes[0].plot(pts[:, 1], pts[:, 2], "k*", ms=10, label="pick, via, place")
-        for o in cfg.scene.obstacles:
-            if o.type == "sphere":
-                axes[0].add_patch(_circle((o.center[1], o.center[2]), o.radius))
-            if o.type == "box":
-                axes[0].add_patch(_rect(o.center, o.half_extents))
+        hidden = draw_obstacles(axes[0], build_obstacles(cfg))  # scene file's too
         axes[0].set_xlabel("y [m]")
         axes[0].set_ylabel("z [m]")
         axes[0].set_aspect("equal", adjustable="datalim")
-        axes[0].set_title("hand path (front view), obstacle grey")
+        axes[0].set_title("hand path (front view), obstacles grey"
+                          + (f" ({hidden} half-space(s) across the view not drawn)"
+                             if hidden else ""))  # fmt: skip
         axes[0].legend(fontsize=7)
         e = [float(results[f"plan_{n}__energy"]) for n in PLANS]
         axes[1].bar(list(PLANS), e, color=COLORS[:3])
@@ -375,13 +374,3 @@ def attached_mass_matrix(loaded: Robot, q: Vector) -> np.ndarray:
     """(n, n) mass matrix of the robot with the object attached (Pinocchio CRBA) [kg m^2]."""
     M = pin.crba(loaded.model, loaded.model.createData(), q)
     return np.triu(M) + np.triu(M, 1).T
-
-
-def _circle(center: tuple[float, float], radius: float) -> Any:
-    return Circle(center, radius, color="0.6", alpha=0.6)
-
-
-def _rect(center: list[float], half: list[float]) -> Any:
-    return Rectangle(
-        (center[1] - half[1], center[2] - half[2]), 2 * half[1], 2 * half[2], color="0.6", alpha=0.6
-    )
