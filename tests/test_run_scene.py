@@ -149,3 +149,12 @@ def test_a_bad_mujoco_scene_file_is_one_clear_error(tmp_path):
     around_base = '<mujoco><worldbody><geom name="vault" type="box" size="0.3 0.3 0.3"/>'
     with pytest.raises(ConfigError, match=r"scene\.mjcf \(geom 'vault'\).*starts inside this box"):
         load_config(_ur5_scene_config(tmp_path, around_base + "</worldbody></mujoco>"))
+    # a file that holds a robot too: its fixed base is a static geom round the UR5's base
+    with_arm = """<mujoco><worldbody><geom name="table" type="box" pos="2 0 0" size="0.3 0.3 0.3"/>
+      <body name="base"><geom name="base_link" type="cylinder" size="0.08 0.05"/>
+        <body name="link1" pos="0 0 0.1"><joint type="hinge" axis="0 0 1"/>
+          <geom name="link1_geom" type="capsule" fromto="0 0 0 0 0 0.3" size="0.05"/>
+        </body></body></worldbody></mujoco>"""
+    with pytest.raises(ConfigError, match=r"(?s)geom 'base_link'.*1 geom\(s\) on moving bodies.*"
+                                          r"'link1_geom'.*includes the robot"):  # fmt: skip
+        load_config(_ur5_scene_config(tmp_path, with_arm))

@@ -72,15 +72,28 @@ def start_inside_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, st
     for i, shape in enumerate(build_obstacles(cfg, file)):
         depth = -float(np.min(signed_distance(shape, points)))
         if depth > DEPTH:
+            where = obstacle_field(cfg, i, file)
             return [
                 (
-                    obstacle_field(cfg, i, file),
+                    where,
                     f"the robot starts inside this {type(shape).__name__.lower()}: at {field}"
                     f" its skeleton reaches {depth:.3g} m deep into it (allowed: at most"
-                    f" {DEPTH:g} m); move the obstacle or the start configuration",
+                    f" {DEPTH:g} m); move the obstacle or the start configuration"
+                    + (_robot_in_file(file) if where.startswith("scene.mjcf") else ""),
                 )
             ]
     return []
+
+
+def _robot_in_file(file: Any) -> str:
+    """A hint when the scene file (`MjcfObstacles`) also holds moving bodies: a robot in it
+    has its fixed base read as a static geom, an obstacle round the robot's own base."""
+    moving = [s.split(":")[0] for s in file.skipped if s.endswith("on a moving body")]
+    if not moving:
+        return ""
+    return (f"; the file also holds {len(moving)} geom(s) on moving bodies (e.g. "
+            f"{moving[0]!r}): if it includes the robot, its fixed base is read as an "
+            "obstacle; give scene.mjcf a file with the scene only")  # fmt: skip
 
 
 __all__ = [
