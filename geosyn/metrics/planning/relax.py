@@ -34,6 +34,7 @@ length on most benchmark scenes within 0.05-0.3 s (`benchmarks/RESULTS.md`).
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -123,15 +124,24 @@ def _block_tridiagonal_solve(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray)
     bandwidth 2 n - 1; O(M n^3), no multithreaded BLAS call)."""
     M, n = rhs.shape
     u = 2 * n - 1  # superdiagonals of the banded (M n, M n) matrix
-    A = np.zeros((M * n, M * n))
-    for k in range(M):
-        A[k * n : (k + 1) * n, k * n : (k + 1) * n] = diag[k]
-        if k + 1 < M:
-            A[k * n : (k + 1) * n, (k + 1) * n : (k + 2) * n] = off[k].T  # the block (k, k + 1)
+    upper = np.zeros((M, n, 2 * n))  # block row k: [block (k, k), block (k, k + 1)]
+    upper[:, :, :n] = diag
+    upper[:-1, :, n:] = np.swapaxes(off, 1, 2)
+    rows, cols, take = _band_index(M, n)
     band = np.zeros((u + 1, M * n))
-    for j in range(u + 1):  # upper form: band[u - j, i + j] = A[i, i + j]
-        band[u - j, j:] = np.diagonal(A, j)
+    band[rows, cols] = upper[take]  # upper form: band[u + r - c, c] = A[r, c], c >= r
     return scipy.linalg.solveh_banded(band, rhs.ravel()).reshape(M, n)
+
+
+@functools.lru_cache(maxsize=32)
+def _band_index(M: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(rows, cols, take): where the upper-triangle entries of `_block_tridiagonal_solve`'s
+    block rows (``upper[take]``, (M, n, 2 n) with ``take`` a boolean mask) go in LAPACK's
+    upper band form of bandwidth ``2 n - 1``."""
+    k, a, b = np.meshgrid(np.arange(M), np.arange(n), np.arange(2 * n), indexing="ij")
+    take = (b >= a) & (k * n + b < M * n)
+    r, c = k * n + a, k * n + b
+    return (2 * n - 1 + r - c)[take], c[take], take
 
 
 def _box(bounds: tuple[np.ndarray, np.ndarray] | None,
@@ -250,15 +260,8 @@ def metric_relax(
         begun = time.perf_counter()
         if begun + last > t_end:
             break
-        diag, off = np.zeros((T - 2, n, n)), np.zeros((max(T - 3, 0), n, n))
-        for i, G in enumerate(Gs):  # segment i joins samples i and i + 1 (interior: -1)
-            A = 2.0 * N * G
-            if i >= 1:
-                diag[i - 1] += A
-            if i <= T - 3:
-                diag[i] += A
-            if 1 <= i <= T - 3:
-                off[i - 1] -= A  # the block (i, i - 1) of the interior samples
+        A = 2.0 * N * np.asarray(Gs)  # segment i joins samples i and i + 1 (interior: -1)
+        diag, off = A[:-1] + A[1:], -A[1:-1]  # off: the blocks (i, i - 1) of the interior
         g = g_c[1:-1]
         diag += 2.0 * weight * np.einsum("ka,kb->kab", g, g)
         diag += (1e-9 * float(np.einsum("kaa->", diag)) / ((T - 2) * n)) * np.eye(n)
