@@ -45,6 +45,15 @@ def test_a_box_projects_to_its_closed_form() -> None:
     assert about_z is not None and _area(about_z) == pytest.approx(width * 0.6, rel=1e-12)
 
 
+def test_a_flat_box_seen_edge_on_is_the_segment_it_covers() -> None:
+    """A panel of zero thickness in y seen from the front: the segment z = 0.2 +- 0.3 at
+    y = 0.1 (its two ends, exactly)."""
+    edge = silhouette(Box((0.5, 0.1, 0.2), (0.4, 0.0, 0.3)))
+    assert edge is not None and edge.shape == (2, 2)
+    np.testing.assert_allclose(sorted(edge[:, 1]), (-0.1, 0.5), atol=1e-15)
+    np.testing.assert_allclose(edge[:, 0], 0.1, atol=1e-15)
+
+
 def test_round_shapes_project_to_their_closed_forms() -> None:
     r = 0.05
     capsule = silhouette(Capsule((0.3, -0.2, 0.5), (0.9, 0.2, 0.8), r))  # in view: L = 0.5

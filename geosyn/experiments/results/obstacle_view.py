@@ -7,6 +7,7 @@ capsule's, the hull of the two end discs; a cylinder's, the hull of its two rim 
 ``1 - cos(pi / RIM_POINTS)`` = 0.12 % of the radius). A half-space has no bounded
 silhouette: one whose normal lies in the view plane is drawn as its boundary line, others
 (a floor seen from above) fill the view and are left out, which `draw_obstacles` returns.
+A shape with no area in the view (a flat box seen edge-on) is the segment it covers.
 Shapes come from the run's own scene (`geosyn.experiments.run.scene.build_obstacles`:
 ``scene.obstacles`` and a MuJoCo scene file's geoms), so the figure shows what the
 planner and the simulation saw.
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 from matplotlib.patches import Circle, Polygon
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, QhullError
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.world import Box, Capsule, Cylinder, HalfSpace, Sphere
@@ -40,8 +41,15 @@ def _circle(n: int = RIM_POINTS) -> np.ndarray:
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
-    """(K, 2) the convex hull's vertices of ``points`` (N, 2), counter-clockwise."""
-    return points[ConvexHull(points).vertices]
+    """(K, 2) the convex hull's vertices of ``points`` (N, 2), counter-clockwise; for points
+    on one line (a flat box seen edge-on) the segment's two ends, (2, 2)."""
+    try:
+        return points[ConvexHull(points).vertices]
+    except QhullError:  # no area: a segment (or a point)
+        centred = points - points.mean(axis=0)
+        direction = np.linalg.svd(centred, full_matrices=False)[2][0]
+        along = centred @ direction
+        return points[[int(np.argmin(along)), int(np.argmax(along))]]
 
 
 def silhouette(shape: Shape, axes: tuple[int, int] = (1, 2)) -> np.ndarray | None:

@@ -36,7 +36,7 @@ SHORT_SEEDS = 1
 thinner spheres' seeds. Without a limit the seeds took all of a 0.1-0.2 s budget and
 left none for them: on the 14 Panda benchmark scenes the returned length stayed flat
 from 0.1 to 0.2 s; with one seed it fell by up to 5 % (table_box 1.310 -> 1.258 at
-0.1 s, sphere_cluster 1.814 -> 1.729 at 0.16 s), longer on slot only (+0.5-0.8 %,
+0.13 s, sphere_cluster 1.814 -> 1.729 at 0.16 s), longer on slot only (+0.5-0.8 %,
 measured)."""
 
 

@@ -239,10 +239,11 @@ class Query:
         and other seeds pulled taut (`geosyn.metrics.planning.polish.taut_seeds`: bumped
         straight lines and RRT-Connect paths by turns, valid on the spheres) is
         tightened on the exact geometry when more than `EXACT_MIN_TIME` is left
-        (`exact_tighten`), verified once, and kept if it passes and is shorter than ``plan`` (else the untightened
-        one, verified in turn); then, with time left, seeds on a thinner sphere model
-        pushed out on the exact geometry (`geosyn.metrics.planning.thin.thinner_plan`).
-        All within ``budget`` [s] when less than the time left."""
+        (`exact_tighten`), verified once, and kept if it passes and is shorter than
+        ``plan`` (else the untightened one, verified in turn); then, with time left,
+        seeds on a thinner sphere model pushed out on the exact geometry
+        (`geosyn.metrics.planning.thin.thinner_plan`). All within ``budget`` [s] when
+        less than the time left."""
         end = time.perf_counter() + budget
 
         def left() -> float:
