@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import SimpleNamespace
 from unittest import mock
 
 import numpy as np
@@ -17,7 +18,12 @@ import pytest
 from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.planning.rrt import RRT_STEP, string_pull
 from geosyn.metrics.planning.sphere_check import SphereCheck
-from geosyn.metrics.planning.sphere_native import NativeSphereCheck, joint_table, sphere_check
+from geosyn.metrics.planning.sphere_native import (
+    NATIVE_MAX_NQ,
+    NativeSphereCheck,
+    joint_table,
+    sphere_check,
+)
 from geosyn.robots import load_robot
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world import shapes
@@ -170,6 +176,55 @@ def test_segment_check_stops_at_an_obstacle_the_numpy_check_agrees() -> None:
         assert not native.segment_valid(a, b, res, 0.0)
         assert native.segment_valid(a, mid, res, 0.0)
         assert native.segment_valid(a, b, res, 0.0) == slow.segment_valid(a, b, res, 0.0)
+
+
+def _path_valid_by_hand(robot, spheres, post, X: np.ndarray, res: float) -> bool:
+    """The path rule written out: every point ``a + (i / k) (b - a)``, i = 1 .. k,
+    ``k = max(1, ceil(|b - a| / res))``, of every segment keeps each sphere (placed by
+    Pinocchio) clear of the post (closed-form distance minus radius >= 0)."""
+    radii = np.array([s.radius for s in spheres])
+    for a, b in zip(X[:-1], X[1:], strict=True):
+        k = max(1, math.ceil(np.linalg.norm(b - a) / res))
+        for i in range(1, k + 1):
+            centres = _world_centres(robot, spheres, a + (i / k) * (b - a))
+            if np.min(signed_distance(post, centres) - radii) < 0.0:
+                return False
+    return True
+
+
+def test_path_check_is_every_segment_by_the_rule() -> None:
+    """A Panda path of three segments, its last through a post, and its free first two:
+    the C path check (one call) and the numpy one answer as the rule written out by hand,
+    at two resolutions."""
+    robot = load_robot("panda")
+    spheres = _spheres(robot, np.random.default_rng(0), per_joint=2)
+    native, slow = NativeSphereCheck(robot, spheres), SphereCheck(robot, spheres)
+    q = np.array([0.0, 0.3, 0.0, -1.5, 0.0, 1.8, 0.8])
+    c = _world_centres(robot, spheres, q)[-1]
+    post = shapes.Box((-c[0], -c[1], c[2]), (0.03, 0.03, 0.5), np.eye(3))  # joint 1 at pi
+    for check in (native, slow):
+        check.set_obstacles([post])
+    X = np.array([q, q + [1.0, 0.1, 0, 0, 0, 0, 0], q + [2.0, 0, 0, 0.1, 0, 0, 0], q])
+    X[3, 0] = 2.0 * np.pi - 0.2
+    answers = []
+    for path in (X, X[:3]):
+        for res in (0.05, 0.01):
+            expected = _path_valid_by_hand(robot, spheres, post, path, res)
+            assert native.path_valid(path, res, 0.0) == expected
+            assert slow.path_valid(path, res, 0.0) == expected
+            answers.append(expected)
+    assert answers == [False, False, True, True]
+
+
+def test_a_robot_of_more_coordinates_than_the_c_check_takes_gets_numpy() -> None:
+    """A chain of 65 revolute joints (one more than `NATIVE_MAX_NQ`): the C check's table
+    refuses it with the reason (its buffers hold 64 coordinates)."""
+    model = pin.Model()
+    parent = 0
+    for j in range(NATIVE_MAX_NQ + 1):
+        parent = model.addJoint(parent, pin.JointModelRZ(), pin.SE3.Identity(), f"j{j}")
+    reason = joint_table(SimpleNamespace(model=model))
+    assert isinstance(reason, str) and "65 coordinates" in reason
 
 
 def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> None:

@@ -18,6 +18,7 @@ optimisation from random restarts, as CHOMP (Ratliff et al., ICRA 2009) and Traj
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -156,25 +157,28 @@ def relax_taut(planner: SphereSearch, x: np.ndarray, budget: float,
     check, box = p.sampling, (p.robot.q_min, p.robot.q_max)  # every iterate within the limits
     taut = metric_relax(check.segment_valid, check.check.clearances, p.metric, x,
                         budget=TIGHTEN_AFTER * budget, resolution=RELAX_RESOLUTION,
-                        seed_valid=seed_valid, bounds=box)  # fmt: skip
-    if not seed_valid and not _valid(p, taut):
+                        seed_valid=seed_valid, bounds=box, path_ok=_valid(p))  # fmt: skip
+    if not seed_valid and not _valid(p)(taut):
         return None
     if p.margin > 0.0 and time.perf_counter() < end:  # nearer, valid steps, to the margin
 
         def at_margin(a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
             return check.check.segment_valid(a, b, resolution, p.margin)
 
+        def path_at_margin(y: np.ndarray) -> bool:
+            return check.check.path_valid(y, RELAX_RESOLUTION, p.margin)
+
         taut = metric_relax(at_margin, check.check.clearances, p.metric, taut,
                             budget=max(end - time.perf_counter(), 0.0), delta=p.margin,
-                            resolution=RELAX_RESOLUTION, stay_valid=True, bounds=box)  # fmt: skip
+                            resolution=RELAX_RESOLUTION, stay_valid=True, bounds=box,
+                            path_ok=path_at_margin)  # fmt: skip
     return taut
 
 
-def _valid(planner: SphereSearch, x: np.ndarray) -> bool:
-    """Whether every segment of ``x`` (T, n) passes the sampling check at the
-    relaxation's resolution."""
-    seg = planner.sampling.segment_valid
-    return all(seg(a, b, RELAX_RESOLUTION) for a, b in zip(x[:-1], x[1:], strict=True))
+def _valid(planner: SphereSearch) -> Callable[[np.ndarray], bool]:
+    """Whether every segment of a path (T, n) passes the sampling check at the
+    relaxation's resolution (one call of the check)."""
+    return lambda x: planner.sampling.path_valid(x, RELAX_RESOLUTION)
 
 
 def bumped_line(q0: np.ndarray, q1: np.ndarray, samples: int, q_min: np.ndarray,

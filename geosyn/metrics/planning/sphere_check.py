@@ -175,6 +175,13 @@ class SphereCheck:
         ``a + (i / k) (b - a)``, i = 1 .. k, ``k = max(1, ceil(|b - a| / resolution))``."""
         return self.all_valid(segment_points(a, b, resolution), margin)
 
+    def path_valid(self, X: np.ndarray, resolution: float, margin: float) -> bool:
+        """Whether every segment of the path ``X`` (T, n) [rad] is valid (`segment_valid`;
+        ``X[0]`` itself not checked), stopping at the first invalid one."""
+        X = np.asarray(X, dtype=float)
+        return all(self.segment_valid(a, b, resolution, margin)
+                   for a, b in zip(X[:-1], X[1:], strict=True))  # fmt: skip
+
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Replace the obstacles (shapes of `geosyn.world`, already checked)."""
         self.obstacles = tuple(obstacles)

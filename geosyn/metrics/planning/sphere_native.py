@@ -68,6 +68,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_set_ramp": (_I, [_P, _I, _P, _P, _D]),
         "geosyn_spheres_valid": (_I, [_P, _P, _I, _D, _I, _I, _P]),
         "geosyn_spheres_segment_valid": (_I, [_P, _P, _P, _D, _D, _I]),
+        "geosyn_spheres_path_valid": (_I, [_P, _P, _I, _D, _D, _I]),
         "geosyn_spheres_rrt_connect": (
             _I,
             [_P, _P, _P, _D, _D, _D, _I, _P, _P, _P, _P, _P, _P, _P, _I, _P, _P, _D, _P, _I, _P],
@@ -79,13 +80,20 @@ def _library() -> ctypes.CDLL:
     return lib
 
 
+NATIVE_MAX_NQ = 64
+"""Most coordinates of a robot the C check takes (its segment and ramp buffers)."""
+
+
 def joint_table(robot: Robot) -> tuple[np.ndarray, ...] | str:
     """The kinematic tree of ``robot``'s Pinocchio model as the C check reads it:
     ``(parent (J,), kind (J,) 0 revolute / 1 prismatic, q index (J,), axis (J, 3),
     placement (J, 12): rotation row-major then translation [m])`` for its J joints
     (the universe left out; parent -1: the world), or the reason it cannot (a joint
-    that is not a one-coordinate revolute or prismatic joint)."""
+    that is not a one-coordinate revolute or prismatic joint, or more than
+    `NATIVE_MAX_NQ` coordinates)."""
     model = robot.model
+    if model.nq > NATIVE_MAX_NQ:
+        return f"{model.nq} coordinates, more than the C check's {NATIVE_MAX_NQ}"
     J = model.njoints - 1
     parent, kind, iq = np.zeros(J, np.intc), np.zeros(J, np.intc), np.zeros(J, np.intc)
     axis, place = np.zeros((J, 3)), np.zeros((J, 12))
@@ -324,6 +332,14 @@ class NativeSphereCheck(SphereCheck):
         b = np.ascontiguousarray(b, dtype=float)
         return bool(self._lib.geosyn_spheres_segment_valid(
             self._handle, _address(a), _address(b), float(resolution), float(margin),
+            int(bool(self._n_pairs))))  # fmt: skip
+
+    def path_valid(self, X: np.ndarray, resolution: float, margin: float) -> bool:
+        """Whether every segment of the path ``X`` (T, n) [rad] is valid (`segment_valid`;
+        ``X[0]`` itself not checked), in one C call, stopping at the first invalid one."""
+        X = self._configurations(X)
+        return bool(self._lib.geosyn_spheres_path_valid(
+            self._handle, _address(X), len(X), float(resolution), float(margin),
             int(bool(self._n_pairs))))  # fmt: skip
 
     def rrt_connect(self, q0: np.ndarray, q1: np.ndarray, lo: np.ndarray, hi: np.ndarray, *,

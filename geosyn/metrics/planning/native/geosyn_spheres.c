@@ -485,6 +485,20 @@ GS_API int geosyn_spheres_segment_valid(void *handle, const double *a, const dou
     return segment_valid(m, a, b, resolution, margin, self, q);
 }
 
+/* Whether every segment X[t] -> X[t + 1] of the path X (T, nq) is valid (segment_valid),
+ * stopping at the first invalid one; X[0] itself is not checked. */
+GS_API int geosyn_spheres_path_valid(void *handle, const double *X, int T, double resolution,
+                                     double margin, int self) {
+    gs_model *m = handle;
+    double q[64];
+    if (m->nq > 64) return -1;
+    for (int t = 0; t + 1 < T; ++t) {
+        const double *a = X + (size_t)m->nq * t;
+        if (!segment_valid(m, a, a + m->nq, resolution, margin, self, q)) return 0;
+    }
+    return 1;
+}
+
 static double seconds_now(void) {
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
