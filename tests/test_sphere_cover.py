@@ -58,6 +58,32 @@ def test_the_miss_is_the_farthest_corner_outside_the_sphere(arm) -> None:
     assert both.bare == () and both.link == "l1" and both.distance == miss.distance
 
 
+def test_a_new_process_reads_the_miss_from_the_disk_cache(arm, tmp_path, monkeypatch) -> None:
+    """The miss of the closed-form case above, measured once into an empty cache folder,
+    is read back (equal, every field) with the process's memory emptied and the sampling
+    disabled, as a new process would; a damaged entry is warned and measured again."""
+    from geosyn.robots import sphere_cover
+
+    monkeypatch.setenv("GEOSYN_CACHE_DIR", str(tmp_path / "cache"))
+    spheres = [CollisionSphere("j1", (0.1, 0.0, 0.0), 0.05)]
+    monkeypatch.setattr(sphere_cover, "_CACHE", {})
+    first = sphere_miss(arm, spheres)
+    assert abs(first.distance - (math.sqrt(0.1**2 + 0.02**2 + 0.03**2) - 0.05)) < 1e-9
+    (entry,) = (tmp_path / "cache" / "spheres").glob("miss_*.json")
+
+    def no_sampling(*args: object) -> None:
+        raise AssertionError("measured again")
+
+    monkeypatch.setattr(sphere_cover, "_CACHE", {})
+    with monkeypatch.context() as m:
+        m.setattr(sphere_cover, "_measure", no_sampling)
+        assert sphere_miss(arm, spheres) == first
+    entry.write_text("{not json")
+    monkeypatch.setattr(sphere_cover, "_CACHE", {})
+    with pytest.warns(RuntimeWarning, match="damaged"):
+        assert sphere_miss(arm, spheres) == first
+
+
 def test_the_fitted_spheres_leave_nothing_out_and_are_not_warned(arm) -> None:
     fitted = file_spheres(arm).spheres
     miss = sphere_miss(arm, fitted)

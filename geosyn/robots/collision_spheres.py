@@ -119,12 +119,13 @@ def sphere_cache_dir() -> Path:
 
 
 def clear_sphere_cache() -> int:
-    """Delete the cached sphere fits (and lock files a killed fit left); returns how many
-    files were removed."""
+    """Delete the cached sphere fits (and lock files a killed fit left) and the cached
+    misses of `geosyn.robots.sphere_cover`; returns how many files were removed."""
     folder = sphere_cache_dir()
     removed = 0
     if folder.is_dir():
-        for f in [*folder.glob("spheres_*.json"), *folder.glob("spheres_*.lock")]:
+        files = [*folder.glob("spheres_*.json"), *folder.glob("spheres_*.lock")]
+        for f in [*files, *folder.glob("miss_*.json")]:
             f.unlink(missing_ok=True)
             removed += 1
     return removed

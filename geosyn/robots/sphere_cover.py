@@ -9,19 +9,35 @@ spheres, a clearance the spheres keep is not the robot's. `sphere_miss` measures
 spheres (`resolve_spheres` with ``"file"``: `geosyn.robots.collision_spheres.file_spheres`).
 Objects fixed to the base are left out: no joint moves them, so no sphere on a joint
 can keep them clear.
+
+The measurement samples every collision surface (a fraction of a second for an arm, most
+of it importing trimesh); it is kept in the process and on disk beside the fitted spheres
+(``miss_<hash>.json`` in `geosyn.robots.collision_spheres.sphere_cache_dir`, keyed by a
+hash of the geometry, the spheres and the sampling), so a new process that builds an
+obstacle term, an MPC or a planner for the same robot and spheres reads it back.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
+import os
+import tempfile
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from geosyn.core.errors import InvalidArgument
-from geosyn.robots.collision_geometry import collision_objects, surface_points
+from geosyn.robots.collision_geometry import (
+    CollisionObject,
+    collision_objects,
+    geometry_digest,
+    surface_points,
+)
 from geosyn.robots.errors import RobotFileError, RobotWarning
 from geosyn.robots.robot import CollisionSphere, Robot
 
@@ -64,22 +80,71 @@ _CACHE: dict[tuple[object, ...], SphereMiss] = {}
 _REPORTED: set[tuple[object, ...]] = set()
 
 
+MISS_VERSION = 1
+"""Part of the disk cache key: bumped when the measurement changes."""
+
+
 def sphere_miss(robot: Robot, spheres: Sequence[CollisionSphere]) -> SphereMiss:
     """How far the file's collision surfaces of ``robot`` stand outside ``spheres``.
 
-    Computed once per robot file, joints and spheres in a process (it reads the meshes).
+    Measured once per robot file, joints and spheres (it samples the meshes), then read
+    from the process's memory or the disk cache (module docstring).
     """
     key = (robot.name, robot.source_file, tuple(robot.joint_names), tuple(spheres))
     if key not in _CACHE:
-        _CACHE[key] = _measure(robot, spheres)
+        try:
+            objects = collision_objects(robot)
+        except RobotFileError as err:
+            _CACHE[key] = SphereMiss(math.nan, "", (), str(err))
+            return _CACHE[key]
+        path = _miss_path(objects, spheres)
+        found = _read_miss(path)
+        _CACHE[key] = found if found is not None else _store(path, _measure(objects, spheres))
     return _CACHE[key]
 
 
-def _measure(robot: Robot, spheres: Sequence[CollisionSphere]) -> SphereMiss:
+def _miss_path(objects: tuple[CollisionObject, ...], spheres: Sequence[CollisionSphere]) -> Path:
+    """The disk cache file of the miss of ``spheres`` on ``objects``."""
+    from geosyn.robots.collision_spheres import sphere_cache_dir
+
+    rows = [(s.joint, tuple(map(float, s.center)), float(s.radius)) for s in spheres]
+    key = f"{geometry_digest(objects)}|{rows!r}|{SPACING!r}|{MISS_VERSION}"
+    return sphere_cache_dir() / f"miss_{hashlib.sha256(key.encode()).hexdigest()[:24]}.json"
+
+
+def _read_miss(path: Path) -> SphereMiss | None:
+    """The miss cached at ``path``, or None (missing, or damaged: measured again, warned)."""
+    if not path.is_file():
+        return None
     try:
-        objects = collision_objects(robot)
-    except RobotFileError as err:
-        return SphereMiss(math.nan, "", (), str(err))
+        data = json.loads(path.read_text())
+        return SphereMiss(float(data["distance"]), str(data["link"]),
+                          tuple(str(b) for b in data["bare"]))  # fmt: skip
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        warnings.warn(f"sphere cache: {path.name} is damaged ({err!r}); measuring again",
+                      RuntimeWarning, 4)  # fmt: skip
+        return None
+
+
+def _store(path: Path, miss: SphereMiss) -> SphereMiss:
+    """``miss``, written to ``path`` atomically (an unwritable cache is warned: it only
+    costs the measurement next time)."""
+    record = {"distance": miss.distance, "link": miss.link, "bare": list(miss.bare)}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".miss_", suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            json.dump(record, f)
+        os.replace(tmp, path)  # concurrent processes never read a partial file
+    except OSError as err:
+        warnings.warn(f"could not write the sphere cache {path}: {err}", RuntimeWarning, 4)
+    return miss
+
+
+def _measure(
+    objects: tuple[CollisionObject, ...], spheres: Sequence[CollisionSphere]
+) -> SphereMiss:
+    """`SphereMiss` of ``spheres`` on the file's collision ``objects`` (sampled)."""
     worst, link, bare = -math.inf, "", []
     for obj in objects:
         if obj.joint == "universe":
