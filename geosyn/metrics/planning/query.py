@@ -238,10 +238,10 @@ class Query:
         else only `SHORT_SEEDS` other seeds): the shortest of its path relaxed further
         and other seeds pulled taut (`geosyn.metrics.planning.polish.taut_seeds`: bumped
         straight lines and RRT-Connect paths by turns, valid on the spheres) is
-        tightened on the exact geometry when more than `EXACT_MIN_TIME` is left
-        (`exact_tighten`), verified once, and kept if it passes and is shorter than
-        ``plan`` (else the untightened one, verified in turn); then, with time left,
-        seeds on a thinner sphere model pushed out on the exact geometry
+        tightened on the exact geometry when more than `EXACT_MIN_TIME` (and two exact
+        checks' time) is left (`exact_tighten`), verified once, and kept if it passes
+        and is shorter than ``plan`` (else the untightened one, verified in turn); then,
+        with time left, seeds on a thinner sphere model pushed out on the exact geometry
         (`geosyn.metrics.planning.thin.thinner_plan`). All within ``budget`` [s] when
         less than the time left."""
         end = time.perf_counter() + budget
@@ -270,8 +270,8 @@ class Query:
         if (
             p.exact is not None
             and len(base) > 2
-            and (spare := left() - 2.0 * reserve) > EXACT_MIN_TIME
-        ):  # nearer on the robot's own geometry
+            and (spare := left() - 2.0 * reserve) > max(EXACT_MIN_TIME, 2.0 * self.check_time)
+        ):  # nearer on the robot's own geometry (its set-up runs whatever the budget)
             tight = exact_tighten(p, base, spare)
             if metric_length(p.metric, tight) < length:
                 told = f"{how or 'the sampled plan'}, tightened on the exact geometry"

@@ -47,7 +47,9 @@ EXACT_MIN_TIME = 0.01
 """Least time [s] left of a query (beyond its final checks) for which a sampled plan is
 tightened. On the Panda scenes it converged in 10-35 ms (40-220 ms on a machine 2.8x
 slower), a step 3-10 ms; a step that would end past the budget is not begun, and the
-checks' reserve comes on top. 0.02 left it out of most 0.1 s queries; at 0.01 it
+checks' reserve comes on top; a query also waits for twice its last exact check's time
+(the set-up and first step cost 1-4 such checks, measured; on a slower machine they
+grow alike). 0.02 left it out of most 0.1 s queries; at 0.01 it
 shortened their plans on 8 of the 14 scenes (by up to 3.9 %, table_box) and every
 0.05-0.2 s query kept its budget (wall <= 0.94 T, measured)."""
 
