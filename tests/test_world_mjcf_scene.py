@@ -48,6 +48,7 @@ def test_static_geoms_become_shapes_and_the_rest_is_reported() -> None:
     assert [type(s) for s in scene.shapes] == [HalfSpace, Box, Sphere, Capsule, Cylinder]
     assert any(s.startswith("visual: visual only") for s in scene.skipped)
     assert any(s.startswith("moving: on a moving body") for s in scene.skipped)
+    assert scene.moving == ("moving", "probe")  # the names alone (a mocap body moves too)
     assert load_mjcf_obstacles(SCENE, visual=True).names[4] == "visual"  # mocap: moving
 
 

@@ -42,12 +42,15 @@ class MjcfObstacles(NamedTuple):
         names: the geom name of each shape (``"geom<i>"`` for an unnamed geom).
         approximated: ``"name: how"`` for each shape that encloses its geom.
         skipped: ``"name: why"`` for each geom left out.
+        moving: the names of the geoms left out because they are on a moving body (a
+            robot in the file, say; also in ``skipped``).
     """
 
     shapes: tuple[shapes.Shape, ...]
     names: tuple[str, ...]
     approximated: tuple[str, ...]
     skipped: tuple[str, ...]
+    moving: tuple[str, ...] = ()
 
 
 def _geom_name(model: object, i: int) -> str:
@@ -89,11 +92,13 @@ def load_mjcf_obstacles(source: str | os.PathLike[str], *, visual: bool = False)
     names: list[str] = []
     approx: list[str] = []
     skipped: list[str] = []
+    moving: list[str] = []
     for i in range(model.ngeom):
         name = _geom_name(model, i)
         body = int(model.geom_bodyid[i])
         if int(model.body_weldid[body]) != 0:
             skipped.append(f"{name}: on a moving body")
+            moving.append(name)
             continue
         if not visual and model.geom_contype[i] == 0 and model.geom_conaffinity[i] == 0:
             skipped.append(f"{name}: visual only (contype = conaffinity = 0)")
@@ -127,4 +132,5 @@ def load_mjcf_obstacles(source: str | os.PathLike[str], *, visual: bool = False)
             continue
         out.append(shape)
         names.append(name)
-    return MjcfObstacles(tuple(out), tuple(names), tuple(approx), tuple(skipped))
+    return MjcfObstacles(tuple(out), tuple(names), tuple(approx), tuple(skipped),
+                         tuple(moving))  # fmt: skip

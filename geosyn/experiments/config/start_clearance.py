@@ -20,7 +20,7 @@ import pinocchio as pin
 from geosyn.experiments.run.scene import build_obstacles, mjcf_obstacles, obstacle_field
 from geosyn.experiments.schema import ExperimentConfig
 from geosyn.robots import Robot
-from geosyn.world import signed_distance
+from geosyn.world import MjcfObstacles, signed_distance
 
 #: Points per link on the segment from a joint's origin to its parent joint's origin.
 POINTS_PER_LINK = 5
@@ -79,20 +79,19 @@ def start_inside_errors(cfg: ExperimentConfig, robot: Any) -> list[tuple[str, st
                     f"the robot starts inside this {type(shape).__name__.lower()}: at {field}"
                     f" its skeleton reaches {depth:.3g} m deep into it (allowed: at most"
                     f" {DEPTH:g} m); move the obstacle or the start configuration"
-                    + (_robot_in_file(file) if where.startswith("scene.mjcf") else ""),
+                    + (_robot_in_file(file) if file and i >= len(cfg.scene.obstacles) else ""),
                 )
             ]
     return []
 
 
-def _robot_in_file(file: Any) -> str:
-    """A hint when the scene file (`MjcfObstacles`) also holds moving bodies: a robot in it
-    has its fixed base read as a static geom, an obstacle round the robot's own base."""
-    moving = [s.split(":")[0] for s in file.skipped if s.endswith("on a moving body")]
-    if not moving:
+def _robot_in_file(file: MjcfObstacles) -> str:
+    """A hint when the scene file also holds moving bodies: a robot in it has its fixed
+    base read as a static geom, an obstacle round the robot's own base."""
+    if not file.moving:
         return ""
-    return (f"; the file also holds {len(moving)} geom(s) on moving bodies (e.g. "
-            f"{moving[0]!r}): if it includes the robot, its fixed base is read as an "
+    return (f"; the file also holds {len(file.moving)} geom(s) on moving bodies (e.g. "
+            f"{file.moving[0]!r}): if it includes the robot, its fixed base is read as an "
             "obstacle; give scene.mjcf a file with the scene only")  # fmt: skip
 
 
