@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.energy import distance
@@ -259,6 +260,14 @@ def test_the_relaxation_solves_its_block_tridiagonal_system(M: int, n: int) -> N
     x = _block_tridiagonal_solve(diag, off, rhs)
     ref = np.linalg.solve(dense, rhs.ravel()).reshape(M, n)
     assert np.max(np.abs(x - ref)) <= 1e-10 * np.max(np.abs(ref))
+
+
+def test_metric_relax_needs_a_validity_check() -> None:
+    """Neither a segment check nor ``path_ok``: one clear error naming both."""
+    metric = KineticEnergyMetric(load_robot("planar2"))
+    line = np.linspace([0.0, 0.0], [1.0, 0.5], 5)
+    with pytest.raises(InvalidArgument, match="segment check or path_ok"):
+        metric_relax(None, lambda Q: np.full(len(Q), np.inf), metric, line)
 
 
 def test_metric_relax_lowers_the_energy_and_keeps_validity() -> None:

@@ -184,7 +184,7 @@ def _hold_active(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray, y: np.ndarr
 
 
 def metric_relax(
-    segment: SegmentValidity,
+    segment: SegmentValidity | None,
     clearances: Clearances,
     metric: Metric,
     path: np.ndarray,
@@ -203,7 +203,7 @@ def metric_relax(
     """A path of lower cost (module docstring) with the samples and ends of ``path``.
 
     Args:
-        segment: the planner's segment check (`SegmentValidity`).
+        segment: the planner's segment check (`SegmentValidity`); None with ``path_ok``.
         clearances: its sphere clearances (`Clearances`), the query's obstacles set.
         metric: the planner's metric.
         path: (T, n) valid samples [rad] (T >= 3 to move anything), e.g. from
@@ -240,9 +240,13 @@ def metric_relax(
     lo, hi = _box(bounds, x)
     x[1:-1] = np.clip(x[1:-1], lo, hi)  # the ends stay as given (checked by the caller)
 
+    if path_ok is None and segment is None:
+        raise InvalidArgument("metric_relax: a segment check or path_ok, got neither")
+
     def valid(y: np.ndarray) -> bool:
         if path_ok is not None:
             return path_ok(y)
+        assert segment is not None  # checked above
         return all(segment(a, b, resolution) for a, b in zip(y[:-1], y[1:], strict=True))
 
     t_end = time.perf_counter() + budget

@@ -155,30 +155,22 @@ def relax_taut(planner: SphereSearch, x: np.ndarray, budget: float,
     out (no tightening)."""
     p, end = planner, time.perf_counter() + budget
     check, box = p.sampling, (p.robot.q_min, p.robot.q_max)  # every iterate within the limits
-    taut = metric_relax(check.segment_valid, check.check.clearances, p.metric, x,
-                        budget=TIGHTEN_AFTER * budget, resolution=RELAX_RESOLUTION,
-                        seed_valid=seed_valid, bounds=box, path_ok=_valid(p))  # fmt: skip
-    if not seed_valid and not _valid(p)(taut):
+    taut = metric_relax(None, check.check.clearances, p.metric, x,
+                        budget=TIGHTEN_AFTER * budget, seed_valid=seed_valid, bounds=box,
+                        path_ok=_valid(p, check.margin))  # fmt: skip
+    if not seed_valid and not _valid(p, check.margin)(taut):
         return None
     if p.margin > 0.0 and time.perf_counter() < end:  # nearer, valid steps, to the margin
-
-        def at_margin(a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
-            return check.check.segment_valid(a, b, resolution, p.margin)
-
-        def path_at_margin(y: np.ndarray) -> bool:
-            return check.check.path_valid(y, RELAX_RESOLUTION, p.margin)
-
-        taut = metric_relax(at_margin, check.check.clearances, p.metric, taut,
+        taut = metric_relax(None, check.check.clearances, p.metric, taut,
                             budget=max(end - time.perf_counter(), 0.0), delta=p.margin,
-                            resolution=RELAX_RESOLUTION, stay_valid=True, bounds=box,
-                            path_ok=path_at_margin)  # fmt: skip
+                            stay_valid=True, bounds=box, path_ok=_valid(p, p.margin))  # fmt: skip
     return taut
 
 
-def _valid(planner: SphereSearch) -> Callable[[np.ndarray], bool]:
-    """Whether every segment of a path (T, n) passes the sampling check at the
-    relaxation's resolution (one call of the check)."""
-    return lambda x: planner.sampling.path_valid(x, RELAX_RESOLUTION)
+def _valid(planner: SphereSearch, margin: float) -> Callable[[np.ndarray], bool]:
+    """Whether every segment of a path (T, n) passes the sampling check at ``margin``
+    [m] and the relaxation's resolution (one call of the check)."""
+    return lambda x: planner.sampling.check.path_valid(x, RELAX_RESOLUTION, margin)
 
 
 def bumped_line(q0: np.ndarray, q1: np.ndarray, samples: int, q_min: np.ndarray,

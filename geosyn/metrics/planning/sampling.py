@@ -163,11 +163,6 @@ class Sampling:
         invalid configuration."""
         return self.check.segment_valid(a, b, resolution, self.margin)
 
-    def path_valid(self, X: np.ndarray, resolution: float) -> bool:
-        """Whether every segment of the path ``X`` (T, n) [rad] is valid (`segment_valid`,
-        in one call of the check; ``X[0]`` itself not checked)."""
-        return self.check.path_valid(X, resolution, self.margin)
-
     def connect(self, q0: np.ndarray, q1: np.ndarray, lo: np.ndarray, hi: np.ndarray,
                 budget: float, seed: int) -> tuple[np.ndarray | None, int]:  # fmt: skip
         """RRT-Connect from ``q0`` to ``q1`` (n,) [rad] in the box ``[lo, hi]`` within

@@ -103,7 +103,7 @@ def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float
     (``valid``: every step keeps the floor) or pushing out (the first iterate that keeps
     it, then lower ones)."""
     return metric_relax(
-        lambda a, b, r: True, terms.clearances, planner.metric, path, budget=budget,
+        None, terms.clearances, planner.metric, path, budget=budget,
         delta=delta, stay_valid=valid, seed_valid=valid, path_ok=terms.path_ok,
         fd_step=EXACT_FD_STEP, bounds=(planner.robot.q_min, planner.robot.q_max),
     )  # fmt: skip
