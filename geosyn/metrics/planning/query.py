@@ -146,6 +146,10 @@ class Query:
         """Time left of the budget [s] (negative once spent)."""
         return self.budget - (time.perf_counter() - self.t0)
 
+    def reserve(self) -> float:
+        """Time [s] a polishing keeps back for one final check (1.5 times the last one's)."""
+        return 1.5 * self.check_time + 0.005
+
     def finish(self, res: CollocationResult, init: np.ndarray | None, seed_name: str,
                share: float) -> Plan | None:  # fmt: skip
         """The plan if ``res`` passes the fine check, else solved again from the same
@@ -258,7 +262,7 @@ class Query:
         def rrt(index: int, seconds: float) -> np.ndarray | None:
             return self._rrt(index, seconds)[0]
 
-        reserve = 1.5 * self.check_time + 0.005
+        reserve = self.reserve()
         ample = p.exact is not None and left() - 2.0 * reserve > 2.0 * EXACT_KEEP
         keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
         most = SHORT_SEEDS if p.exact is not None and not ample else None

@@ -154,7 +154,7 @@ def thinner_plan(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
         return plan
     length, rounds = metric_length(p.metric, plan.q), 0
     while stale < THIN_PATIENCE:
-        reserve = 1.5 * query.check_time + 0.005
+        reserve = query.reserve()
         spare = left() - 2.0 * reserve
         if spare < THIN_MIN_TIME:
             break
