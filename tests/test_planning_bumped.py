@@ -111,3 +111,33 @@ def test_relaxed_lines_come_out_clear_or_say_none(planner: Planner) -> None:
         np.testing.assert_array_equal(x[[0, -1]], [Q0, Q1])
         assert _nearest(planner, x) > 0.0
         assert all(planner.segment_valid(a, b, 0.02) for a, b in zip(x[:-1], x[1:], strict=True))
+
+
+def test_a_push_out_stops_at_its_first_valid_iterate(planner: Planner) -> None:
+    """``first_valid`` from the bumped line through the post: the path check is passed
+    once, by the iterate returned (no later one is made), which is clear of the post 16x
+    finer with its ends kept; without it the relaxation goes on to lower energies (the
+    full relaxation's energy is below the first valid iterate's)."""
+    planner.term.set_obstacles([POST])
+    planner.sphere_check.set_obstacles([POST])
+    line = bumped_line(Q0, Q1, 13, ROBOT.q_min, ROBOT.q_max, seed=0, index=1)
+    verdicts: list[bool] = []
+
+    def path_ok(y: np.ndarray) -> bool:
+        ok = all(planner.segment_valid(a, b, 0.02) for a, b in zip(y[:-1], y[1:], strict=True))
+        verdicts.append(ok)
+        return ok
+
+    def relax(first: bool) -> np.ndarray:
+        verdicts.clear()
+        return metric_relax(None, planner.sphere_check.clearances, planner.metric, line,
+                            budget=30.0, seed_valid=False, path_ok=path_ok,
+                            first_valid=first)  # fmt: skip
+
+    out = relax(True)
+    assert verdicts.count(True) == 1 and verdicts[-1]
+    np.testing.assert_array_equal(out[[0, -1]], line[[0, -1]])
+    assert _nearest(planner, out) > 0.0
+    full = relax(False)
+    assert verdicts.count(True) > 1
+    assert _energy(planner, full) < _energy(planner, out)

@@ -9,6 +9,8 @@ path is shorter in the metric.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from test_planning_anytime import _metric_length
@@ -17,7 +19,9 @@ from test_planning_tighten import BLOCK, HOME, _brute, block_query
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.geodesic.energy import distance
 from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning import query as query_module
 from geosyn.metrics.planning.exact_path import checked_configurations
+from geosyn.metrics.planning.query import Query
 from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINKS
 from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_push
 from geosyn.robots import load_robot
@@ -89,3 +93,66 @@ def test_a_plan_from_the_thinner_spheres_is_verified_and_says_so(planner: Planne
     )
     assert lowest >= EXACT_FLOOR * planner.margin - 1e-6
     assert _metric_length(planner.metric, plan.q) >= 0.99 * distance(planner.metric, q0, q1)
+
+
+class _ShortQuery(Query):
+    """A query whose clock always shows `SHORT_LEFT` [s] left: too short to keep
+    `EXACT_KEEP` back (so a short polishing), long enough for the thinner search. Its
+    real budget is long, so no check is skipped for lack of time: what it tries does not
+    depend on how busy the machine is."""
+
+    def left(self) -> float:
+        return SHORT_LEFT
+
+
+SHORT_LEFT = 0.19
+
+
+def _short_polish(planner: Planner) -> tuple[float, object, float]:
+    """(the sampled plan's length, the polished plan, its length) round the block."""
+    q0, q1 = _ends()
+    with block_query(planner, q0, q1):
+        query = _ShortQuery(planner, q0, q1, 100.0, 0, time.perf_counter())
+        assert not query.ample(query.left())
+        sampled = query.sampled()
+        assert sampled is not None
+        polished = query.polish(sampled)
+    m = planner.metric
+    return _metric_length(m, sampled.q), polished, _metric_length(m, polished.q)
+
+
+def test_a_short_polishing_takes_the_thinner_spheres_first(planner: Planner) -> None:
+    """Round the block, a polishing too short to keep `EXACT_KEEP` back returns the
+    thinner search's path when it is shorter, without pulling the covering spheres'
+    seeds taut (its attempts: no "polishing stopped after"); the plan is shorter than the
+    sampled one and keeps the floor on the brute-force referee at every configuration
+    of its exact check (1e-6 m)."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    before, plan, after = _short_polish(planner)
+    assert after < before
+    assert "the thinner spheres' path" in plan.attempts[-1]  # the plan kept
+    assert not any("polishing stopped after" in a for a in plan.attempts)
+    lowest = min(
+        _brute(robot, exact, q) for q in checked_configurations(plan.q, planner.exact_resolution)
+    )
+    assert lowest >= EXACT_FLOOR * planner.margin - 1e-6
+
+
+def test_a_short_polishing_falls_back_on_the_covering_spheres(
+    planner: Planner, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """When the thinner search finds nothing shorter (here: replaced by one that returns
+    the plan it is given), the covering spheres' seeds are pulled taut (`SHORT_SEEDS`:
+    "polishing stopped after 1 seed(s)") and the plan is shorter than the sampled one,
+    keeping the floor on the brute-force referee (1e-6 m)."""
+    robot, exact = planner.robot, planner.exact
+    assert exact is not None
+    monkeypatch.setattr(query_module, "thinner_plan", lambda query, plan, left: plan)
+    before, plan, after = _short_polish(planner)
+    assert any(a.startswith("polishing stopped after 1 seed") for a in plan.attempts)
+    assert after < before
+    lowest = min(
+        _brute(robot, exact, q) for q in checked_configurations(plan.q, planner.exact_resolution)
+    )
+    assert lowest >= EXACT_FLOOR * planner.margin - 1e-6

@@ -246,14 +246,25 @@ class Query:
         checks' time) is left (`exact_tighten`), verified once, and kept if it passes
         and is shorter than ``plan`` (else the untightened one, verified in turn); then,
         with time left, seeds on a thinner sphere model pushed out on the exact geometry
-        (`geosyn.metrics.planning.thin.thinner_plan`). All within ``budget`` [s] when
-        less than the time left."""
+        (`geosyn.metrics.planning.thin.thinner_plan`). A polishing too short to keep
+        `EXACT_KEEP` back takes the thinner model first, and the spheres' seeds only
+        when it found nothing shorter (`geosyn.metrics.planning.thin`, "short"). All
+        within ``budget`` [s] when less than the time left."""
         end = time.perf_counter() + budget
 
         def left() -> float:
             return min(self.left(), end - time.perf_counter())
 
+        if self.p.exact is not None and not self.ample(left()):  # short: thinner first
+            if (thinner := thinner_plan(self, plan, left)) is not plan:
+                return thinner
+            return self._polish_on_spheres(plan, left)
         return thinner_plan(self, self._polish_on_spheres(plan, left), left)
+
+    def ample(self, left: float) -> bool:
+        """Whether a polishing with ``left`` [s] keeps `EXACT_KEEP` back for its exact
+        tightening (more than twice that beyond two final checks)."""
+        return left - 2.0 * self.reserve() > 2.0 * EXACT_KEEP
 
     def _polish_on_spheres(self, plan: Plan, left: Callable[[], float]) -> Plan:
         """`polish` on the planner's own spheres, then the exact tightening."""
@@ -263,7 +274,7 @@ class Query:
             return self._rrt(index, seconds)[0]
 
         reserve = self.reserve()
-        ample = p.exact is not None and left() - 2.0 * reserve > 2.0 * EXACT_KEEP
+        ample = p.exact is not None and self.ample(left())
         keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
         most = SHORT_SEEDS if p.exact is not None and not ample else None
         shortest, length, how, self.restart = taut_seeds(

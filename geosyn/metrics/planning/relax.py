@@ -199,6 +199,7 @@ def metric_relax(
     fd_step: float = 1e-6,
     seed_valid: bool = True,
     bounds: tuple[np.ndarray, np.ndarray] | None = None,
+    first_valid: bool = False,
 ) -> np.ndarray:
     """A path of lower cost (module docstring) with the samples and ends of ``path``.
 
@@ -226,6 +227,9 @@ def metric_relax(
             energy, then lower ones (never with ``stay_valid``).
         bounds: ((n,), (n,)) lower and upper joint limits [rad] (may be infinite) that
             every iterate keeps (module docstring); ``path`` within them. None: free.
+        first_valid: stop at the first iterate kept (valid and of lower energy than
+            ``path``, or, with ``seed_valid`` False, the first valid one): a push-out
+            that a tightening follows needs no lower ones.
 
     Returns:
         (T, n) the accepted iterate of lowest energy whose segments all passed
@@ -288,6 +292,8 @@ def metric_relax(
         g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight, fd_step)
         if t_energy < lowest and (stay_valid or valid(x)):  # stay_valid: checked above
             best, lowest = x.copy(), t_energy
+            if first_valid:
+                break
         if fall < tol:
             break
         last = time.perf_counter() - begun

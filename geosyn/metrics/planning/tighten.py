@@ -35,6 +35,7 @@ __all__ = [
     "EXACT_KEEP",
     "EXACT_MIN_TIME",
     "PUSH_DELTA",
+    "PUSH_SHARE",
     "exact_push",
     "exact_tighten",
 ]
@@ -59,6 +60,13 @@ twice that is left (other RRT-Connect paths are not tried in it; with less, the
 polishing relaxes on the spheres first and the tightening gets what is left beyond
 `EXACT_MIN_TIME`): on the Panda scenes tightening shortened the kept path by
 1-4 %, a new RRT-Connect path in the last 0.1 s seldom did (measured)."""
+
+PUSH_SHARE = 0.85
+"""Share of `exact_push`'s budget that pushing the path out may take; it stops at the
+first iterate that keeps the floor, and the tightening has the rest. It took 0.6 and went
+on lowering the energy under the push-out's penalty after that iterate: on the Panda
+scenes a 0.16 s query's thinner path (slot) was then not brought out in its 44 ms, where
+59 ms did (measured); pushing stops early instead, and the tightening lowers it more."""
 
 PUSH_DELTA = 2.0
 """Clearance below which `exact_push` penalises a sample, in margins (it pushes the path
@@ -100,12 +108,13 @@ def _exact_terms(planner: Planner) -> _ExactTerms | None:
 def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float,
            delta: float, valid: bool) -> np.ndarray:  # fmt: skip
     """`metric_relax` of ``path`` on the exact terms within the joint limits: tightening
-    (``valid``: every step keeps the floor) or pushing out (the first iterate that keeps
-    it, then lower ones)."""
+    (``valid``: every step keeps the floor) or pushing out (until the first iterate that
+    keeps it)."""
     return metric_relax(
         None, terms.clearances, planner.metric, path, budget=budget,
         delta=delta, stay_valid=valid, seed_valid=valid, path_ok=terms.path_ok,
         fd_step=EXACT_FD_STEP, bounds=(planner.robot.q_min, planner.robot.q_max),
+        first_valid=not valid,
     )  # fmt: skip
 
 
@@ -127,10 +136,10 @@ def exact_tighten(planner: Planner, path: np.ndarray, budget: float) -> np.ndarr
 def exact_push(planner: Planner, path: np.ndarray, budget: float) -> np.ndarray | None:
     """``path`` (T, n) [rad], which may cross the query's obstacles, as ``nodes + 1``
     samples even in the metric, pushed out of them on the exact clearances (penalty below
-    `PUSH_DELTA` times the margin; the first iterate that keeps the floor at every
-    configuration of the exact check, then lower ones) and tightened (`exact_tighten`)
-    within ``budget`` [s]: (nodes + 1, n) [rad], or None (not brought out in time, or no
-    exact geometry)."""
+    `PUSH_DELTA` times the margin, in `PUSH_SHARE` of ``budget``, until the first iterate
+    that keeps the floor at every configuration of the exact check) and tightened
+    (`exact_tighten`) in the rest of ``budget`` [s]: (nodes + 1, n) [rad], or None (not
+    brought out in time, or no exact geometry)."""
     terms = _exact_terms(planner)
     if terms is None or budget <= 0.0:
         return None
@@ -138,7 +147,7 @@ def exact_push(planner: Planner, path: np.ndarray, budget: float) -> np.ndarray 
     x = even_in_metric(planner.metric, path, planner.nodes + 1)
     x[0], x[-1] = path[0], path[-1]
     if not terms.path_ok(x):
-        x = _relax(planner, terms, x, 0.6 * budget, PUSH_DELTA * planner.margin, valid=False)
+        x = _relax(planner, terms, x, PUSH_SHARE * budget, PUSH_DELTA * planner.margin, valid=False)
         if not terms.path_ok(x):
             return None
     return _relax(planner, terms, x, max(end - time.perf_counter(), 0.0), planner.margin, True)
