@@ -22,7 +22,7 @@ import pinocchio as pin
 import pytest
 
 from geosyn.metrics import KineticEnergyMetric
-from geosyn.metrics.planning import Planner, query
+from geosyn.metrics.planning import Planner, polish, query
 from geosyn.metrics.planning.exact_path import (
     checked_configurations,
     configuration_clearances,
@@ -107,7 +107,7 @@ def test_tightening_shortens_and_keeps_the_floor_on_the_meshes(
     q0, q1 = HOME.copy(), HOME.copy()
     q0[0], q1[0] = -0.9, 0.9  # the straight line swings the hand through the block
     with monkeypatch.context() as m:  # a 0.2 s plan was tightened already on a fast machine
-        m.setattr(query, "exact_tighten", lambda p, path, budget: np.asarray(path, dtype=float))
+        m.setattr(polish, "exact_tighten", lambda p, path, budget: np.asarray(path, dtype=float))
         m.setattr(query, "thinner_plan", lambda q, plan, left: plan)  # it tightens too
         path = np.asarray(planner.plan(q0, q1, [BLOCK], budget=0.2, seed=0).q)
     with block_query(planner, q0, q1):

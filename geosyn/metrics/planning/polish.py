@@ -1,6 +1,7 @@
-"""`taut_seeds`: the search of a sampled plan's polishing (`geosyn.metrics.planning.query.Query.polish`):
-the shortest path in the metric among seeds pulled taut by turns, until the time is
-spent or the seeds stop paying.
+"""A sampled plan's polishing on the planner's covering spheres
+(`geosyn.metrics.planning.query.Query.polish`): `taut_seeds`, the shortest path in the
+metric among seeds pulled taut by turns, until the time is spent or the seeds stop
+paying; `sphere_polish`, that search's path tightened on the exact geometry and verified.
 
 The seeds, in turn: the sampled plan's own path (relaxed further), then a straight
 joint line bent by a random bump (`geosyn.metrics.planning.sampled.relaxed_line` #1,
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,8 +28,13 @@ from geosyn.metrics.planning.sampled import (
     relaxed_line,
 )
 from geosyn.metrics.planning.smoothing import metric_length
+from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
 
-__all__ = ["SHORT_SEEDS", "taut_seeds"]
+if TYPE_CHECKING:
+    from geosyn.metrics.planning.plan import Plan
+    from geosyn.metrics.planning.query import Query
+
+__all__ = ["SHORT_SEEDS", "sphere_polish", "taut_seeds"]
 
 SHORT_SEEDS = 1
 """Seeds after the sampled plan's own path that a polishing too short to keep
@@ -99,3 +106,43 @@ def taut_seeds(planner: SphereSearch, q0: np.ndarray, q1: np.ndarray, seed: int,
             path = rrt(restart // 2, (left() - reserve) / 3.0)
             bump, name = 0, f"RRT-Connect path #{restart // 2}"
     return shortest, length, how, restart  # seed ``restart`` not made yet
+
+
+def sphere_polish(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
+    """``plan`` (the query's sampled plan) polished on the planner's covering spheres
+    (`taut_seeds` from the query's sampled path, keeping `EXACT_KEEP` back when
+    `Query.ample`, else only `SHORT_SEEDS` seeds), its shortest path tightened on the
+    exact geometry when more than `EXACT_MIN_TIME` (and two exact checks' time) is left
+    (`exact_tighten`) and verified once, kept if it passes and is shorter (else the
+    untightened one, verified in turn); else ``plan``. ``left()``: the time left [s].
+    Updates the query's sampled path and next seed."""
+    p, q = query.p, query
+
+    def rrt(index: int, seconds: float) -> np.ndarray | None:
+        return q.connect(index, seconds)[0]
+
+    reserve = q.reserve()
+    ample = p.exact is not None and q.ample(left())
+    keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
+    most = SHORT_SEEDS if p.exact is not None and not ample else None
+    shortest, length, how, q.restart = taut_seeds(
+        p, q.q0, q.q1, q.seed, q.sampled_path, metric_length(p.metric, plan.q),
+        lambda: left() - keep, reserve, rrt, q.attempts, q.restart, most,
+    )  # fmt: skip
+    base = shortest if shortest is not None else np.asarray(plan.q)
+    if (
+        p.exact is not None
+        and len(base) > 2
+        and (spare := left() - 2.0 * reserve) > max(EXACT_MIN_TIME, 2.0 * q.check_time)
+    ):  # nearer on the robot's own geometry (its set-up runs whatever the budget)
+        tight = exact_tighten(p, base, spare)
+        if metric_length(p.metric, tight) < length:
+            told = f"{how or 'the sampled plan'}, tightened on the exact geometry"
+            # its own samples: the path whose every checked configuration kept the floor
+            if (better := q.verified(tight, told, resample=False)) is not None:
+                q.sampled_path = tight
+                return better
+    if shortest is not None and (better := q.verified(shortest, how)) is not None:
+        q.sampled_path = shortest
+        return better
+    return plan

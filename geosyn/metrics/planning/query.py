@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -45,7 +44,7 @@ from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.coarse import coarse_to_fine
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.polish import SHORT_SEEDS, taut_seeds
+from geosyn.metrics.planning.polish import sphere_polish
 from geosyn.metrics.planning.rrt import shortcut
 from geosyn.metrics.planning.sampled import (
     SAMPLED_CHECK_SHARE,
@@ -58,7 +57,7 @@ from geosyn.metrics.planning.sampled import (
 from geosyn.metrics.planning.sampling import sampling_box
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
 from geosyn.metrics.planning.thin import thinner_plan
-from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
+from geosyn.metrics.planning.tighten import EXACT_KEEP
 from geosyn.metrics.planning.verify import (
     REPAIR_STEP,
     exact_check,
@@ -204,7 +203,7 @@ class Query:
                 return None
         return None
 
-    def _rrt(self, index: int, budget: float) -> tuple[np.ndarray | None, int]:
+    def connect(self, index: int, budget: float) -> tuple[np.ndarray | None, int]:
         """RRT-Connect seed ``seed + index`` within ``budget`` [s] (`rrt_connect`)."""
         p, q0, q1 = self.p, self.q0, self.q1
         lo, hi = sampling_box(p.robot, q0, q1)
@@ -219,7 +218,7 @@ class Query:
         small = self.budget - search < MIN_COLLOCATION  # no collocation after it anyway
         if small:
             search = SAMPLED_SMALL * self.budget
-        path, grown = self._rrt(0, search)
+        path, grown = self.connect(0, search)
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
@@ -240,7 +239,7 @@ class Query:
         """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
         the last one's; `EXACT_KEEP` more kept back when more than twice that is left,
         else only `SHORT_SEEDS` other seeds): the shortest of its path relaxed further
-        and other seeds pulled taut (`geosyn.metrics.planning.polish.taut_seeds`: bumped
+        and other seeds pulled taut (`geosyn.metrics.planning.polish.sphere_polish`: bumped
         straight lines and RRT-Connect paths by turns, valid on the spheres) is
         tightened on the exact geometry when more than `EXACT_MIN_TIME` (and two exact
         checks' time) is left (`exact_tighten`), verified once, and kept if it passes
@@ -258,46 +257,13 @@ class Query:
         if self.p.exact is not None and not self.ample(left()):  # short: thinner first
             if (thinner := thinner_plan(self, plan, left)) is not plan:
                 return thinner
-            return self._polish_on_spheres(plan, left)
-        return thinner_plan(self, self._polish_on_spheres(plan, left), left)
+            return sphere_polish(self, plan, left)
+        return thinner_plan(self, sphere_polish(self, plan, left), left)
 
     def ample(self, left: float) -> bool:
         """Whether a polishing with ``left`` [s] keeps `EXACT_KEEP` back for its exact
         tightening (more than twice that beyond two final checks)."""
         return left - 2.0 * self.reserve() > 2.0 * EXACT_KEEP
-
-    def _polish_on_spheres(self, plan: Plan, left: Callable[[], float]) -> Plan:
-        """`polish` on the planner's own spheres, then the exact tightening."""
-        p = self.p
-
-        def rrt(index: int, seconds: float) -> np.ndarray | None:
-            return self._rrt(index, seconds)[0]
-
-        reserve = self.reserve()
-        ample = p.exact is not None and self.ample(left())
-        keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
-        most = SHORT_SEEDS if p.exact is not None and not ample else None
-        shortest, length, how, self.restart = taut_seeds(
-            p, self.q0, self.q1, self.seed, self.sampled_path, metric_length(p.metric, plan.q),
-            lambda: left() - keep, reserve, rrt, self.attempts, self.restart, most,
-        )  # fmt: skip
-        base = shortest if shortest is not None else np.asarray(plan.q)
-        if (
-            p.exact is not None
-            and len(base) > 2
-            and (spare := left() - 2.0 * reserve) > max(EXACT_MIN_TIME, 2.0 * self.check_time)
-        ):  # nearer on the robot's own geometry (its set-up runs whatever the budget)
-            tight = exact_tighten(p, base, spare)
-            if metric_length(p.metric, tight) < length:
-                told = f"{how or 'the sampled plan'}, tightened on the exact geometry"
-                # its own samples: the path whose every checked configuration kept the floor
-                if (better := self.verified(tight, told, resample=False)) is not None:
-                    self.sampled_path = tight
-                    return better
-        if shortest is not None and (better := self.verified(shortest, how)) is not None:
-            self.sampled_path = shortest
-            return better
-        return plan
 
     def verified(self, path: np.ndarray, how: str, resample: bool = True) -> Plan | None:
         """The sampled plan of ``path`` (T, n) [rad] (``resample``: ``nodes + 1`` samples
@@ -340,7 +306,7 @@ class Query:
             path = self.first_path  # its way round (the polished plan's may be another)
             self.attempts.append(f"{name}: the sampled plan's path as the seed")
         else:
-            found, grown = self._rrt(index, min(0.6 * self.left(), cap))
+            found, grown = self.connect(index, min(0.6 * self.left(), cap))
             if found is None:
                 self.attempts.append(f"{name}: no connection after {grown} nodes")
                 return None
