@@ -22,7 +22,7 @@ from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning import query as query_module
 from geosyn.metrics.planning.exact_path import checked_configurations
 from geosyn.metrics.planning.query import Query
-from geosyn.metrics.planning.thin import THIN_MIN_RADIUS, THIN_SHRINKS
+from geosyn.metrics.planning.thin import THIN_FIRST, THIN_MIN_RADIUS, THIN_SHRINKS
 from geosyn.metrics.planning.tighten import EXACT_FLOOR, exact_push
 from geosyn.robots import load_robot
 from geosyn.world import Sphere
@@ -96,8 +96,9 @@ def test_a_plan_from_the_thinner_spheres_is_verified_and_says_so(planner: Planne
 
 
 class _ShortQuery(Query):
-    """A query whose clock always shows `SHORT_LEFT` [s] left: too short to keep
-    `EXACT_KEEP` back (so a short polishing), long enough for the thinner search. Its
+    """A query whose clock always shows `SHORT_LEFT` [s] left: less than `THIN_FIRST`
+    and too short to keep `EXACT_KEEP` back (a short polishing: `SHORT_SEEDS`), long
+    enough for the thinner search. Its
     real budget is long, so no check is skipped for lack of time: what it tries does not
     depend on how busy the machine is."""
 
@@ -113,7 +114,7 @@ def _short_polish(planner: Planner) -> tuple[float, object, float]:
     q0, q1 = _ends()
     with block_query(planner, q0, q1):
         query = _ShortQuery(planner, q0, q1, 100.0, 0, time.perf_counter())
-        assert not query.ample(query.left())
+        assert query.left() < THIN_FIRST and not query.ample(query.left())
         sampled = query.sampled()
         assert sampled is not None
         polished = query.polish(sampled)
@@ -122,7 +123,7 @@ def _short_polish(planner: Planner) -> tuple[float, object, float]:
 
 
 def test_a_short_polishing_takes_the_thinner_spheres_first(planner: Planner) -> None:
-    """Round the block, a polishing too short to keep `EXACT_KEEP` back returns the
+    """Round the block, a polishing with less than `THIN_FIRST` left returns the
     thinner search's path when it is shorter, without pulling the covering spheres'
     seeds taut (its attempts: no "polishing stopped after"); the plan is shorter than the
     sampled one and keeps the floor on the brute-force referee at every configuration

@@ -12,9 +12,10 @@ One query, within a stated time budget:
    `geosyn.metrics.planning.query`), whose path is also RRT-Connect's first seed in 3.;
    with less than `query.MIN_COLLOCATION` left after it, the rest of the budget relaxes
    it further and tries other seeds (bumped straight lines and RRT-Connect paths, by
-   turns, only the first bump when the time is short: `polish.SHORT_SEEDS`; then the
-   same on a thinner sphere model, pushed out on the exact geometry:
-   `geosyn.metrics.planning.thin`) instead of 2.-3.; with more, the same for `query.POLISH_FIRST` of it first;
+   turns, only the first bump when the time is short: `polish.SHORT_SEEDS`; and the
+   same on a thinner sphere model, pushed out on the exact geometry, first when less
+   than `thin.THIN_FIRST` is left: `geosyn.metrics.planning.thin`) instead of 2.-3.;
+   with more, the same for `query.POLISH_FIRST` of it first;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
    (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the

@@ -56,7 +56,7 @@ from geosyn.metrics.planning.sampled import (
 )
 from geosyn.metrics.planning.sampling import sampling_box
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
-from geosyn.metrics.planning.thin import thinner_plan
+from geosyn.metrics.planning.thin import THIN_FIRST, thinner_plan
 from geosyn.metrics.planning.tighten import EXACT_KEEP
 from geosyn.metrics.planning.verify import (
     REPAIR_STEP,
@@ -245,16 +245,15 @@ class Query:
         checks' time) is left (`exact_tighten`), verified once, and kept if it passes
         and is shorter than ``plan`` (else the untightened one, verified in turn); then,
         with time left, seeds on a thinner sphere model pushed out on the exact geometry
-        (`geosyn.metrics.planning.thin.thinner_plan`). A polishing too short to keep
-        `EXACT_KEEP` back takes the thinner model first, and the spheres' seeds only
-        when it found nothing shorter (`geosyn.metrics.planning.thin`, "short"). All
-        within ``budget`` [s] when less than the time left."""
+        (`geosyn.metrics.planning.thin.thinner_plan`). With less than `THIN_FIRST` left
+        the thinner model comes first, and the spheres' seeds only when it found
+        nothing shorter. All within ``budget`` [s] when less than the time left."""
         end = time.perf_counter() + budget
 
         def left() -> float:
             return min(self.left(), end - time.perf_counter())
 
-        if self.p.exact is not None and not self.ample(left()):  # short: thinner first
+        if self.p.exact is not None and left() < THIN_FIRST:
             if (thinner := thinner_plan(self, plan, left)) is not plan:
                 return thinner
             return sphere_polish(self, plan, left)

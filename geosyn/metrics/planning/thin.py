@@ -16,13 +16,9 @@ On the Panda benchmark scenes (`benchmarks/RESULTS.md`, issue 22, twelfth round)
 found ways round that the covering spheres had shut: at a 2 s budget, 1.006 of geodex's
 length on table_box (1.033 before), 0.996 on pillar_pipe_panel (1.014).
 
-Short: a polishing too short to keep `geosyn.metrics.planning.tighten.EXACT_KEEP` back
-for the spheres' tightening (a 0.08-0.23 s query) runs this search first, and the
-covering spheres' seeds only when it found nothing shorter. The other way round, the
-spheres' seed and its tightening took the time and left the query 25-55 ms unused:
-on the 14 Panda scenes at 0.1 / 0.13 / 0.16 s, <= geodex's length on 10 / 10 / 12 of 14
-(largest 1.014 / 1.014 / 1.010); thinner first, 13 / 14 / 13 (1.012 / 0.998 / 1.000),
-fourteenth round, measured.
+First: a polishing with less than `THIN_FIRST` left runs this search first, and the
+covering spheres' seeds only when it found nothing shorter (`Query.polish`); with more,
+the spheres' seeds and their tightening come first.
 """
 
 from __future__ import annotations
@@ -49,6 +45,7 @@ if TYPE_CHECKING:
     from geosyn.metrics.planning.query import Query
 
 __all__ = [
+    "THIN_FIRST",
     "THIN_MARGIN",
     "THIN_MIN_RADIUS",
     "THIN_MIN_TIME",
@@ -66,6 +63,17 @@ On the Panda scenes (largest length against geodex's at 0.3 / 1 / 2 s, measured)
 changed little; 15 mm alone 1.004 / 1.005 / 1.003; 20 mm alone 1.021 / 0.998 / 1.003;
 25 mm alone 1.029 / 0.998 / 1.004: the first round, all a 0.3 s budget has, is best at
 15 mm, later rounds find more at 25 mm."""
+
+THIN_FIRST = 0.6
+"""Time left [s] below which a polishing searches the thinner spheres before the covering
+ones. The other way round, a 0.08-0.23 s query's one covering-sphere seed and its
+tightening took the time and left 25-55 ms of it unused, and a 0.25-0.45 s query spent
+its time on seeds that the tightening could not bring near the meshes. On the 14 Panda
+scenes (fourteenth round, measured), scenes <= geodex's length, spheres first -> this
+first: 10 -> 13 at 0.1 s, 10 -> 14 at 0.13 s, 12 -> 13 at 0.16 s, 12 -> 14 at 0.35 s,
+13 -> 14 at 0.45 s (0.25 and 0.3 s: 12 either way); largest ratio 1.014 -> 1.012,
+1.014 -> 0.998, 1.010 -> 1.000, 1.003 -> 0.997, 1.007 -> 0.998 (0.25 / 0.3 s: 1.002 ->
+1.001, 1.013 -> 1.006); from 0.6 s on, the same counts either way."""
 
 THIN_MIN_RADIUS = 0.005
 """Least radius [m] of a thinner sphere."""
