@@ -40,7 +40,7 @@ def _points(robot, exact: ExactClearance, q: np.ndarray) -> list[np.ndarray]:  #
     data = robot.model.createData()
     pin.forwardKinematics(robot.model, data, q)
     out = []
-    for obj, j in zip(exact.objects, exact._joint, strict=True):
+    for obj, j in zip(exact.objects, exact.joints, strict=True):
         if obj.kind == "mesh":
             local = obj.vertices
         elif obj.kind == "box":
@@ -112,7 +112,7 @@ def _pad_crossing(robot, exact: ExactClearance) -> tuple[Sphere, np.ndarray]:  #
 
     def placement(q: np.ndarray) -> pin.SE3:
         pin.forwardKinematics(robot.model, data, q)
-        return data.oMi[exact._joint[k]] * pin.SE3(pad.placement)
+        return data.oMi[exact.joints[k]] * pin.SE3(pad.placement)
 
     M = placement(HOME)
     J = np.column_stack([(placement(HOME + 1e-6 * e).translation - M.translation) / 1e-6

@@ -29,7 +29,13 @@ from geosyn.robots.collision_geometry import CollisionObject, collision_objects
 from geosyn.robots.robot import Robot
 from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere, check_shape
 
-__all__ = ["ExactClearance", "PathClearance", "checked_configurations", "coal_shape"]
+__all__ = [
+    "ExactClearance",
+    "PathClearance",
+    "PlacedObstacle",
+    "checked_configurations",
+    "coal_shape",
+]
 
 
 def checked_configurations(path: np.ndarray, resolution: float) -> np.ndarray:
@@ -44,6 +50,22 @@ def checked_configurations(path: np.ndarray, resolution: float) -> np.ndarray:
         s = np.arange(1, k + 1)[:, None] / k
         pts.append(a + s * (b - a))
     return np.vstack(pts)
+
+
+class PlacedObstacle(NamedTuple):
+    """An obstacle as `ExactClearance` measures it.
+
+    Attributes:
+        geom: its coal geometry (in its own frame).
+        obj: the coal collision object (geometry and pose).
+        pose: (4, 4) its pose in the world frame [m].
+        shape: the `geosyn.world` shape it was made from.
+    """
+
+    geom: Any
+    obj: Any
+    pose: np.ndarray
+    shape: Shape
 
 
 class PathClearance(NamedTuple):
@@ -127,6 +149,17 @@ class ExactClearance:
 
     Builds coal shapes once (allocates); `clearance` and `path_clearance` only evaluate.
 
+    Attributes (read-only, for batched checks such as
+    `geosyn.metrics.planning.exact_path`; one entry per collision object of ``objects``):
+        geoms: coal geometry of each object (a mesh: its convex hull).
+        joints: Pinocchio joint index each object moves with (0: the world).
+        placements: (pin.SE3) each object's placement in its joint's frame.
+        balls: ((3,) centre in the joint's frame [m], radius [m]) of each object's
+            bounding ball.
+        request: the coal distance request used.
+        data: Pinocchio data of ``robot.model``: a workspace, overwritten by every
+            evaluation.
+
     Raises:
         geosyn.robots.RobotFileError: no readable collision geometry.
     """
@@ -137,32 +170,38 @@ class ExactClearance:
         self.robot = robot
         self.near = check_positive(near, "near", "m")
         self.objects = collision_objects(robot)
-        self._geoms = [coal_shape(o) for o in self.objects]
-        self._joint = [
+        self.geoms = tuple(coal_shape(o) for o in self.objects)
+        self.joints = tuple(
             robot.joint_id(o.joint) if o.joint != "universe" else 0 for o in self.objects
-        ]
-        self._place = [pin.SE3(o.placement) for o in self.objects]
-        # bounding ball of each object in its joint frame (centre, radius)
-        self._ball = []
-        for o, g in zip(self.objects, self._geoms, strict=True):
+        )
+        self.placements = tuple(pin.SE3(o.placement) for o in self.objects)
+        balls = []  # bounding ball of each object in its joint frame (centre, radius)
+        for o, g in zip(self.objects, self.geoms, strict=True):
             g.computeLocalAABB()
             c_local = np.asarray(g.aabb_center)
             c = o.placement[:3, :3] @ c_local + o.placement[:3, 3]
-            self._ball.append((c, float(g.aabb_radius)))
-        self._request = coal.DistanceRequest()
-        self._data = robot.model.createData()
-        self._obstacles: list[tuple[object, object, np.ndarray, Shape]] = []
+            balls.append((c, float(g.aabb_radius)))
+        self.balls: tuple[tuple[np.ndarray, float], ...] = tuple(balls)
+        self.request = coal.DistanceRequest()
+        self.data = robot.model.createData()
+        self._obstacles: tuple[PlacedObstacle, ...] = ()
+
+    @property
+    def obstacles(self) -> tuple[PlacedObstacle, ...]:
+        """The obstacles set (`set_obstacles`), with their coal geometry and pose."""
+        return self._obstacles
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """Replace the obstacles (shapes of `geosyn.world`)."""
         import coal
 
-        self._obstacles = []
+        placed = []
         for i, ob in enumerate(obstacles):
             ob = check_shape(ob, f"obstacles[{i}]")
             geom, T = _obstacle_geometry(ob)
             obj = coal.CollisionObject(geom, coal.Transform3s(T[:3, :3], T[:3, 3]))
-            self._obstacles.append((geom, obj, T, ob))
+            placed.append(PlacedObstacle(geom, obj, T, ob))
+        self._obstacles = tuple(placed)
 
     def clearance(self, q: np.ndarray) -> tuple[float, str, int]:
         """Smallest exact clearance [m] at ``q`` (n,) [rad], its link and obstacle
@@ -173,28 +212,28 @@ class ExactClearance:
 
         if not self._obstacles:
             return math.inf, "", -1
-        model, data = self.robot.model, self._data
+        model, data = self.robot.model, self.data
         pin.forwardKinematics(model, data, np.asarray(q, dtype=float))
-        oMj = [data.oMi[j] if j else pin.SE3.Identity() for j in self._joint]
+        oMj = [data.oMi[j] if j else pin.SE3.Identity() for j in self.joints]
         centres = np.array(
-            [M.rotation @ c + M.translation for M, (c, _) in zip(oMj, self._ball, strict=True)]
+            [M.rotation @ c + M.translation for M, (c, _) in zip(oMj, self.balls, strict=True)]
         )
-        radii = np.array([r for _, r in self._ball])
+        radii = np.array([r for _, r in self.balls])
         # lower bounds of every (object, obstacle) distance: the objects' bounding balls
         bound = (
-            np.column_stack([signed_distance(ob[3], centres) for ob in self._obstacles])
+            np.column_stack([signed_distance(ob.shape, centres) for ob in self._obstacles])
             - radii[:, None]
         )
         best, link, which = math.inf, "", -1
         for k, o in zip(*np.nonzero(bound < self.near), strict=True):
             if bound[k, o] >= best:
                 continue  # the exact distance is at least this lower bound
-            oMg = oMj[k] * self._place[k]
+            oMg = oMj[k] * self.placements[k]
             tf = coal.CollisionObject(
-                self._geoms[k], coal.Transform3s(oMg.rotation, oMg.translation)
+                self.geoms[k], coal.Transform3s(oMg.rotation, oMg.translation)
             )
             d = float(
-                coal.distance(tf, self._obstacles[o][1], self._request, coal.DistanceResult())
+                coal.distance(tf, self._obstacles[o].obj, self.request, coal.DistanceResult())
             )
             if d < best:
                 best, link, which = d, self.objects[k].link, int(o)

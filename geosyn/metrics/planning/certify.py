@@ -106,7 +106,7 @@ def displacement_weights(exact: ExactClearance) -> np.ndarray:
                 "revolute and prismatic joints"
             )
     w = np.zeros((len(exact.objects), model.nv))
-    for k, (joint, (centre, radius)) in enumerate(zip(exact._joint, exact._ball, strict=True)):
+    for k, (joint, (centre, radius)) in enumerate(zip(exact.joints, exact.balls, strict=True)):
         reach = float(np.linalg.norm(centre)) + radius  # the object, from its joint's origin
         j = joint
         while j > 0:  # up the chain: reach is now a bound of |x - o_j|
@@ -151,7 +151,7 @@ def certified_clearance(
             + ("" if np.all(np.isfinite(path)) else " with non-finite entries")
         )
     Q = checked_configurations(path, resolution)
-    if not exact._obstacles:
+    if not exact.obstacles:
         return CertifiedClearance(math.inf, math.inf, len(Q), 0, False)
     w = displacement_weights(exact)
     c = configuration_clearances(exact, Q, aids)

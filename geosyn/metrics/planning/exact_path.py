@@ -47,7 +47,7 @@ def _frames(exact: ExactClearance, Q: np.ndarray, joints: list[int],
             deadline: float) -> tuple[np.ndarray, np.ndarray] | None:  # fmt: skip
     """((K, J, 3, 3), (K, J, 3)) world rotations and translations of ``joints`` at every
     configuration of ``Q``, or None once ``deadline`` passes."""
-    model, data = exact.robot.model, exact._data
+    model, data = exact.robot.model, exact.data
     H = np.empty((len(Q), len(joints), 4, 4))
     for i, q in enumerate(Q):
         if i % 64 == 63 and time.perf_counter() > deadline:
@@ -81,17 +81,17 @@ def _lower_bounds(exact: ExactClearance, Q: np.ndarray, R: np.ndarray, p: np.nda
     """(K, L, O) lower bounds [m] of every exact (configuration, object, obstacle)
     distance: ``bounds`` where it gives one, the objects' bounding balls elsewhere (every
     object when ``bounds`` is None)."""
-    L, n_obs = len(exact._geoms), len(exact._obstacles)
+    L, n_obs = len(exact.geoms), len(exact.obstacles)
     bound = bounds(Q) if bounds is not None else np.full((len(Q), L, n_obs), -math.inf)
     balls = np.flatnonzero(np.isneginf(bound[0]).any(axis=1)) if len(Q) else np.arange(L)
     if balls.size:  # objects without a tighter bound: their bounding balls
-        c_local = np.array([exact._ball[k][0] for k in balls])  # in each joint's frame
-        radii = np.array([exact._ball[k][1] for k in balls])
+        c_local = np.array([exact.balls[k][0] for k in balls])  # in each joint's frame
+        radii = np.array([exact.balls[k][1] for k in balls])
         s = slot[balls]
         centres = np.einsum("klab,lb->kla", R[:, s], c_local) + p[:, s]  # (K, B, 3)
         flat = centres.reshape(-1, 3)
         ball = np.stack(
-            [signed_distance(ob[3], flat).reshape(len(Q), -1) - radii for ob in exact._obstacles],
+            [signed_distance(ob.shape, flat).reshape(len(Q), -1) - radii for ob in exact.obstacles],
             axis=-1,
         )
         bound[:, balls] = np.maximum(bound[:, balls], ball)
@@ -106,12 +106,12 @@ def _placements(exact: ExactClearance, Q: np.ndarray, aids: PathAids, deadline: 
     passes."""
     if aids.kinematics is not None:
         R, p = aids.kinematics(Q)
-        return R, p, np.array(exact._joint)
-    joints = sorted(set(exact._joint))
+        return R, p, np.array(exact.joints)
+    joints = sorted(set(exact.joints))
     frames = _frames(exact, Q, joints, deadline)
     if frames is None:
         return None
-    return frames[0], frames[1], np.array([joints.index(j) for j in exact._joint])
+    return frames[0], frames[1], np.array([joints.index(j) for j in exact.joints])
 
 
 def _coal_parts(exact: ExactClearance) -> tuple[np.ndarray, np.ndarray, list[tuple[Any, Any]]]:
@@ -120,9 +120,11 @@ def _coal_parts(exact: ExactClearance) -> tuple[np.ndarray, np.ndarray, list[tup
     world (what coal's geometry-level ``distance`` takes)."""
     import coal
 
-    R_place = np.array([pl.rotation for pl in exact._place])
-    t_place = np.array([pl.translation for pl in exact._place])
-    others = [(ob[0], coal.Transform3s(ob[2][:3, :3], ob[2][:3, 3])) for ob in exact._obstacles]
+    R_place = np.array([pl.rotation for pl in exact.placements])
+    t_place = np.array([pl.translation for pl in exact.placements])
+    others = [
+        (ob.geom, coal.Transform3s(ob.pose[:3, :3], ob.pose[:3, 3])) for ob in exact.obstacles
+    ]
     return R_place, t_place, others
 
 
@@ -137,7 +139,7 @@ def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
     import coal
 
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
-    obstacles = exact._obstacles
+    obstacles = exact.obstacles
     if not obstacles:
         return np.full(len(Q), math.inf)
     aids = aids if aids is not None else PathAids()
@@ -161,7 +163,7 @@ def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
             Rj = R[i, slot[k]]
             tf = coal.Transform3s(Rj @ R_place[k], Rj @ t_place[k] + p[i, slot[k]])
             geom, tf_o = others[o]
-            d = float(coal.distance(exact._geoms[k], tf, geom, tf_o, request,
+            d = float(coal.distance(exact.geoms[k], tf, geom, tf_o, request,
                                     coal.DistanceResult()))  # fmt: skip
             low = min(low, d)
         out[i] = low
@@ -194,7 +196,7 @@ def path_clearance(
 
     Q = checked_configurations(path, resolution)
     best = PathClearance(math.inf, 0.0, "", -1, len(Q), resolution)
-    obstacles = exact._obstacles
+    obstacles = exact.obstacles
     if not obstacles:
         return best
     aids = aids if aids is not None else PathAids()
@@ -214,9 +216,9 @@ def path_clearance(
     near = np.flatnonzero(bound < exact.near)
     order = near[np.argsort(bound[near], kind="stable")]
     sorted_bound = bound[order]
-    at, obj, obs = np.unravel_index(order, (len(Q), len(exact._geoms), len(obstacles)))
+    at, obj, obs = np.unravel_index(order, (len(Q), len(exact.geoms), len(obstacles)))
     R_place, t_place, others = _coal_parts(exact)
-    low, request = math.inf, exact._request
+    low, request = math.inf, exact.request
     hit: tuple[int, int, int] | None = None
     for start in range(0, len(order), CHUNK):
         if sorted_bound[start] >= low:
@@ -233,7 +235,7 @@ def path_clearance(
             if m % 16 == 15 and time.perf_counter() > deadline:  # 16 pairs: 0.3-2 ms
                 return best._replace(clearance=math.nan)
             geom, tf = others[o[m]]
-            d = float(coal.distance(exact._geoms[k[m]], coal.Transform3s(Rg[m], tg[m]),
+            d = float(coal.distance(exact.geoms[k[m]], coal.Transform3s(Rg[m], tg[m]),
                                     geom, tf, request, coal.DistanceResult()))  # fmt: skip
             if d < low:
                 low, hit = d, (int(i[m]), int(k[m]), int(o[m]))
