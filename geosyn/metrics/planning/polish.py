@@ -108,15 +108,15 @@ def taut_seeds(planner: SphereSearch, q0: np.ndarray, q1: np.ndarray, seed: int,
     return shortest, length, how, restart  # seed ``restart`` not made yet
 
 
-def sphere_polish(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
-    """``plan`` (the query's sampled plan) polished on the planner's covering spheres
+def sphere_polish(q: Query, plan: Plan, left: Callable[[], float]) -> Plan:
+    """``plan`` (query ``q``'s sampled plan) polished on the planner's covering spheres
     (`taut_seeds` from the query's sampled path, keeping `EXACT_KEEP` back when
     `Query.ample`, else only `SHORT_SEEDS` seeds), its shortest path tightened on the
     exact geometry when more than `EXACT_MIN_TIME` (and two exact checks' time) is left
     (`exact_tighten`) and verified once, kept if it passes and is shorter (else the
     untightened one, verified in turn); else ``plan``. ``left()``: the time left [s].
     Updates the query's sampled path and next seed."""
-    p, q = query.p, query
+    p = q.p
 
     def rrt(index: int, seconds: float) -> np.ndarray | None:
         return q.connect(index, seconds)[0]
