@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from geosyn.core.errors import GeosynError
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.planner import densify
@@ -68,12 +69,19 @@ def test_default_tries_other_seeds_and_never_returns_a_longer_path() -> None:
 
 
 def test_a_query_solves_the_nlps_of_its_own_slot_count() -> None:
-    big = planner(capacity=4, alternatives=0)
+    """A query builds the NLPs of its slot count on first use (``prebuild`` 4: those of
+    one slot are not built with the planner) and keeps them; its nodes are those of a
+    planner of that capacity (1e-9 rad); more obstacles than the capacity are refused.
+    The default planner has those of one slot built with it."""
+    big = planner(capacity=4, alternatives=0, prebuild=4)
     assert [big.slots(k) for k in range(6)] == [1, 1, 2, 4, 4, 4]
     ball = tip_ball()
     first = big.plan(Q0, Q1, [ball], budget=20.0)
     again = big.plan(Q0, Q1, [ball], budget=20.0)
     assert first.nlp_build_time > 0.0 and again.nlp_build_time == 0.0
+    assert (
+        planner(capacity=4, alternatives=0).plan(Q0, Q1, [ball], budget=20.0).nlp_build_time == 0.0
+    )
     exact = planner(capacity=1, alternatives=0).plan(Q0, Q1, [ball], budget=20.0)
     np.testing.assert_allclose(first.result.nodes, exact.result.nodes, atol=1e-9)
     assert big.term.capacity == 4 and len(big.term.obstacles) == 1  # the last query's
@@ -98,3 +106,9 @@ def test_a_lower_energy_way_round_replaces_the_straight_lines() -> None:
     assert plan.seed.startswith("rrt-connect") and plan.result.kind == "constrained"
     assert plan.result.energy < line.result.energy  # the seeded collocation beats both
     assert min(default.term.min_clearance(q) for q in densify(plan.q, 64)) > 0.0
+
+
+def test_a_negative_prebuild_is_refused_by_name() -> None:
+    """``prebuild`` is an obstacle count: below 0 it is refused, naming it."""
+    with pytest.raises(GeosynError, match="prebuild"):
+        Planner(KineticEnergyMetric(ROBOT), capacity=1, prebuild=-1)

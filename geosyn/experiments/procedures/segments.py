@@ -312,7 +312,8 @@ def avoiding_sequence(
             key = (id(metric), id(held[i]))
             if key not in planners:
                 spheres = planning_spheres(robot, held[i])
-                planners[key] = Planner(metric, capacity=max(1, len(obstacles)), spheres=spheres)
+                count = max(1, len(obstacles))
+                planners[key] = Planner(metric, capacity=count, spheres=spheres, prebuild=count)
             plan = _plan(planners[key], q, goal, obstacles, budget, seed + i, i, where)
             seg = planned_segment(metric, plan, q, t, float(durations[i]), steps)
             clearance = clearance_of(seg.q, held[i])

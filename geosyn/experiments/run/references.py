@@ -286,7 +286,8 @@ def planned_reference(
             f" ({'; '.join(coupling.constraints)}): the planner samples and shortcuts in the"
             " joints and its path leaves q = S z + c; use a 'log' or 'goals' reference"
         )
-    planner = Planner(metric, capacity=max(1, len(obstacles)), margin=ref.margin, nodes=ref.nodes)
+    count = max(1, len(obstacles))
+    planner = Planner(metric, capacity=count, margin=ref.margin, nodes=ref.nodes, prebuild=count)
     plan = planner.plan(np.array(ref.q_start), ref.planner_goal(), obstacles,
                         budget=ref.budget, seed=seed, certify=True)  # fmt: skip
     t = np.asarray(plan.result.t, dtype=np.float64)

@@ -153,8 +153,10 @@ class Planner:
         distance: signed distance of the clearance constraints, ``"exact"`` or
             ``"smooth"`` (see `geosyn.metrics.shaping.obstacle.DISTANCES`).
         hessian, tol, softmin: see `Collocation`.
+        prebuild: obstacle count whose NLPs are built with the planner, >= 0 (`slots`;
+            other counts' on their first query, or with `prepare`).
 
-    Builds the collocation NLP (allocates; see `Collocation`).
+    Builds the collocation NLPs of ``prebuild`` obstacles (allocates; see `Collocation`).
     """
 
     def __init__(
@@ -178,8 +180,10 @@ class Planner:
         tol: float = 1e-8,
         softmin: float | None = 1000.0,
         exact_resolution: float = 0.005,
+        prebuild: int = 1,
     ) -> None:
         t0 = time.perf_counter()
+        prebuild = check_int(prebuild, "prebuild", low=0)
         self.metric = check_metric(metric)
         robot = getattr(metric, "robot", None)
         if robot is None:
@@ -213,7 +217,7 @@ class Planner:
         self._full_term = self.term
         self._terms: dict[int, ObstacleTerm] = {self.term.capacity: self.term}
         self._collocations: dict[tuple[int, int, int], Collocation] = {}
-        self._build_nlps()
+        self.prepare(prebuild)  # other obstacle counts' NLPs on their first query
         if self.sphere_check.self_pairs:  # every query checks its ends with it: built now
             _ = self.self_collision
         self.build_time = time.perf_counter() - t0
@@ -241,8 +245,13 @@ class Planner:
         Every slot costs its clearance constraints and their derivatives at every
         constrained point whether an obstacle fills it or not (measured: 2.3-2.7x CPU
         time on 1-2 obstacle scenes with 8 slots rather than 1-2), so a query solves the
-        NLPs of its own slot count; each count's NLPs are built on its first query
-        (`Plan.nlp_build_time`) and kept.
+        NLPs of its own slot count. The planner builds those of ``prebuild`` obstacles
+        (default one slot: queries with 0-1 obstacles) when it is made; each other
+        count's on its first query (`Plan.nlp_build_time`, or `prepare`), and keeps
+        them. It built those of ``capacity`` slots instead: 0.43 s of a warm 0.47 s
+        `Planner()` and 5 s of an empty cache's 6.4 s first use on the Panda, for NLPs
+        that its 1-obstacle first query did not solve (issue 22, fourteenth round,
+        measured).
         """
         cap = self._full_term.capacity
         return cap if count >= cap else min(cap, 1 << max(count - 1, 0).bit_length())
