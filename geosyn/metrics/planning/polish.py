@@ -113,7 +113,7 @@ def sphere_polish(q: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     (`taut_seeds` from the query's sampled path, keeping `EXACT_KEEP` back when
     `Query.ample`, else only `SHORT_SEEDS` seeds), its shortest path tightened on the
     exact geometry when more than `EXACT_MIN_TIME` (and two exact checks' time) is left
-    (`exact_tighten`) and verified once, kept if it passes and is shorter (else the
+    beyond the final check's reserve (`exact_tighten`) and verified once, kept if it passes and is shorter (else the
     untightened one, verified in turn); else ``plan``. ``left()``: the time left [s].
     Updates the query's sampled path and next seed."""
     p = q.p
@@ -133,7 +133,7 @@ def sphere_polish(q: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     if (
         p.exact is not None
         and len(base) > 2
-        and (spare := left() - 2.0 * reserve) > max(EXACT_MIN_TIME, 2.0 * q.check_time)
+        and (spare := left() - reserve) > max(EXACT_MIN_TIME, 2.0 * q.check_time)
     ):  # nearer on the robot's own geometry (its set-up runs whatever the budget)
         tight = exact_tighten(p, base, spare)
         if metric_length(p.metric, tight) < length:
