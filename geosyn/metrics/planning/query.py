@@ -253,7 +253,7 @@ class Query:
         def left() -> float:
             return min(self.left(), end - time.perf_counter())
 
-        if self.p.exact is not None and left() < THIN_FIRST:
+        if self.p.exact is not None and self.p.margin > 0.0 and left() < THIN_FIRST:
             if (thinner := thinner_plan(self, plan, left)) is not plan:
                 return thinner
             return sphere_polish(self, plan, left)

@@ -163,10 +163,11 @@ def thinner_plan(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     (module docstring) that passes the query's checks and is shorter in the metric.
     Rounds of that search (other seeds each) run while `THIN_MIN_TIME` is left beyond
     two final checks (``left()``: the time left [s]), until `THIN_PATIENCE` rounds in a
-    row shorten the best by less than `POLISH_GAIN`; only for a robot with file geometry.
+    row shorten the best by less than `POLISH_GAIN`; only for a robot with file geometry
+    and a margin.
     Says in the query's attempts what it found."""
     p, best, stale = query.p, plan, 0
-    if p.exact is None:
+    if p.exact is None or p.margin <= 0.0:  # nothing to push out to (`exact_push`)
         return plan
     length, rounds = metric_length(p.metric, plan.q), 0
     while stale < THIN_PATIENCE:
