@@ -246,12 +246,9 @@ class Planner:
         constrained point whether an obstacle fills it or not (measured: 2.3-2.7x CPU
         time on 1-2 obstacle scenes with 8 slots rather than 1-2), so a query solves the
         NLPs of its own slot count. The planner builds those of ``prebuild`` obstacles
-        (default one slot: queries with 0-1 obstacles) when it is made; each other
-        count's on its first query (`Plan.nlp_build_time`, or `prepare`), and keeps
-        them. It built those of ``capacity`` slots instead: 0.43 s of a warm 0.47 s
-        `Planner()` and 5 s of an empty cache's 6.4 s first use on the Panda, for NLPs
-        that its 1-obstacle first query did not solve (issue 22, fourteenth round,
-        measured).
+        (default one slot) when it is made, each other count's on its first query
+        (`Plan.nlp_build_time`, or `prepare`), and keeps them (building ``capacity``'s
+        took 0.43 s of a warm 0.47 s Panda `Planner()`, unused by a 1-obstacle query).
         """
         cap = self._full_term.capacity
         return cap if count >= cap else min(cap, 1 << max(count - 1, 0).bit_length())
