@@ -183,6 +183,22 @@ def _hold_active(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray, y: np.ndarr
     off[k[above], :, a[above]] = 0.0  # the block (k + 1, k): column a of sample k
 
 
+def _path_check(segment: SegmentValidity | None, path_ok: Callable[[np.ndarray], bool] | None,
+                resolution: float) -> Callable[[np.ndarray], bool]:  # fmt: skip
+    """Whether a whole path (T, n) is valid: ``path_ok``, else ``segment`` on each of its
+    segments at ``resolution`` [rad]."""
+    if path_ok is not None:
+        return path_ok
+    if segment is None:
+        raise InvalidArgument("metric_relax: a segment check or path_ok, got neither")
+    check = segment
+
+    def valid(y: np.ndarray) -> bool:
+        return all(check(a, b, resolution) for a, b in zip(y[:-1], y[1:], strict=True))
+
+    return valid
+
+
 def metric_relax(
     segment: SegmentValidity | None,
     clearances: Clearances,
@@ -244,14 +260,7 @@ def metric_relax(
     lo, hi = _box(bounds, x)
     x[1:-1] = np.clip(x[1:-1], lo, hi)  # the ends stay as given (checked by the caller)
 
-    if path_ok is None and segment is None:
-        raise InvalidArgument("metric_relax: a segment check or path_ok, got neither")
-
-    def valid(y: np.ndarray) -> bool:
-        if path_ok is not None:
-            return path_ok(y)
-        assert segment is not None  # checked above
-        return all(segment(a, b, resolution) for a, b in zip(y[:-1], y[1:], strict=True))
+    valid = _path_check(segment, path_ok, resolution)
 
     t_end = time.perf_counter() + budget
     energy, Gs = _energy_value(metric, x)
