@@ -57,7 +57,7 @@ from geosyn.metrics.planning.sampled import (
 from geosyn.metrics.planning.sampling import sampling_box
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
 from geosyn.metrics.planning.thin import THIN_FIRST, thinner_plan
-from geosyn.metrics.planning.tighten import EXACT_KEEP
+from geosyn.metrics.planning.tighten import EXACT_KEEP, exact_movable
 from geosyn.metrics.planning.verify import (
     REPAIR_STEP,
     exact_check,
@@ -236,24 +236,19 @@ class Query:
         return plan
 
     def polish(self, plan: Plan, budget: float = math.inf) -> Plan:
-        """``plan`` (sampled) improved in the time left but one exact check's (1.5 times
-        the last one's; `EXACT_KEEP` more kept back when more than twice that is left,
-        else only `SHORT_SEEDS` other seeds): the shortest of its path relaxed further
-        and other seeds pulled taut (`geosyn.metrics.planning.polish.sphere_polish`: bumped
-        straight lines and RRT-Connect paths by turns, valid on the spheres) is
-        tightened on the exact geometry when more than `EXACT_MIN_TIME` (and two exact
-        checks' time) is left (`exact_tighten`), verified once, and kept if it passes
-        and is shorter than ``plan`` (else the untightened one, verified in turn); then,
-        with time left, seeds on a thinner sphere model pushed out on the exact geometry
-        (`geosyn.metrics.planning.thin.thinner_plan`). With less than `THIN_FIRST` left
-        the thinner model comes first, and the spheres' seeds only when it found
-        nothing shorter. All within ``budget`` [s] when less than the time left."""
+        """``plan`` (sampled) improved in the time left: seeds pulled taut on the covering
+        spheres and tightened on the exact geometry
+        (`geosyn.metrics.planning.polish.sphere_polish`), then seeds on a thinner sphere
+        model pushed out on the exact geometry
+        (`geosyn.metrics.planning.thin.thinner_plan`); with less than `THIN_FIRST` left,
+        the thinner model first and the covering spheres only when it found nothing
+        shorter. All within ``budget`` [s] when less than the time left."""
         end = time.perf_counter() + budget
 
         def left() -> float:
             return min(self.left(), end - time.perf_counter())
 
-        if self.p.exact is not None and self.p.margin > 0.0 and left() < THIN_FIRST:
+        if exact_movable(self.p) and left() < THIN_FIRST:
             if (thinner := thinner_plan(self, plan, left)) is not plan:
                 return thinner
             return sphere_polish(self, plan, left)

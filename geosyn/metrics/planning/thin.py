@@ -36,7 +36,7 @@ from geosyn.metrics.planning.polish import taut_seeds
 from geosyn.metrics.planning.sampled import POLISH_GAIN
 from geosyn.metrics.planning.sampling import Sampling, sampling_box
 from geosyn.metrics.planning.smoothing import metric_length
-from geosyn.metrics.planning.tighten import exact_push
+from geosyn.metrics.planning.tighten import exact_movable, exact_push
 from geosyn.robots.robot import CollisionSphere, Robot
 
 if TYPE_CHECKING:
@@ -167,7 +167,7 @@ def thinner_plan(query: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     and a margin.
     Says in the query's attempts what it found."""
     p, best, stale = query.p, plan, 0
-    if p.exact is None or p.margin <= 0.0:  # nothing to push out to (`exact_push`)
+    if not exact_movable(p):  # nothing to push out to (`exact_push`)
         return plan
     length, rounds = metric_length(p.metric, plan.q), 0
     while stale < THIN_PATIENCE:

@@ -36,6 +36,7 @@ __all__ = [
     "EXACT_MIN_TIME",
     "PUSH_DELTA",
     "PUSH_SHARE",
+    "exact_movable",
     "exact_push",
     "exact_tighten",
 ]
@@ -85,11 +86,17 @@ class _ExactTerms(NamedTuple):
     path_ok: Callable[[np.ndarray], bool]  # a whole path (T, n) keeps the floor
 
 
+def exact_movable(planner: Planner) -> bool:
+    """Whether ``planner``'s paths can be moved on the exact geometry (`exact_tighten`,
+    `exact_push`): it has file geometry and a margin (whose floor they keep)."""
+    return planner.exact is not None and planner.margin > 0.0
+
+
 def _exact_terms(planner: Planner) -> _ExactTerms | None:
     """The exact terms of ``planner``'s query (its obstacles set on the exact checker), or
-    None without exact geometry or margin."""
+    None when not `exact_movable`."""
     exact, aids = planner.exact, planner.sampling.aids
-    if exact is None or planner.margin <= 0.0:
+    if exact is None or not exact_movable(planner):
         return None
     floor = EXACT_FLOOR * planner.margin
     exact.set_obstacles(planner.term.obstacles)
