@@ -158,3 +158,21 @@ def test_a_file_system_without_locks_runs_unlocked_and_says_so_once(
         out = codegen.compile_function(fun, tmp_path / "cache")
     assert ran == [1]
     assert abs(float(out([0.3, 2.0])) - float(fun([0.3, 2.0]))) <= 1e-15 * 2.7
+
+
+def test_store_json_replaces_an_entry_whole_and_warns_when_it_cannot(tmp_path: Path) -> None:
+    """`store_json` writes a record that `json` reads back equal, replacing the old entry
+    and leaving no temporary file in the folder; where the folder cannot be made (a file
+    stands in its place) it warns, names the cache, and raises nothing."""
+    import json
+
+    path = tmp_path / "entries" / "thing_0123.json"
+    cache_folder.store_json(path, {"a": [1.5, 2.0]}, "the test cache")
+    cache_folder.store_json(path, {"a": [3.25], "b": "x"}, "the test cache")
+    assert json.loads(path.read_text()) == {"a": [3.25], "b": "x"}
+    assert [p.name for p in path.parent.iterdir()] == [path.name]
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    with pytest.warns(RuntimeWarning, match="the test cache"):
+        cache_folder.store_json(blocked / "x.json", [1], "the test cache")
+    assert blocked.read_text() == "not a folder"

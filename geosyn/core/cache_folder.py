@@ -1,5 +1,6 @@
-"""Where the compiled-code cache lives (`geosyn.core.codegen`), emptying it, and the lock
-every disk cache of geosyn takes to make an entry once (`cache_lock`, `fill_once`).
+"""Where the compiled-code cache lives (`geosyn.core.codegen`), emptying it, the lock
+every disk cache of geosyn takes to make an entry once (`cache_lock`, `fill_once`), and
+how a JSON entry is written so that no process reads it half-written (`store_json`).
 
 Cache location, first that applies: a ``cache_dir`` argument, ``$GEOSYN_CACHE_DIR/codegen``,
 ``$XDG_CACHE_HOME/geosyn/codegen``, ``~/.cache/geosyn/codegen``.
@@ -8,14 +9,16 @@ Cache location, first that applies: a ``cache_dir`` argument, ``$GEOSYN_CACHE_DI
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import re
 import shutil
+import tempfile
 import time
 import warnings
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 __all__ = [
     "LOCK_WAIT",
@@ -25,6 +28,7 @@ __all__ = [
     "default_cache_dir",
     "fill_once",
     "resolve_cache_dir",
+    "store_json",
 ]
 
 T = TypeVar("T")
@@ -176,3 +180,19 @@ def fill_once(lock: Path, read: Callable[[], T | None], make: Callable[[], T]) -
     with cache_lock(lock):
         found = read()
         return make() if found is None else found
+
+
+def store_json(path: Path, record: Any, what: str, stacklevel: int = 2) -> None:
+    """Write ``record`` (JSON-serialisable) to ``path`` atomically: to a temporary file in
+    its folder (created), then renamed over it, so that a concurrent process reads the
+    old entry or the new one, never a partial file. An unwritable cache is warned (as
+    ``what``, e.g. "the sphere cache", at ``stacklevel`` above the caller), not raised:
+    it only costs the entry's making next time."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}_", suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            json.dump(record, f)
+        os.replace(tmp, path)
+    except OSError as err:
+        warnings.warn(f"could not write {what} {path}: {err}", RuntimeWarning, stacklevel + 1)

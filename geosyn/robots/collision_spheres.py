@@ -26,8 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +34,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from geosyn.core.cache_folder import default_cache_dir, fill_once
+from geosyn.core.cache_folder import default_cache_dir, fill_once, store_json
 from geosyn.core.validation import check_float
 from geosyn.robots.collision_geometry import (
     CollisionObject,
@@ -427,12 +425,5 @@ def _fit(
             {"joint": s.joint, "center": list(s.center), "radius": s.radius} for s in spheres
         ],
     }
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".spheres_", suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            json.dump(record, f)
-        os.replace(tmp, path)  # atomic: concurrent processes never read a partial file
-    except OSError as err:  # an unwritable cache only costs the fit next time
-        warnings.warn(f"could not write the sphere cache {path}: {err}", RuntimeWarning, 2)
+    store_json(path, record, "the sphere cache", 2)  # unwritable: only costs the fit again
     return model

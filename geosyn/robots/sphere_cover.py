@@ -22,8 +22,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from geosyn.core.cache_folder import store_json
 from geosyn.core.errors import InvalidArgument
 from geosyn.robots.collision_geometry import (
     CollisionObject,
@@ -130,14 +129,7 @@ def _store(path: Path, miss: SphereMiss) -> SphereMiss:
     """``miss``, written to ``path`` atomically (an unwritable cache is warned: it only
     costs the measurement next time)."""
     record = {"distance": miss.distance, "link": miss.link, "bare": list(miss.bare)}
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".miss_", suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            json.dump(record, f)
-        os.replace(tmp, path)  # concurrent processes never read a partial file
-    except OSError as err:
-        warnings.warn(f"could not write the sphere cache {path}: {err}", RuntimeWarning, 4)
+    store_json(path, record, "the sphere cache", 4)
     return miss
 
 

@@ -16,15 +16,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import tempfile
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
 
-from geosyn.core.cache_folder import default_cache_dir, fill_once
+from geosyn.core.cache_folder import default_cache_dir, fill_once, store_json
 from geosyn.core.codegen import compile_library
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.collocation_clearance import clearance_jacobian
@@ -147,15 +145,7 @@ def _read_node_functions(path: Path, warn: bool = True) -> tuple[ca.Function, ..
 
 def _write_node_functions(path: Path, funcs: tuple[ca.Function, ...]) -> None:
     """Store ``funcs`` at ``path`` atomically (an unwritable cache is warned, not fatal)."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".nodefuns_", suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            json.dump([fn.serialize() for fn in funcs], f)
-        os.replace(tmp, path)
-    except OSError as err:
-        warnings.warn(f"could not write the node-function cache {path}: {err}",
-                      RuntimeWarning, 4)  # fmt: skip
+    store_json(path, [fn.serialize() for fn in funcs], "the node-function cache", 4)
 
 
 def per_node_functions(
