@@ -84,6 +84,14 @@ NATIVE_MAX_NQ = 64
 """Most coordinates of a robot the C check takes (its segment and ramp buffers)."""
 
 
+def _verdict(code: int) -> bool:
+    """A C segment check's answer: 1 valid, 0 not; -1 (more coordinates than its buffers,
+    `NATIVE_MAX_NQ`: `joint_table` refuses such robots first) raised, never read as valid."""
+    if code < 0:
+        raise ValueError(f"the C sphere check takes at most {NATIVE_MAX_NQ} coordinates")
+    return bool(code)
+
+
 def joint_table(robot: Robot) -> tuple[np.ndarray, ...] | str:
     """The kinematic tree of ``robot``'s Pinocchio model as the C check reads it:
     ``(parent (J,), kind (J,) 0 revolute / 1 prismatic, q index (J,), axis (J, 3),
@@ -330,7 +338,7 @@ class NativeSphereCheck(SphereCheck):
         (``a`` itself not checked), stopping at the first invalid one."""
         a = np.ascontiguousarray(a, dtype=float)
         b = np.ascontiguousarray(b, dtype=float)
-        return bool(self._lib.geosyn_spheres_segment_valid(
+        return _verdict(self._lib.geosyn_spheres_segment_valid(
             self._handle, _address(a), _address(b), float(resolution), float(margin),
             int(bool(self._n_pairs))))  # fmt: skip
 
@@ -338,7 +346,7 @@ class NativeSphereCheck(SphereCheck):
         """Whether every segment of the path ``X`` (T, n) [rad] is valid (`segment_valid`;
         ``X[0]`` itself not checked), in one C call, stopping at the first invalid one."""
         X = self._configurations(X)
-        return bool(self._lib.geosyn_spheres_path_valid(
+        return _verdict(self._lib.geosyn_spheres_path_valid(
             self._handle, _address(X), len(X), float(resolution), float(margin),
             int(bool(self._n_pairs))))  # fmt: skip
 
