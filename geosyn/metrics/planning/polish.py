@@ -28,7 +28,12 @@ from geosyn.metrics.planning.sampled import (
     relaxed_line,
 )
 from geosyn.metrics.planning.smoothing import metric_length
-from geosyn.metrics.planning.tighten import EXACT_KEEP, EXACT_MIN_TIME, exact_tighten
+from geosyn.metrics.planning.tighten import (
+    EXACT_KEEP,
+    EXACT_MIN_TIME,
+    exact_movable,
+    exact_tighten,
+)
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.plan import Plan
@@ -110,28 +115,30 @@ def taut_seeds(planner: SphereSearch, q0: np.ndarray, q1: np.ndarray, seed: int,
 
 def sphere_polish(q: Query, plan: Plan, left: Callable[[], float]) -> Plan:
     """``plan`` (query ``q``'s sampled plan) polished on the planner's covering spheres
-    (`taut_seeds` from the query's sampled path, keeping `EXACT_KEEP` back when
-    `Query.ample`, else only `SHORT_SEEDS` seeds), its shortest path tightened on the
-    exact geometry when more than `EXACT_MIN_TIME` (and two exact checks' time) is left
-    beyond the final check's reserve (`exact_tighten`) and verified once, kept if it passes and is shorter (else the
-    untightened one, verified in turn); else ``plan``. ``left()``: the time left [s].
+    (`taut_seeds` from the query's sampled path; when the paths can be moved on the exact
+    geometry, `geosyn.metrics.planning.tighten.exact_movable`, keeping `EXACT_KEEP` back
+    when `Query.ample`, else only `SHORT_SEEDS` seeds), its shortest path tightened on
+    the exact geometry when movable and more than `EXACT_MIN_TIME` (and two exact checks'
+    time) is left beyond the final check's reserve (`exact_tighten`) and verified once,
+    kept if it passes and is shorter (else the untightened one, verified in turn); else
+    ``plan``. ``left()``: the time left [s].
     Updates the query's sampled path and next seed."""
     p = q.p
 
     def rrt(index: int, seconds: float) -> np.ndarray | None:
         return q.connect(index, seconds)[0]
 
-    reserve = q.reserve()
-    ample = p.exact is not None and q.ample(left())
+    reserve, movable = q.reserve(), exact_movable(p)  # not movable: no tightening
+    ample = movable and q.ample(left())
     keep = EXACT_KEEP if ample else 0.0  # for `exact_tighten`
-    most = SHORT_SEEDS if p.exact is not None and not ample else None
+    most = SHORT_SEEDS if movable and not ample else None
     shortest, length, how, q.restart = taut_seeds(
         p, q.q0, q.q1, q.seed, q.sampled_path, metric_length(p.metric, plan.q),
         lambda: left() - keep, reserve, rrt, q.attempts, q.restart, most,
     )  # fmt: skip
     base = shortest if shortest is not None else np.asarray(plan.q)
     if (
-        p.exact is not None
+        movable
         and len(base) > 2
         and (spare := left() - reserve) > max(EXACT_MIN_TIME, 2.0 * q.check_time)
     ):  # nearer on the robot's own geometry (its set-up runs whatever the budget)
