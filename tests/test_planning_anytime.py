@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -30,6 +31,7 @@ from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.exact_path import checked_configurations, path_clearance
 from geosyn.metrics.planning.planner import ANYTIME_SLACK, densify
+from geosyn.metrics.planning.query import Query
 from geosyn.metrics.planning.relax import _block_tridiagonal_solve, metric_relax
 from geosyn.metrics.planning.smoothing import metric_length, metric_shortcut, segment_lengths
 from geosyn.metrics.planning.sphere_check import SphereCheck
@@ -118,17 +120,18 @@ def _metric_length(metric: Metric, path: np.ndarray) -> float:
     return float(sum(math.sqrt(d @ metric.G(m) @ d) for d, m in zip(dq, mid, strict=True)))
 
 
-def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda: Case) -> None:
+def test_small_budget_returns_a_verified_path_no_shorter_than_the_geodesic(panda: Case) -> None:
     """At a 0.3 s budget (headroom for a busy CI core: the first path takes ~0.1 s here)
     the plan is the best verified path found by then: clear of the
     URDF's meshes by Pinocchio's own geometry model and coal (checked every 0.005 rad,
     independent of the planner's checker), its reported first feasible time within the
     budget's 10 %; in the metric no shorter than the geodesic between its ends (the
     log map by shooting, an independent solver: no path is shorter; 1 % for the
-    midpoint rule on its nodes) and at most 10 % longer than the plan of a long budget
-    (the lowest-energy of its collocations and sampled plans: here a sampled one, pushed
-    out and tightened on the meshes, at energy 2.011 against the collocations' 2.045,
-    which keep the margin on the spheres)."""
+    midpoint rule on its nodes) and at most 10 % longer than the plan of a long budget.
+    That plan (a robot with file geometry, among obstacles: no collocation, the sampled
+    plan tightened on the meshes, `Query.collocates`) is no longer than the straight
+    line's collocation solved on the planner's NLP (IPOPT, an independent solver; it
+    keeps the margin on the covering spheres), 1e-6 relative."""
     robot, planner, q0, q1 = panda
     referee = _mesh_referee(robot, BLOCK)
     assert referee(0.5 * (q0 + q1)) < 0.0  # the straight line collides
@@ -138,8 +141,12 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_collocation(panda:
     dense = checked_configurations(plan.q, 0.005)
     assert min(referee(q) for q in dense) > 0.0
     long = planner.plan(q0, q1, [BLOCK], budget=20.0)
-    assert any("collocation from" in a for a in long.attempts)  # the NLPs had their turn
+    assert not any("collocation from" in a for a in long.attempts)
+    planner.term.set_obstacles([BLOCK])
+    line = Query(planner, q0, q1, 20.0, 0, time.perf_counter()).straight_line()
+    assert line is not None and line.result.kind == "constrained"
     metric = planner.metric
+    assert _metric_length(metric, long.q) <= (1.0 + 1e-6) * _metric_length(metric, line.q)
     length = _metric_length(metric, plan.q)
     assert length >= 0.99 * distance(metric, q0, q1)
     assert length <= 1.1 * _metric_length(metric, long.q)

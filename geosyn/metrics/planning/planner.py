@@ -10,8 +10,9 @@ One query, within a stated time budget:
    `geosyn.metrics.planning.sampled`, and on the exact geometry,
    `geosyn.metrics.planning.tighten`; verified as in 4.:
    `geosyn.metrics.planning.query`), whose path is also RRT-Connect's first seed in 3.;
-   with less than `query.MIN_COLLOCATION` left after it, the rest of the budget relaxes
-   it further and tries other seeds (bumped straight lines and RRT-Connect paths, by
+   with less than `query.MIN_COLLOCATION` left after it, or among obstacles when its
+   paths can be moved on the exact geometry (file geometry and a margin:
+   `query.Query.collocates`), the rest of the budget relaxes it further and tries other seeds (bumped straight lines and RRT-Connect paths, by
    turns, only the first bump when the time is short: `polish.SHORT_SEEDS`; and the
    same on a thinner sphere model, pushed out on the exact geometry, first when less
    than `thin.THIN_FIRST` is left: `geosyn.metrics.planning.thin`) instead of 2.-3.;
@@ -75,12 +76,7 @@ from geosyn.metrics.planning.certify import CertifiedClearance, certified_plan, 
 from geosyn.metrics.planning.coarse import clearance_bounds
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.query import (
-    ANYTIME_SLACK,
-    COARSE_TO_FINE,
-    REFINEMENTS,
-    Query,
-)
+from geosyn.metrics.planning.query import ANYTIME_SLACK, COARSE_TO_FINE, REFINEMENTS, Query
 from geosyn.metrics.planning.sampling import Sampling
 from geosyn.metrics.planning.self_collision import (
     SelfCollision,
@@ -88,10 +84,7 @@ from geosyn.metrics.planning.self_collision import (
     path_self_clearance,
 )
 from geosyn.metrics.planning.thin import THIN_SHRINKS, ThinSearch
-from geosyn.metrics.planning.verify import (
-    check_end,
-    planning_geometry,
-)
+from geosyn.metrics.planning.verify import check_end, planning_geometry
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
 from geosyn.world.shapes import Shape
@@ -135,12 +128,11 @@ class Planner:
         check_factor: refinement of the between-node check, >= 1.
         check_step: largest joint-space distance (2-norm) between two checked
             configurations [rad], > 0.
-        alternatives: RRT-Connect seeds tried after a constrained straight-line plan,
-            >= 0, each only while the time left of the budget is at least the time the
+        alternatives: RRT-Connect seeds collocated after a constrained straight-line
+            plan (when the query collocates: `query.Query.collocates`), >= 0, each only while the time left of the budget is at least the time the
             first plan took (each costs a sampling bounded by that time and a collocation
-            bounded by twice that); the lowest-energy
-            plan whose metric length is not above the straight line's wins. 0: the first
-            plan is returned as soon as it is found.
+            bounded by twice that); the lowest-energy plan whose metric length is not
+            above the straight line's wins. 0: the first plan is returned once found.
         coarse_nodes: segments of the coarse collocation that seeds the full one when
             there are obstacles, >= 2; 0: none (the full collocation from the straight line).
         coarse_subdivisions: constrained points inside each coarse segment, >= 0.
@@ -409,10 +401,13 @@ class Planner:
             obstacles: shapes of `geosyn.world`, at most ``capacity``.
             budget: wall-time limit of the query [s], > 0 (a shooting refinement of a
                 free geodesic may add its own bounded iterations). When less than
-                `query.MIN_COLLOCATION` (2.5 s) is left after the sampled first plan, the
-                plan is a sampled path pulled taut in the metric (``result.kind``
-                ``"feasible"``, verified like every plan); with more, collocation makes
-                the minimum-energy path (``"constrained"`` or ``"geodesic"``).
+                `query.MIN_COLLOCATION` (2.5 s) is left after the sampled first plan, or
+                among obstacles on a robot with file geometry (the sampled plan is
+                tightened on its meshes, `query.Query.collocates`), the plan is a sampled
+                path pulled taut in the metric (``result.kind`` ``"feasible"``, verified
+                like every plan; the query returns when its seeds stop paying, often well
+                before the budget); else collocation makes the minimum-energy path
+                (``"constrained"`` or ``"geodesic"``).
             seed: seed of the sampling fallback.
             certify: also certify the returned path between its checked configurations
                 (`certify`, after the budget: ``plan.certified_clearance``); a path

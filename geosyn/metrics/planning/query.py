@@ -7,7 +7,8 @@ the planner's spheres (in C, `geosyn.metrics.planning.sphere_native`, within
 `geosyn.metrics.planning.relax`, first with its penalty below 3 cm, then tightened to
 the margin with valid steps only, within `SAMPLED_RELAX` of the budget) and verified
 like every plan (the exact check decides, self-collision included); the collocation
-stages then get the time left (none when less than `MIN_COLLOCATION` is left: the
+stages then get the time left (none when less than `MIN_COLLOCATION` is left, nor among
+obstacles when the paths can be moved on the exact geometry, `Query.collocates`: the
 sampled path, if any, is then relaxed further, and other seeds are pulled taut by
 turns, straight lines bent by a random bump
 (`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
@@ -15,7 +16,8 @@ then verified: `Query.polish`, and seeds searched on a thinner sphere model push
 the exact geometry, `geosyn.metrics.planning.thin`; with more, it is polished so for
 `POLISH_FIRST` of the budget before the collocations start), and the kept plan is the best verified one by
 the homotopy rule below (the sampled plan is one of the "other seeds": never kept when
-longer than the straight line's solution). ``Plan.first_feasible_time`` says when the
+longer than the straight line's solution; without collocations, the shortest of the
+seeds pulled taut, the straight line bumped among them). ``Plan.first_feasible_time`` says when the
 first verified plan was found.
 
 The query's clock, the list of what was tried and the unfinished paths kept for an
@@ -215,7 +217,7 @@ class Query:
         `from_rrt` (0)."""
         a, b, c = SAMPLED_SEARCH
         search = min(a * self.budget, b + c * self.budget)
-        small = self.budget - search < MIN_COLLOCATION  # no collocation after it anyway
+        small = not self.collocates() or self.budget - search < MIN_COLLOCATION
         if small:
             search = SAMPLED_SMALL * self.budget
         path, grown = self.connect(0, search)
@@ -394,13 +396,26 @@ class Query:
         return best._replace(wall_time=time.perf_counter() - self.t0,
                              attempts=tuple(self.attempts), first_feasible_time=first)  # fmt: skip
 
+    def collocates(self) -> bool:
+        """Whether the query solves collocations when the time allows: not among obstacles
+        when its paths can be moved on the exact geometry (`exact_movable`). There the
+        sampled plan, tightened on the meshes, is what a collocation on the covering
+        spheres (which keep up to 2 cm more) does not beat: on the 14 Panda benchmark
+        scenes at the default 5 s budget, within 0.6 % of the same length either way
+        (the polishing's seeds differ), the query returning after 0.2-4.5 s instead of
+        1.2-5.3 s (`benchmarks/RESULTS.md`, issue 22, fifteenth round)."""
+        return not (exact_movable(self.p) and self.p.term.obstacles)
+
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
         quick = self.sampled()
         others: list[Plan] = [quick] if quick is not None else []
-        if self.left() <= MIN_COLLOCATION:
-            self.attempts.append(f"collocation not started: {max(self.left(), 0.0):.3f} s "
-                                 f"left, less than {MIN_COLLOCATION:g} s")  # fmt: skip
+        if (quick is not None and not self.collocates()) or self.left() <= MIN_COLLOCATION:
+            self.attempts.append(
+                f"collocation not started: {max(self.left(), 0.0):.3f} s left, less than "
+                f"{MIN_COLLOCATION:g} s" if self.collocates() else "collocation not "
+                "started: the sampled plan is tightened on the robot's own geometry"
+            )  # fmt: skip
             if quick is None:
                 raise self.refusal()
             return self.keep(None, [self.polish(quick)])
