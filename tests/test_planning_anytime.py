@@ -152,6 +152,28 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_the_geodesic(panda
     assert length <= 1.1 * _metric_length(metric, long.q)
 
 
+def test_among_obstacles_a_file_geometry_planner_solves_no_nlp(panda: Case) -> None:
+    """On a robot with file geometry (the Panda's URDF meshes), a query among obstacles
+    does not collocate (`Planner.collocates`), even with a budget that leaves time for
+    it: the planner and that query build no NLP, the plan is the sampled one, clear of the
+    meshes on Pinocchio's and coal's referee (every 0.005 rad). A free-space query then
+    builds its NLPs (outside its budget: `Plan.nlp_build_time`) and returns the geodesic,
+    whose energy (unit duration, midpoint rule on 24 nodes) is the squared distance of
+    the log map by shooting (an independent solver), 1e-4 relative (4e-5 measured)."""
+    robot, _, q0, q1 = panda
+    planner = Planner(KineticEnergyMetric(robot), capacity=1)
+    assert not planner.collocates(1) and planner.collocates(0)
+    plan = planner.plan(q0, q1, [BLOCK], budget=5.0)
+    assert plan.nlp_build_time == 0.0 and plan.result.kind == "feasible"
+    assert not any("collocation from" in a for a in plan.attempts)
+    referee = _mesh_referee(robot, BLOCK)
+    assert min(referee(q) for q in checked_configurations(plan.q, 0.005)) > 0.0
+    free = planner.plan(q0, q1, [], budget=5.0)
+    assert free.nlp_build_time > 0.0 and free.result.kind == "geodesic"
+    d = distance(planner.metric, q0, q1)
+    assert free.result.energy == pytest.approx(d * d, rel=1e-4)
+
+
 def _brute_clearance(robot: Robot, exact: object, obstacles: list, path: np.ndarray,
                      resolution: float) -> float:  # fmt: skip
     """coal's smallest distance over every (configuration, collision object, obstacle)

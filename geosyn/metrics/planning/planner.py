@@ -7,16 +7,13 @@ One query, within a stated time budget:
    ``capacity`` obstacles (else `geosyn.metrics.shaping.CapacityExceeded`);
    then a sampled first plan without an NLP, for the anytime return (RRT-Connect on the
    spheres, in C: `geosyn.metrics.planning.sampling`; pulled taut in the metric,
-   `geosyn.metrics.planning.sampled`, and on the exact geometry,
-   `geosyn.metrics.planning.tighten`; verified as in 4.:
-   `geosyn.metrics.planning.query`), whose path is also RRT-Connect's first seed in 3.;
-   with less than `query.MIN_COLLOCATION` left after it, or among obstacles when its
-   paths can be moved on the exact geometry (file geometry and a margin:
-   `query.Query.collocates`), the rest of the budget relaxes it further and tries other seeds (bumped straight lines and RRT-Connect paths, by
-   turns, only the first bump when the time is short: `polish.SHORT_SEEDS`; and the
-   same on a thinner sphere model, pushed out on the exact geometry, first when less
-   than `thin.THIN_FIRST` is left: `geosyn.metrics.planning.thin`) instead of 2.-3.;
-   with more, the same for `query.POLISH_FIRST` of it first;
+   `geosyn.metrics.planning.sampled`, and on the exact geometry, `tighten`; verified as
+   in 4.: `geosyn.metrics.planning.query`), also RRT-Connect's first seed in 3.; with
+   less than `query.MIN_COLLOCATION` left after it, or among obstacles when `collocates`
+   is False, the rest of the budget relaxes it further and tries other seeds (bumped
+   straight lines and RRT-Connect paths by turns, `polish`; the same on a thinner sphere
+   model pushed out on the exact geometry, `thin`) instead of 2.-3.; with more, the
+   same for `query.POLISH_FIRST` of it first;
 2. collocation (`geosyn.metrics.geodesic.collocation.Collocation`) from the straight line,
    coarse to fine when there are obstacles: a collocation with few nodes
    (``coarse_nodes``, points inside each segment ``coarse_subdivisions``) from the
@@ -83,7 +80,9 @@ from geosyn.metrics.planning.self_collision import (
     check_self_end,
     path_self_clearance,
 )
+from geosyn.metrics.planning.smoothing import densify
 from geosyn.metrics.planning.thin import THIN_SHRINKS, ThinSearch
+from geosyn.metrics.planning.tighten import exact_movable
 from geosyn.metrics.planning.verify import check_end, planning_geometry
 from geosyn.metrics.shaping.obstacle import ObstacleTerm
 from geosyn.robots.robot import CollisionSphere
@@ -98,14 +97,6 @@ __all__ = [
     "Planner",
     "densify",
 ]
-
-
-def densify(path: np.ndarray, factor: int) -> np.ndarray:
-    """(factor (T - 1) + 1, n): ``path`` (T, n) with ``factor - 1`` linear points per segment."""
-    path = np.asarray(path, dtype=float)
-    s = np.arange(factor)[:, None, None] / factor
-    inner = path[:-1][None] + s * np.diff(path, axis=0)[None]
-    return np.vstack([inner.transpose(1, 0, 2).reshape(-1, path.shape[1]), path[-1:]])
 
 
 class Planner:
@@ -145,8 +136,9 @@ class Planner:
         distance: signed distance of the clearance constraints, ``"exact"`` or
             ``"smooth"`` (see `geosyn.metrics.shaping.obstacle.DISTANCES`).
         hessian, tol, softmin: see `Collocation`.
-        prebuild: obstacle count whose NLPs are built with the planner, >= 0 (`slots`;
-            other counts' on their first query, or with `prepare`).
+        prebuild: obstacle count whose NLPs are built with the planner when its queries
+            collocate (`collocates`), >= 0 (`slots`; other counts' on their first query
+            that collocates, or with `prepare`).
 
     Builds the collocation NLPs of ``prebuild`` obstacles (allocates; see `Collocation`).
     """
@@ -209,7 +201,8 @@ class Planner:
         self._full_term = self.term
         self._terms: dict[int, ObstacleTerm] = {self.term.capacity: self.term}
         self._collocations: dict[tuple[int, int, int], Collocation] = {}
-        self.prepare(prebuild)  # other obstacle counts' NLPs on their first query
+        if self.collocates(prebuild):  # others on their first query that collocates
+            self.prepare(prebuild)
         if self.sphere_check.self_pairs:  # every query checks its ends with it: built now
             _ = self.self_collision
         self.build_time = time.perf_counter() - t0
@@ -235,13 +228,10 @@ class Planner:
         smallest power of two >= ``count`` (at least 1), at most ``capacity``.
 
         Every slot costs its clearance constraints and their derivatives at every
-        constrained point whether an obstacle fills it or not (measured: 2.3-2.7x CPU
-        time on 1-2 obstacle scenes with 8 slots rather than 1-2), so a query solves the
-        NLPs of its own slot count. The planner builds those of ``prebuild`` obstacles
-        (default one slot) when it is made, each other count's on its first query
-        (`Plan.nlp_build_time`, or `prepare`), and keeps them (building ``capacity``'s
-        took 0.43 s of a warm 0.47 s Panda `Planner()`, unused by a 1-obstacle query).
-        """
+        constrained point, filled or not (2.3-2.7x CPU time on 1-2 obstacle scenes with 8
+        slots rather than 1-2, measured), so a query solves its own slot count's NLPs,
+        built with the planner (``prebuild``) or on its first query that `collocates`
+        (`Plan.nlp_build_time`, or `prepare`), then kept."""
         cap = self._full_term.capacity
         return cap if count >= cap else min(cap, 1 << max(count - 1, 0).bit_length())
 
@@ -254,9 +244,18 @@ class Planner:
         finally:
             self.term = self._full_term
 
-    def _use_slots(self, count: int) -> float:
+    def collocates(self, count: int) -> bool:
+        """Whether a query among ``count`` obstacles solves collocations when its budget
+        allows (`query.MIN_COLLOCATION`): without obstacles, or when the paths cannot be
+        moved on the robot's own geometry (no file geometry, or margin 0:
+        `geosyn.metrics.planning.tighten.exact_movable`). Else the sampled plan, tightened
+        on the meshes, is polished with the whole budget (`query.Query.collocates`)."""
+        return count == 0 or not exact_movable(self)
+
+    def _use_slots(self, count: int, nlps: bool = True) -> float:
         """Make the NLPs of ``slots(count)`` the current ones (``term`` and
-        `collocation`); the time [s] spent building them (0 when built before)."""
+        `collocation`; built now when ``nlps``, else on first use); the time [s] spent
+        building them (0 when built before)."""
         t0 = time.perf_counter()
         cap = self.slots(count)
         if cap not in self._terms:
@@ -265,7 +264,8 @@ class Planner:
             self._terms[cap] = term
         self.term = self._terms[cap]
         built = len(self._collocations)
-        self._build_nlps()
+        if nlps:
+            self._build_nlps()
         return time.perf_counter() - t0 if len(self._collocations) > built else 0.0
 
     @functools.cached_property
@@ -304,12 +304,11 @@ class Planner:
         path = np.asarray(path, dtype=float)
         step = float(np.linalg.norm(np.diff(path, axis=0), axis=1).max(initial=0.0))
         factor = max(self.check_factor, math.ceil(step / self.check_step))
-        clearances: Callable[[np.ndarray], np.ndarray] = self.collocation(
-            self.nodes
-        ).node_clearances
-        if not smooth:
+        clearances: Callable[[np.ndarray], np.ndarray] = self.sphere_check.clearances
+        if smooth:  # the NLP's own (built on first use)
+            clearances = self.collocation(self.nodes).node_clearances
+        else:
             self.sphere_check.set_obstacles(self.term.obstacles)
-            clearances = self.sphere_check.clearances
         coarse = float(clearances(densify(path, self.check_factor)).min())
         if not fine:
             return coarse, math.nan
@@ -435,7 +434,8 @@ class Planner:
         q1 = check_vector(q1, n, "q1")
         budget = check_positive(budget, "budget", "s")
         seed = check_int(seed, "seed")
-        built = self._use_slots(len(obstacles))  # the budget's clock starts after it
+        # the budget's clock starts after it
+        built = self._use_slots(len(obstacles), self.collocates(len(obstacles)))
         try:
             self.term.set_obstacles(obstacles)
             self._check_end(q0, "start")

@@ -397,14 +397,15 @@ class Query:
                              attempts=tuple(self.attempts), first_feasible_time=first)  # fmt: skip
 
     def collocates(self) -> bool:
-        """Whether the query solves collocations when the time allows: not among obstacles
-        when its paths can be moved on the exact geometry (`exact_movable`). There the
+        """Whether the query solves collocations when the time allows (`Planner.collocates`):
+        not among obstacles when its paths can be moved on the exact geometry
+        (`exact_movable`). There the
         sampled plan, tightened on the meshes, is what a collocation on the covering
         spheres (which keep up to 2 cm more) does not beat: on the 14 Panda benchmark
         scenes at the default 5 s budget, within 0.6 % of the same length either way
         (the polishing's seeds differ), the query returning after 0.2-4.5 s instead of
         1.2-5.3 s (`benchmarks/RESULTS.md`, issue 22, fifteenth round)."""
-        return not (exact_movable(self.p) and self.p.term.obstacles)
+        return self.p.collocates(len(self.p.term.obstacles))
 
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""

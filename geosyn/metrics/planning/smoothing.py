@@ -21,10 +21,25 @@ import numpy as np
 from geosyn.metrics.base import Metric
 from geosyn.metrics.planning.rrt import SegmentValidity, Validity, segment_points
 
-__all__ = ["PIECES", "even_in_metric", "metric_length", "metric_shortcut", "segment_lengths"]
+__all__ = [
+    "PIECES",
+    "densify",
+    "even_in_metric",
+    "metric_length",
+    "metric_shortcut",
+    "segment_lengths",
+]
 
 PIECES = 4
 """Midpoint-rule pieces per segment of the metric length of a joint segment."""
+
+
+def densify(path: np.ndarray, factor: int) -> np.ndarray:
+    """(factor (T - 1) + 1, n): ``path`` (T, n) with ``factor - 1`` linear points per segment."""
+    path = np.asarray(path, dtype=float)
+    s = np.arange(factor)[:, None, None] / factor
+    inner = path[:-1][None] + s * np.diff(path, axis=0)[None]
+    return np.vstack([inner.transpose(1, 0, 2).reshape(-1, path.shape[1]), path[-1:]])
 
 
 def metric_length(metric: Metric, path: np.ndarray) -> float:
