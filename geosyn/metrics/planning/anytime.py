@@ -6,15 +6,21 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.verify import exact_check, feasible_result
+from geosyn.metrics.planning.verify import deciding_clearance, exact_check, feasible_result
+from geosyn.world.exact_clearance import PathClearance
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
+
+Decide = Callable[[PathClearance, float], tuple[float, str]]
+"""(a path's exact check, its smallest sphere clearance [m]) -> (the deciding clearance
+[m], what measured it): `geosyn.metrics.planning.query.Query.decide`."""
 
 __all__ = ["ANYTIME_CHECKS", "anytime_plan"]
 
@@ -23,10 +29,18 @@ ANYTIME_CHECKS = 3
 
 
 def anytime_plan(planner: Planner, unfinished: list[tuple[np.ndarray, str]], t0: float,
-                 attempts: list[str], end: float = math.inf) -> Plan | None:  # fmt: skip
+                 attempts: list[str], end: float = math.inf,
+                 decide: Decide | None = None) -> Plan | None:  # fmt: skip
     """The lowest-energy path among ``unfinished`` (interrupted IPOPT iterates and
     seeds, (T, n) each) that passes the fine and exact checks before ``end``
-    (perf_counter [s]), as a ``"feasible"`` plan."""
+    (perf_counter [s]), as a ``"feasible"`` plan; ``decide``: which clearance decides
+    (None: the exact one, else the spheres', `deciding_clearance`)."""
+    if decide is None:
+
+        def decide(exact: PathClearance, spheres: float) -> tuple[float, str]:
+            has = planner.exact is not None
+            return deciding_clearance(exact if has else None, spheres, False, 0.0)
+
     results = [feasible_result(planner.metric, q, how) for q, how in unfinished
                if np.all(np.isfinite(q))]  # fmt: skip
     for res in sorted(results, key=lambda r: r.energy)[:ANYTIME_CHECKS]:
@@ -36,7 +50,7 @@ def anytime_plan(planner: Planner, unfinished: list[tuple[np.ndarray, str]], t0:
         coarse, fine = planner.check(res.q)
         exact = exact_check(planner.exact, res.q, planner.term.obstacles, planner.exact_resolution,
                             end, planner.sampling.aids)  # fmt: skip
-        ok = exact.clearance >= 0.0 if planner.exact is not None else min(coarse, fine) >= 0.0
+        ok = decide(exact, min(coarse, fine))[0] >= 0.0
         own = planner.self_check(res.q, end) if ok else math.nan
         if ok and planner.self_ok(own):
             wall = time.perf_counter() - t0

@@ -109,7 +109,9 @@ class Planner:
             collision geometry (`geosyn.robots.collision_spheres.file_spheres`, cached on
             disk; those on the fixed base left out: their clearance cannot change, and
             the exact check covers them), or ``robot.collision_spheres()`` for a robot
-            built in code.
+            built in code. Given spheres (e.g. with a held object's) are kept clear as
+            well as the file's geometry: paths keep the margin on them (not moved nearer
+            the meshes), verified on both.
         exact_resolution: joint-space step (max-norm) [rad] of the exact verification of
             every returned plan against the file's geometry, > 0.
         margin: node clearance of the collocation [m], >= 0 (on the spheres); a sampled
@@ -174,6 +176,7 @@ class Planner:
             raise InvalidArgument("metric: the planner needs a metric with a robot")
         self.robot = robot
         self.exact_resolution = check_positive(exact_resolution, "exact_resolution", "rad")
+        self.given_spheres = spheres is not None  # then kept clear too (`Query.decide`)
         spheres, self.exact, self.geometry_note = planning_geometry(robot, spheres)
         if self.geometry_note:  # said once, at build: every plan of this planner is so
             warnings.warn(f"Planner: {self.geometry_note}", UserWarning, stacklevel=2)

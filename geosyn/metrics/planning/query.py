@@ -62,6 +62,7 @@ from geosyn.metrics.planning.thin import THIN_FIRST, thinner_plan
 from geosyn.metrics.planning.tighten import EXACT_KEEP, exact_movable
 from geosyn.metrics.planning.verify import (
     REPAIR_STEP,
+    deciding_clearance,
     exact_check,
     feasible_result,
     outside_limits,
@@ -69,6 +70,7 @@ from geosyn.metrics.planning.verify import (
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
+    from geosyn.world.exact_clearance import PathClearance
 
 __all__ = [
     "ANYTIME_SLACK",
@@ -142,6 +144,18 @@ class Query:
         self.check_time = 0.0  # the last sampled plan's checks took [s]
         self.restart = 1  # the polishing's next seed (`taut_seeds`): a second one goes on
         self.exact_failed = False  # the last sampled plan crossed the exact geometry
+        self.floor = math.nan  # the given spheres' clearance allowed (`decide`)
+
+    def decide(self, exact: PathClearance, spheres: float) -> tuple[float, str]:
+        """`deciding_clearance` of a path of this query (its exact check, its smallest
+        sphere clearance [m]): the given spheres down to their clearance at the ends."""
+        p = self.p
+        if p.given_spheres and math.isnan(self.floor):  # once, with the obstacles set
+            p.sphere_check.set_obstacles(p.term.obstacles)
+            ends = p.sphere_check.clearances(np.array([self.q0, self.q1]))
+            self.floor = min(0.0, float(np.min(ends, initial=math.inf)))
+        exact_or_none = exact if p.exact is not None else None
+        return deciding_clearance(exact_or_none, spheres, p.given_spheres, self.floor)
 
     def left(self) -> float:
         """Time left of the budget [s] (negative once spent)."""
@@ -163,12 +177,10 @@ class Query:
                 self.attempts.append(f"{res.kind} path leaves the joint limits ({why}): refused")
                 return None
             coarse, fine = p.check(res.q)
-            check, what = min(coarse, fine), "the fine check"
             exact = exact_check(
                 p.exact, res.q, p.term.obstacles, p.exact_resolution, aids=p.sampling.aids
             )
-            if p.exact is not None:  # the robot's own geometry decides
-                check, what = exact.clearance, f"the exact check ({exact.link})"
+            check, what = self.decide(exact, min(coarse, fine))
             own = p.self_check(res.q) if check >= 0.0 else math.nan
             if check >= 0.0 and not p.self_ok(own):  # no NLP term for it: refused
                 self.attempts.append(f"{res.kind} path self-collides (exact self-clearance "
@@ -273,10 +285,10 @@ class Query:
         if why := outside_limits(p.robot, path):
             self.attempts.append(f"sampled plan: {how} leaves the joint limits ({why})")
             return None
-        coarse, fine = p.check(path, smooth=False, fine=p.exact is None)
+        coarse, fine = p.check(path, smooth=False, fine=p.exact is None or p.given_spheres)
         exact = exact_check(p.exact, path, p.term.obstacles, p.exact_resolution,
                             self.t0 + ANYTIME_SLACK * self.budget, p.sampling.aids)  # fmt: skip
-        ok = exact.clearance >= 0.0 if p.exact is not None else min(coarse, fine) >= 0.0
+        ok = self.decide(exact, float(np.nanmin([coarse, fine])))[0] >= 0.0
         self.exact_failed = bool(exact.clearance < 0.0)  # not NaN: decided, and crossed
         own = p.self_check(path, self.t0 + ANYTIME_SLACK * self.budget) if ok else math.nan
         self.check_time = time.perf_counter() - t
@@ -397,14 +409,10 @@ class Query:
                              attempts=tuple(self.attempts), first_feasible_time=first)  # fmt: skip
 
     def collocates(self) -> bool:
-        """Whether the query solves collocations when the time allows (`Planner.collocates`):
-        not among obstacles when its paths can be moved on the exact geometry
-        (`exact_movable`). There the
-        sampled plan, tightened on the meshes, is what a collocation on the covering
-        spheres (which keep up to 2 cm more) does not beat: on the 14 Panda benchmark
-        scenes at the default 5 s budget, within 0.6 % of the same length either way
-        (the polishing's seeds differ), the query returning after 0.2-4.5 s instead of
-        1.2-5.3 s (`benchmarks/RESULTS.md`, issue 22, fifteenth round)."""
+        """`Planner.collocates` for this query's obstacles. Where it does not, the sampled
+        plan tightened on the meshes came within 0.6 % of the same length on the 14 Panda
+        benchmark scenes at 5 s, returning after 0.6-3.8 s instead of 0.5-5.9 s
+        (`benchmarks/RESULTS.md`, issue 22, fifteenth round)."""
         return self.p.collocates(len(self.p.term.obstacles))
 
     def run(self) -> Plan:
@@ -432,7 +440,7 @@ class Query:
             others += self.alternatives(line)
         if line is None and not others and self.unfinished:  # anytime: the lowest-energy
             end = self.t0 + ANYTIME_SLACK * self.budget  # path that passes the checks
-            plan = anytime_plan(self.p, self.unfinished, self.t0, self.attempts, end)
+            plan = anytime_plan(self.p, self.unfinished, self.t0, self.attempts, end, self.decide)
             others += [plan] if plan is not None else []
         if line is not None or others:
             best = self.keep(line, others)

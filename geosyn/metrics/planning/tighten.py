@@ -88,8 +88,10 @@ class _ExactTerms(NamedTuple):
 
 def exact_movable(planner: Planner) -> bool:
     """Whether ``planner``'s paths can be moved on the exact geometry (`exact_tighten`,
-    `exact_push`): it has file geometry and a margin (whose floor they keep)."""
-    return planner.exact is not None and planner.margin > 0.0
+    `exact_push`): it has file geometry, a margin (whose floor they keep) and its own
+    spheres fitted to that geometry (spheres the user gives must keep clear as well, and
+    may stand beyond it, a held object: paths moved nearer the meshes would cross them)."""
+    return planner.exact is not None and planner.margin > 0.0 and not planner.given_spheres
 
 
 def _exact_terms(planner: Planner) -> _ExactTerms | None:

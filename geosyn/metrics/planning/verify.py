@@ -6,6 +6,8 @@ and what it verifies against (`geosyn.world.exact_clearance.ExactClearance`: coa
 distances to the file's meshes and primitives). `exact_check` verifies one path; a plan
 that fails it is solved again with a sphere margin larger by the penetration plus
 `REPAIR_STEP` (and more constrained points), or refused: never returned as free.
+`deciding_clearance` says which clearance decides: the exact one, and the user's spheres
+as well when given (they may stand beyond the file's geometry: a held object).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ __all__ = [
     "LIMIT_TOL",
     "REPAIR_STEP",
     "check_end",
+    "deciding_clearance",
     "exact_check",
     "feasible_result",
     "outside_limits",
@@ -74,6 +77,27 @@ def planning_geometry(
     from geosyn.robots.collision_spheres import file_spheres
 
     return file_spheres(robot).moving, exact, ""
+
+
+def deciding_clearance(
+    exact: PathClearance | None, spheres: float, given: bool, floor: float
+) -> tuple[float, str]:
+    """(clearance [m] that decides whether a path passes (>= 0), what measured it).
+
+    Args:
+        exact: the path's exact check (NaN clearance: not finished, the path does not
+            pass), or None without file geometry (the spheres decide).
+        spheres: the path's smallest sphere clearance [m] (the planner's fine check).
+        given: whether the spheres were given by the user (`Planner.given_spheres`):
+            then they must keep clear as well as the file's geometry, down to ``floor``.
+        floor: the given spheres' clearance [m] allowed, <= 0 (the lower of 0 and their
+            clearance at the query's ends, which the exact check admitted).
+    """
+    if exact is None:
+        return spheres, "the fine check"
+    if given and spheres - floor < exact.clearance:
+        return spheres - floor, "the given spheres"
+    return exact.clearance, f"the exact check ({exact.link})"
 
 
 def exact_check(
