@@ -122,8 +122,8 @@ def clear_sphere_cache() -> int:
     folder = sphere_cache_dir()
     removed = 0
     if folder.is_dir():
-        files = [*folder.glob("spheres_*.json"), *folder.glob("spheres_*.lock")]
-        for f in [*files, *folder.glob("miss_*.json")]:
+        patterns = ("spheres_*.json", "spheres_*.lock", "miss_*.json")
+        for f in [f for pattern in patterns for f in folder.glob(pattern)]:
             f.unlink(missing_ok=True)
             removed += 1
     return removed

@@ -122,10 +122,11 @@ class Planner:
         check_step: largest joint-space distance (2-norm) between two checked
             configurations [rad], > 0.
         alternatives: RRT-Connect seeds collocated after a constrained straight-line
-            plan (when the query collocates: `query.Query.collocates`), >= 0, each only while the time left of the budget is at least the time the
-            first plan took (each costs a sampling bounded by that time and a collocation
-            bounded by twice that); the lowest-energy plan whose metric length is not
-            above the straight line's wins. 0: the first plan is returned once found.
+            plan (when the query `collocates`), >= 0, each only while the time left of
+            the budget is at least the time the first plan took (each costs a sampling
+            bounded by that time and a collocation bounded by twice that); the
+            lowest-energy plan whose metric length is not above the straight line's
+            wins. 0: the first plan is returned once found.
         coarse_nodes: segments of the coarse collocation that seeds the full one when
             there are obstacles, >= 2; 0: none (the full collocation from the straight line).
         coarse_subdivisions: constrained points inside each coarse segment, >= 0.
@@ -250,7 +251,7 @@ class Planner:
     def collocates(self, count: int) -> bool:
         """Whether a query among ``count`` obstacles solves collocations when its budget
         allows (`query.MIN_COLLOCATION`): without obstacles, or when the paths cannot be
-        moved on the robot's own geometry (no file geometry, or margin 0:
+        moved on the robot's own geometry (no file geometry, margin 0 or given spheres:
         `geosyn.metrics.planning.tighten.exact_movable`). Else the sampled plan, tightened
         on the meshes, is polished with the whole budget (`query.Query.collocates`)."""
         return count == 0 or not exact_movable(self)

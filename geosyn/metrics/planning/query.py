@@ -14,11 +14,11 @@ turns, straight lines bent by a random bump
 (`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
 then verified: `Query.polish`, and seeds searched on a thinner sphere model pushed out on
 the exact geometry, `geosyn.metrics.planning.thin`; with more, it is polished so for
-`POLISH_FIRST` of the budget before the collocations start), and the kept plan is the best verified one by
-the homotopy rule below (the sampled plan is one of the "other seeds": never kept when
-longer than the straight line's solution; without collocations, the shortest of the
-seeds pulled taut, the straight line bumped among them). ``Plan.first_feasible_time`` says when the
-first verified plan was found.
+`POLISH_FIRST` of the budget before the collocations start), and the kept plan is the
+best verified one by the homotopy rule below (the sampled plan is one of the "other
+seeds": never kept when longer than the straight line's solution; without collocations,
+the shortest of the seeds pulled taut, the straight line bumped among them).
+``Plan.first_feasible_time`` says when the first verified plan was found.
 
 The query's clock, the list of what was tried and the unfinished paths kept for an
 anytime return live here; the planner (its NLPs, checks and clearance bounds) is shared
@@ -419,11 +419,12 @@ class Query:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
         quick = self.sampled()
         others: list[Plan] = [quick] if quick is not None else []
-        if (quick is not None and not self.collocates()) or self.left() <= MIN_COLLOCATION:
+        meshes = quick is not None and not self.collocates()  # else: as a fallback
+        if meshes or self.left() <= MIN_COLLOCATION:
             self.attempts.append(
-                f"collocation not started: {max(self.left(), 0.0):.3f} s left, less than "
-                f"{MIN_COLLOCATION:g} s" if self.collocates() else "collocation not "
-                "started: the sampled plan is tightened on the robot's own geometry"
+                "collocation not started: the sampled plan is tightened on the robot's own "
+                "geometry" if meshes else f"collocation not started: "
+                f"{max(self.left(), 0.0):.3f} s left, less than {MIN_COLLOCATION:g} s"
             )  # fmt: skip
             if quick is None:
                 raise self.refusal()
