@@ -251,3 +251,30 @@ def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(
     plain = path_self_clearance(panda_planner.self_collision, panda_planner.sphere_check,
                                 part, panda_planner.exact_resolution)  # fmt: skip
     assert abs(plain - ours) < 1e-12
+
+
+def test_the_ur5_self_check_measures_triangles_only_where_the_hulls_do_not_decide(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A pan of the UR5 (joint 1 alone moves): three pairs stay 14-16 mm apart at every
+    checked configuration, nearer than `SELF_NEAR`, and their spheres overlap. The path's
+    self-clearance is Pinocchio's smallest pair distance over those configurations
+    (1e-6 m); coal measures the triangles once, where the hulls do not decide (the rule
+    before this one measured them at every near (configuration, pair) item: 483)."""
+    robot = load_robot("ur5")
+    planner = Planner(KineticEnergyMetric(robot))
+    q0 = np.array([0.0, -1.2, 1.6, -1.9, -1.57, 0.0])
+    line = np.array([q0, q0 + np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.0])])
+    Q = checked_configurations(line, planner.exact_resolution)
+    near = int(np.sum(planner.sphere_check.self_clearances(Q) < SELF_NEAR))
+    assert near >= 3 * len(Q) > 300  # the test means something
+    calls = []
+    measured = SelfCollision.placed_clearance
+    monkeypatch.setattr(SelfCollision, "placed_clearance",
+                        lambda self, *a: calls.append(a[-1]) or measured(self, *a))  # fmt: skip
+    ours = planner.self_check(line)
+    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    lowest = min(min(referee.distances(q).values()) for q in Q)
+    assert 0.0 < lowest < SELF_NEAR
+    assert abs(ours - lowest) < 1e-6, (ours, lowest)
+    assert len(calls) <= 3, calls

@@ -15,14 +15,21 @@ every returned plan (`path_self_clearance`).
 Rule for plans: a path is checked at the configurations of
 `geosyn.metrics.planning.exact_path.checked_configurations` (the exact check's
 resolution); at each, every pair's sphere distance (`SphereCheck.self_clearances`: a
-lower bound of the exact one) is computed, then coal's exact distance for the
-(configuration, pair) items whose bound is below `SELF_NEAR`, closest bound first,
-stopping as soon as the next bound is not below the smallest exact distance found (or
-that distance is negative: the plan is then refused or repaired, never returned).
+lower bound of the exact one) is computed. The (configuration, pair) items whose bound is
+below `SELF_NEAR` are then refined best first, the lowest bound first, until the next
+bound is not below the smallest exact distance found (or that distance is negative: the
+plan is then refused or repaired, never returned): an item with a sphere bound gets its
+convex hulls' coal distance (`SelfCollision.placed_bound`: exact for convex shapes, a
+lower bound for a URDF mesh, which its hull contains) and goes back in line with it; a
+mesh item with a hull bound gets coal's distance between the triangles. The result is the
+same exact minimum as refining every item; the triangles are measured only where the
+hulls do not already decide (a pair the path keeps a few centimetres apart is then
+measured on its hulls, 4-9 us, instead of its triangles, 100-350 us, on the UR5).
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 import time
 from typing import Any
@@ -90,7 +97,9 @@ class SelfCollision:
                        for o, b, hull in zip(self.objects, self._bvh, self._hulls, strict=True)]  # fmt: skip
         self._joint = [robot.joint_id(o.joint) if o.joint != "universe" else 0
                        for o in self.objects]  # fmt: skip
-        self._place = [pin.SE3(o.placement) for o in self.objects]
+        self._joints = np.array(self._joint, dtype=int)
+        self._rotations = np.array([np.asarray(o.placement)[:3, :3] for o in self.objects])
+        self._translations = np.array([np.asarray(o.placement)[:3, 3] for o in self.objects])
         by_link: dict[str, list[int]] = {}
         for k, o in enumerate(self.objects):
             by_link.setdefault(o.link, []).append(k)
@@ -117,44 +126,62 @@ class SelfCollision:
         """(smallest signed distance [m], link a, link b) over the pairs (or only
         ``pair``, one of them) at ``q`` (n,) [rad] (`INTERSECTING` for intersecting
         triangle meshes); ``(inf, "", "")`` without pairs."""
-        pin.forwardKinematics(self.robot.model, self._data, np.asarray(q, dtype=float))
-        R = np.array([M.rotation for M in self._data.oMi])  # oMi[0]: the universe
-        p = np.array([M.translation for M in self._data.oMi])
+        placed = self.placements(*self.joint_frames(q))
         best: tuple[float, str, str] = (math.inf, "", "")
         for a, b in self.pairs if pair is None else (pair,):
-            if (d := self.placed_clearance(R, p, (a, b))) < best[0]:
+            if (d := self.placed_clearance(placed, (a, b))) < best[0]:
                 best = (d, a, b)
         return best
 
-    def placed_clearance(self, R: np.ndarray, p: np.ndarray, pair: tuple[str, str],
-                         above: float = math.inf) -> float:  # fmt: skip
-        """Smallest signed distance [m] of ``pair`` (one of the pairs) with the joints at
-        world rotations ``R`` (J + 1, 3, 3) and positions ``p`` (J + 1, 3) by Pinocchio
-        index (``data.oMi``; e.g. `NativeSphereCheck.joint_frames`): `clearance` at that
-        configuration without its forward kinematics (`INTERSECTING` alike). Two triangle
-        meshes whose convex hulls are at least ``above`` [m] apart are not measured on
-        their triangles (the hulls' distance, a lower bound, stands for them: the result
-        is then exact only when below ``above``)."""
+    def joint_frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World rotations (J + 1, 3, 3) and positions (J + 1, 3) of the joints at ``q``
+        (n,) [rad] by Pinocchio index (``data.oMi``)."""
+        pin.forwardKinematics(self.robot.model, self._data, np.asarray(q, dtype=float))
+        R = np.array([M.rotation for M in self._data.oMi])  # oMi[0]: the universe
+        return R, np.array([M.translation for M in self._data.oMi])
+
+    def placements(self, R: np.ndarray, p: np.ndarray) -> list[Any]:
+        """coal placement of every object with the joints at world rotations ``R``
+        (J + 1, 3, 3) and positions ``p`` (J + 1, 3) by Pinocchio index (``data.oMi``;
+        e.g. `NativeSphereCheck.joint_frames`): the argument of `placed_bound` and
+        `placed_clearance`."""
+        import coal
+
+        Rj, pj = R[self._joints], p[self._joints]
+        rot = np.einsum("kab,kbc->kac", Rj, self._rotations)
+        pos = np.einsum("kab,kb->ka", Rj, self._translations) + pj
+        return [coal.Transform3s(r, t) for r, t in zip(rot, pos, strict=True)]
+
+    def placed_bound(self, placed: list[Any], pair: tuple[str, str]) -> tuple[float, bool]:
+        """(a lower bound [m] of `placed_clearance` of ``pair`` with its objects at
+        ``placed`` (`placements`), whether it is that value): the smallest coal distance
+        between the pair's convex shapes (a URDF mesh: its convex hull, which contains
+        its triangles; exact when neither object is such a mesh). ``(inf, True)`` for a
+        pair without objects."""
+        import coal
+
+        best, exact = math.inf, True
+        for _, _, i, j in self._of_pair.get(pair, []):
+            d = float(coal.distance(self._hulls[i], placed[i], self._hulls[j], placed[j],
+                                    self._request, coal.DistanceResult()))  # fmt: skip
+            best, exact = min(best, d), exact and not (self._bvh[i] or self._bvh[j])
+        return best, exact
+
+    def placed_clearance(self, placed: list[Any], pair: tuple[str, str]) -> float:
+        """Smallest signed distance [m] of ``pair`` (one of the pairs) with its objects at
+        ``placed`` (`placements`): `clearance` at that configuration without its forward
+        kinematics (`INTERSECTING` alike)."""
         import coal
 
         best = math.inf
         for _, _, i, j in self._of_pair.get(pair, []):
-            tf = [coal.Transform3s(R[self._joint[k]] @ self._place[k].rotation,
-                                   R[self._joint[k]] @ self._place[k].translation
-                                   + p[self._joint[k]]) for k in (i, j)]  # fmt: skip
             gi, gj = self._geoms[i], self._geoms[j]
-            mesh = self._bvh[i] or self._bvh[j]
-            if mesh and above < math.inf:  # the hulls first: a lower bound
-                hull = float(coal.distance(self._hulls[i], tf[0], self._hulls[j], tf[1],
-                                           self._request, coal.DistanceResult()))  # fmt: skip
-                if hull >= above:
-                    best = min(best, hull)
-                    continue
-            if mesh and coal.collide(gi, tf[0], gj, tf[1], coal.CollisionRequest(),
-                                     coal.CollisionResult()):  # fmt: skip
+            if (self._bvh[i] or self._bvh[j]) and coal.collide(
+                gi, placed[i], gj, placed[j], coal.CollisionRequest(), coal.CollisionResult()
+            ):
                 d = INTERSECTING
             else:
-                d = float(coal.distance(gi, tf[0], gj, tf[1], self._request,
+                d = float(coal.distance(gi, placed[i], gj, placed[j], self._request,
                                         coal.DistanceResult()))  # fmt: skip
             best = min(best, d)
         return best
@@ -184,23 +211,31 @@ def path_self_clearance(
     Q = checked_configurations(path, resolution)
     bound = spheres.self_clearances(Q)  # (K, P)
     near = np.flatnonzero(bound.ravel() < SELF_NEAR)
-    order = near[np.argsort(bound.ravel()[near], kind="stable")]
-    low = SELF_NEAR
-    frames, rows = None, {}
-    if kinematics is not None and order.size:  # the configurations with an item to measure
-        at = np.unique(order // bound.shape[1])
-        frames, rows = kinematics(Q[at]), {int(i): r for r, i in enumerate(at)}
-    for count, index in enumerate(order):
-        i, k = (int(x) for x in np.unravel_index(int(index), bound.shape))
-        if bound[i, k] >= low:
-            break  # every item left is at least this far
-        if count % 16 == 15 and time.perf_counter() > deadline:
+    line = [(float(bound.flat[x]), False, int(x)) for x in near]  # (bound, a hull's, item)
+    heapq.heapify(line)
+    low, count = SELF_NEAR, 0
+    frames: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    placed: dict[int, list[Any]] = {}  # the objects' coal placements, per configuration
+    if kinematics is not None and near.size:  # the configurations with an item to measure
+        at = np.unique(near // bound.shape[1])
+        R, p = kinematics(Q[at])
+        frames = {int(i): (R[r], p[r]) for r, i in enumerate(at)}
+    while line and line[0][0] < low:  # every item left is at least ``low`` apart
+        value, hull, index = heapq.heappop(line)
+        count += 1
+        if count % 16 == 0 and time.perf_counter() > deadline:
             return math.nan
+        i, k = (int(x) for x in np.unravel_index(index, bound.shape))
+        if i not in placed:
+            placed[i] = checker.placements(*(frames.get(i) or checker.joint_frames(Q[i])))
         pair = spheres.self_pairs[k]
-        if frames is not None:
-            d = checker.placed_clearance(frames[0][rows[i]], frames[1][rows[i]], pair, low)
+        if not hull:
+            d, exact = checker.placed_bound(placed[i], pair)
+            if not exact:  # back in line with the tighter bound
+                heapq.heappush(line, (max(d, value), True, index))
+                continue
         else:
-            d = checker.clearance(Q[i], pair)[0]
+            d = checker.placed_clearance(placed[i], pair)
         low = min(low, d)
         if low < 0.0:
             break
