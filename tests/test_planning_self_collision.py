@@ -22,7 +22,7 @@ import pinocchio as pin
 import pytest
 
 from geosyn.metrics import KineticEnergyMetric
-from geosyn.metrics.planning.errors import InCollision
+from geosyn.metrics.planning.errors import InCollision, NoPathFound
 from geosyn.metrics.planning.exact_path import checked_configurations
 from geosyn.metrics.planning.planner import Planner
 from geosyn.metrics.planning.self_collision import INTERSECTING, SELF_NEAR, SelfCollision
@@ -278,3 +278,30 @@ def test_the_ur5_self_check_measures_triangles_only_where_the_hulls_do_not_decid
     assert 0.0 < lowest < SELF_NEAR
     assert abs(ours - lowest) < 1e-6, (ours, lowest)
     assert len(calls) <= 3, calls
+
+
+def test_random_ur10_queries_are_planned_past_the_spheres_excess() -> None:
+    """Eight seeded random UR10 queries, no obstacles, 2 s each: at least 5 are planned
+    (7 measured; 6 with both cores busy). Before the self floors were calibrated on the
+    meshes, and before a sampled plan that failed its checks was tried again, 1 was: the
+    spheres' excess blocked 47 % of the joint box where the links are apart. Pinocchio's
+    collision model of the URDF (the referee) finds no self-collision on any returned
+    path, at every 5th configuration of its exact resolution and at its ends."""
+    robot = load_robot("ur10_robot")
+    planner = Planner(KineticEnergyMetric(robot))
+    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    rng, plans, tried = np.random.default_rng(0), [], 0
+    while tried < 8:
+        q0, q1 = robot.random_q(rng), robot.random_q(rng)
+        if referee.collides(q0) or referee.collides(q1):
+            continue
+        tried += 1
+        try:
+            plans.append(planner.plan(q0, q1, budget=2.0, seed=0))
+        except NoPathFound:
+            pass
+    assert len(plans) >= 5, len(plans)
+    for plan in plans:
+        Q = checked_configurations(plan.q, plan.exact_resolution)
+        assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+        assert plan.self_clearance >= 0.0

@@ -321,32 +321,64 @@ def test_the_ramp_lowers_the_margin_only_near_the_ends_in_c_and_numpy() -> None:
         np.testing.assert_array_equal(check.valid(Q, margin), clear >= margin)
 
 
-def test_only_self_pairs_whose_spheres_overlap_on_most_of_the_joint_box_get_slack() -> None:
-    """UR5: the flagged pairs are those whose spheres overlap on more than half of 1,000
-    seeded configurations (counted here on the numpy check), their slack the two links'
-    measured reach; at the overlapping configurations coal finds the links themselves
-    apart on most (the spheres cannot tell); no Panda pair is flagged."""
-    from geosyn.metrics.planning.sampling import SELF_UNINFORMATIVE, uninformative_slack
+def test_self_pairs_whose_spheres_overlap_often_are_calibrated_on_the_meshes() -> None:
+    """UR5: the calibrated pairs are those whose spheres overlap on more than
+    `SELF_CALIBRATE` of 1,000 seeded configurations (counted here on the numpy check);
+    no Panda pair is. At 400 other seeded configurations, coal on the URDF's meshes (the
+    referee) finds the links apart on at least 99 % of those where a calibrated pair's
+    sphere distance is at least minus its slack (the slack is an estimate from seeded
+    configurations: 1 of 400 touched, at 36.3 mm of overlap against 38.8 mm seen in the
+    calibration; the exact check decides every plan), and the slack admits at least 75 %
+    of the configurations where the links are apart (80-100 %; a floor at 0 admitted
+    0-67 % of them)."""
+    from geosyn.metrics.planning.sampling import SELF_CALIBRATE, calibrated_slack
     from geosyn.metrics.planning.self_collision import SelfCollision
     from geosyn.robots.collision_spheres import file_spheres
 
-    for name, flagged_somewhere in (("ur5", True), ("panda", False)):
+    for name, calibrated in (("ur5", 4), ("panda", 0)):
         robot = load_robot(name)
         fitted = file_spheres(robot)
         check = SphereCheck(robot, fitted.spheres)
         check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
-        slack = uninformative_slack(check, fitted.links, fitted.reach)
+        slack = calibrated_slack(check, fitted.links, fitted.reach)
         lo = np.where(np.isfinite(robot.q_min), robot.q_min, -np.pi)
         hi = np.where(np.isfinite(robot.q_max), robot.q_max, np.pi)
         Q = np.random.default_rng(0).uniform(lo, hi, size=(1000, robot.nq))
         overlap = np.mean(check.self_clearances(Q) < 0.0, axis=0)
-        reach = dict(zip(dict.fromkeys(fitted.links), fitted.reach, strict=True))
-        for k, (a, b) in enumerate(check.self_pairs):
-            want = reach[a] + reach[b] if overlap[k] > SELF_UNINFORMATIVE else 0.0
-            assert slack[k] == pytest.approx(want, abs=1e-15)
-        assert bool(np.any(slack > 0)) == flagged_somewhere
+        np.testing.assert_array_equal(slack > 0.0, overlap > SELF_CALIBRATE)
+        assert int(np.sum(slack > 0.0)) == calibrated
         exact = SelfCollision(robot, fitted.self_pairs)
-        for k in np.flatnonzero(slack > 0):
-            hits = np.flatnonzero(check.self_clearances(Q)[:, k] < 0.0)[:40]
-            apart = [exact.clearance(Q[i], check.self_pairs[k])[0] > 0.0 for i in hits]
-            assert np.mean(apart) > 0.5
+        fresh = np.random.default_rng(11).uniform(lo, hi, size=(400, robot.nq))
+        spheres = check.self_clearances(fresh)
+        for k in np.flatnonzero(slack > 0.0):
+            pair = check.self_pairs[k]
+            apart = np.array([exact.clearance(q, pair)[0] > 0.0 for q in fresh])
+            admitted = spheres[:, k] >= -slack[k]
+            assert np.mean(apart[admitted]) >= 0.99, (pair, slack[k])
+            assert np.mean(admitted[apart]) >= 0.75, (pair, np.mean(admitted[apart]))
+
+
+def test_the_calibrated_slack_is_kept_on_disk(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """UR5: `cached_slack` writes the calibration beside the sphere fits, a second call
+    reads the same values back without measuring, and a damaged entry is warned (named)
+    and measured again."""
+    from geosyn.metrics.planning import sampling
+    from geosyn.robots.collision_spheres import file_spheres, sphere_cache_dir
+
+    robot = load_robot("ur5")
+    fitted = file_spheres(robot)  # the suite's cache: no new fit
+    check = SphereCheck(robot, fitted.spheres)
+    check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
+    monkeypatch.setenv("GEOSYN_CACHE_DIR", str(tmp_path / "cache"))
+    first = sampling.cached_slack(check, fitted)
+    (entry,) = sphere_cache_dir().glob("slack_*.json")
+    measured = mock.Mock(side_effect=sampling.calibrated_slack)
+    monkeypatch.setattr(sampling, "calibrated_slack", measured)
+    np.testing.assert_array_equal(sampling.cached_slack(check, fitted), first)
+    assert measured.call_count == 0 and np.sum(first > 0.0) == 4
+    entry.write_text(entry.read_text()[:10])
+    with pytest.warns(RuntimeWarning, match=entry.name):
+        np.testing.assert_array_equal(sampling.cached_slack(check, fitted), first)
+    assert measured.call_count == 1

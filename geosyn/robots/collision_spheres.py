@@ -117,12 +117,14 @@ def sphere_cache_dir() -> Path:
 
 
 def clear_sphere_cache() -> int:
-    """Delete the cached sphere fits (and lock files a killed fit left) and the cached
-    misses of `geosyn.robots.sphere_cover`; returns how many files were removed."""
+    """Delete the cached sphere fits (and lock files a killed fit left), the cached
+    misses of `geosyn.robots.sphere_cover` and the self pairs' calibrated slack of
+    `geosyn.metrics.planning.sampling.cached_slack`; returns how many files were
+    removed."""
     folder = sphere_cache_dir()
     removed = 0
     if folder.is_dir():
-        patterns = ("spheres_*.json", "spheres_*.lock", "miss_*.json")
+        patterns = ("spheres_*.json", "spheres_*.lock", "miss_*.json", "slack_*.json")
         for f in [f for pattern in patterns for f in folder.glob(pattern)]:
             f.unlink(missing_ok=True)
             removed += 1

@@ -81,6 +81,7 @@ __all__ = [
     "REFINEMENTS",
     "SAME",
     "SAME_SAMPLED",
+    "SAMPLED_RETRIES",
     "Query",
 ]
 
@@ -114,6 +115,13 @@ the 14 Panda benchmark scenes, measured)."""
 
 POLISH_FIRST_MAX = 1.0
 """Longest polishing [s] of the sampled plan before the collocations."""
+
+SAMPLED_RETRIES = 8
+"""Most further sampled first plans (other RRT-Connect seeds, `Query.sampled`) after one
+that failed its checks, each while the time left is more than the first attempt took
+and no collocation would take it. Before, a query refused at once: on a UR5, random
+queries whose first RRT-Connect path self-collided on the meshes were refused after
+0.11-0.13 s of a 1 s budget (`benchmarks/RESULTS.md`, issue 22, sixteenth round)."""
 
 SAME = 1e-6
 """Relative difference of energy or length below which two plans count as the same path
@@ -223,16 +231,20 @@ class Query:
         lo, hi = sampling_box(p.robot, q0, q1)
         return p.sampling.connect(q0, q1, lo, hi, budget, self.seed + index)
 
-    def sampled(self) -> Plan | None:
+    def sampled(self, index: int = 0) -> Plan | None:
         """The first plan without an NLP (module docstring), or None; its path (when
         RRT-Connect found one round the obstacles) is kept as the seed of
-        `from_rrt` (0)."""
+        `from_rrt` (0). ``index`` > 0: again, from RRT-Connect seed ``seed + index``
+        searched for at most half the time left, after plans that failed their checks
+        (`run`)."""
         a, b, c = SAMPLED_SEARCH
         search = min(a * self.budget, b + c * self.budget)
         small = not self.collocates() or self.budget - search < MIN_COLLOCATION
         if small:
             search = SAMPLED_SMALL * self.budget
-        path, grown = self.connect(0, search)
+        if index:
+            search = min(search, 0.5 * max(self.left(), 0.0))
+        path, grown = self.connect(index, search)
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
@@ -417,7 +429,15 @@ class Query:
 
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
-        quick = self.sampled()
+        quick, took = self.sampled(), time.perf_counter() - self.t0
+        for index in range(1, SAMPLED_RETRIES + 1):  # while no collocation would use the time
+            if (
+                quick is not None
+                or self.left() <= took
+                or (self.collocates() and self.left() > MIN_COLLOCATION)
+            ):
+                break
+            quick = self.sampled(index)
         others: list[Plan] = [quick] if quick is not None else []
         meshes = quick is not None and not self.collocates()  # else: as a fallback
         if meshes or self.left() <= MIN_COLLOCATION:

@@ -85,7 +85,7 @@ class SphereCheck:
                 first += [i for i in ia for _ in ib]
                 second += [j for _ in ia for j in ib]
         self.self_pairs = tuple(kept)
-        self.self_slack = np.zeros(len(kept))  # [m] below each floor (`set_self_floor`)
+        self.self_slack = np.zeros(len(kept))  # [m] each floor at most minus it (`set_self_floor`)
         self._I, self._J = np.array(first, dtype=int), np.array(second, dtype=int)
         self._start = np.array(start, dtype=int)
         self._self_floor = np.zeros(len(kept))
@@ -117,14 +117,14 @@ class SphereCheck:
         return np.asarray(np.minimum.reduceat(d, self._start, axis=1))
 
     def set_self_floor(self, *Q: np.ndarray) -> None:
-        """Per pair, the lowest sphere distance `self_valid` accepts: min(0, the pair's
-        distance at the configurations ``Q`` (n,) [rad] each, e.g. start and goal), less
-        the pair's ``self_slack`` [m]. The spheres reach beyond the links: a query whose
-        ends are exactly clear but sphere-close keeps them valid."""
-        floor = np.zeros(len(self.self_pairs))
+        """Per pair, the lowest sphere distance `self_valid` accepts: the least of 0,
+        minus the pair's ``self_slack`` [m] and the pair's distance at the configurations
+        ``Q`` (n,) [rad] each (e.g. start and goal). The spheres reach beyond the links:
+        a query whose ends are exactly clear but sphere-close keeps them valid."""
+        floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
         for q in Q:
             floor = np.minimum(floor, self.self_clearances(q)[0] if len(floor) else floor)
-        self._self_floor = floor - self.self_slack
+        self._self_floor = floor
 
     def self_valid(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
         """(K,) True where no self pair's sphere distance is below its floor
