@@ -322,20 +322,23 @@ def test_the_ramp_lowers_the_margin_only_near_the_ends_in_c_and_numpy() -> None:
 
 
 def test_self_pairs_whose_spheres_overlap_often_are_calibrated_on_the_meshes() -> None:
-    """UR5: the calibrated pairs are those whose spheres overlap on more than
-    `SELF_CALIBRATE` of 1,000 seeded configurations (counted here on the numpy check);
-    no Panda pair is. At 400 other seeded configurations, coal on the URDF's meshes (the
-    referee) finds the links apart on at least 99 % of those where a calibrated pair's
-    sphere distance is at least minus its slack (the slack is an estimate from seeded
-    configurations: 1 of 400 touched, at 36.3 mm of overlap against 38.8 mm seen in the
-    calibration; the exact check decides every plan), and the slack admits at least 75 %
-    of the configurations where the links are apart (80-100 %; a floor at 0 admitted
-    0-67 % of them)."""
-    from geosyn.metrics.planning.sampling import SELF_CALIBRATE, calibrated_slack
+    """UR5: the pairs whose spheres overlap on more than `SELF_UNINFORMATIVE` of 1,000
+    seeded configurations (counted here on the numpy check) get the two links' reach;
+    those above `SELF_CALIBRATE` a calibrated slack; no Panda pair gets any. At 400 other
+    seeded configurations, coal on the URDF's meshes (the referee) finds the links of a
+    calibrated pair apart on at least 99 % of those where its sphere distance is at
+    least minus its slack (an estimate from seeded configurations; the exact check
+    decides every plan), and the slack admits at least 75 % of the configurations where
+    the links are apart (88 % and 97 % measured; a floor at 0 admitted 67 %)."""
+    from geosyn.metrics.planning.sampling import (
+        SELF_CALIBRATE,
+        SELF_UNINFORMATIVE,
+        calibrated_slack,
+    )
     from geosyn.metrics.planning.self_collision import SelfCollision
     from geosyn.robots.collision_spheres import file_spheres
 
-    for name, calibrated in (("ur5", 4), ("panda", 0)):
+    for name, counts in (("ur5", (2, 2)), ("panda", (0, 0))):
         robot = load_robot(name)
         fitted = file_spheres(robot)
         check = SphereCheck(robot, fitted.spheres)
@@ -345,12 +348,18 @@ def test_self_pairs_whose_spheres_overlap_often_are_calibrated_on_the_meshes() -
         hi = np.where(np.isfinite(robot.q_max), robot.q_max, np.pi)
         Q = np.random.default_rng(0).uniform(lo, hi, size=(1000, robot.nq))
         overlap = np.mean(check.self_clearances(Q) < 0.0, axis=0)
+        reach = dict(zip(dict.fromkeys(fitted.links), fitted.reach, strict=True))
         np.testing.assert_array_equal(slack > 0.0, overlap > SELF_CALIBRATE)
-        assert int(np.sum(slack > 0.0)) == calibrated
+        blind = np.flatnonzero(overlap > SELF_UNINFORMATIVE)
+        for k in blind:
+            a, b = check.self_pairs[k]
+            assert slack[k] == pytest.approx(reach[a] + reach[b], abs=1e-15)
+        calibrated = np.setdiff1d(np.flatnonzero(slack > 0.0), blind)
+        assert (len(blind), len(calibrated)) == counts
         exact = SelfCollision(robot, fitted.self_pairs)
         fresh = np.random.default_rng(11).uniform(lo, hi, size=(400, robot.nq))
         spheres = check.self_clearances(fresh)
-        for k in np.flatnonzero(slack > 0.0):
+        for k in calibrated:
             pair = check.self_pairs[k]
             apart = np.array([exact.clearance(q, pair)[0] > 0.0 for q in fresh])
             admitted = spheres[:, k] >= -slack[k]
@@ -377,7 +386,7 @@ def test_the_calibrated_slack_is_kept_on_disk(
     measured = mock.Mock(side_effect=sampling.calibrated_slack)
     monkeypatch.setattr(sampling, "calibrated_slack", measured)
     np.testing.assert_array_equal(sampling.cached_slack(check, fitted), first)
-    assert measured.call_count == 0 and np.sum(first > 0.0) == 4
+    assert measured.call_count == 0 and np.sum(first > 0.0) == 4  # 2 calibrated
     entry.write_text(entry.read_text()[:10])
     with pytest.warns(RuntimeWarning, match=entry.name):
         np.testing.assert_array_equal(sampling.cached_slack(check, fitted), first)

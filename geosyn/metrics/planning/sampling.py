@@ -13,10 +13,11 @@ end's own clearance (`SAMPLING_RAMP`): the spheres reach beyond the links, so an
 clear of the exact geometry may sit nearer on the spheres. A self pair whose spheres
 overlap on much of the joint box (`SELF_CALIBRATE`) has its floor calibrated on the
 file's own geometry (`calibrated_slack`): lowered to just above the least overlap of its
-spheres at which coal found the links touching at seeded configurations. On a UR5 or
-UR10 the spheres' excess alone blocked 38-47 % of the joint box (the links 1-2 cm apart
-where their spheres overlap), and random queries were solved 1 in 10; the links touch
-only where the spheres overlap by 37 mm or more.
+spheres at which coal found the links touching at seeded configurations; on most of it
+(`SELF_UNINFORMATIVE`), by the two links' reach beyond their convex hulls (the spheres
+cannot tell). On a UR10 a floor at 0 for the first kind blocked much of the joint box
+where the links are apart (they are 1-2 cm apart where their spheres overlap), and
+seeded random queries were planned 1 in 8.
 The exact check decides every returned plan,
 self-collision included.
 For a robot with a file, the file's fitted spheres also
@@ -55,6 +56,7 @@ __all__ = [
     "SELF_CALIBRATION_ITEMS",
     "SELF_CALIBRATION_SAFETY",
     "SELF_SAMPLES",
+    "SELF_UNINFORMATIVE",
     "CALIBRATION_VERSION",
     "Sampling",
     "cached_slack",
@@ -75,7 +77,16 @@ clearance bounds ramp from its ends."""
 SELF_CALIBRATE = 0.2
 """Share of seeded configurations in the joint box (`SELF_SAMPLES` of them) at which a
 self pair's spheres overlap, above which `calibrated_slack` calibrates the pair's floor
-(UR5: four pairs at 34-100 %; no Panda, xArm7 or Kinova Gen2 pair above 15 %)."""
+on the meshes (UR5 and UR10: two pairs each at 32-41 %; no Panda, xArm7 or Kinova Gen2
+pair above 15 %)."""
+
+SELF_UNINFORMATIVE = 0.5
+"""That share above which the pair's sphere distance is taken to say nothing (the UR5's
+base and upper arm: 100 %, its wrist 1 and 3: 84 %): its floor goes down by the two
+links' reach beyond their convex hulls. Calibrating these too (the UR5's base and upper
+arm touch from 39 mm of overlap, and are apart up to 56 mm) planned 14 of 24 seeded
+random queries on a UR5 with its gripper against 17 (`benchmarks/RESULTS.md`, issue 22,
+sixteenth round)."""
 
 SELF_SAMPLES = 1000
 """Configurations drawn (seed 0) to find the pairs `SELF_CALIBRATE` calibrates."""
@@ -91,15 +102,16 @@ among the seeded configurations may be a little more than over the whole joint b
 
 def calibrated_slack(check: SphereCheck, links: Sequence[str],
                      reach: Sequence[float]) -> np.ndarray:  # fmt: skip
-    """(P,) per self pair of ``check`` [m]: how far below its floor (`SphereCheck.
-    set_self_floor`) the pair's sphere distance may go in the sampled search. 0 unless
-    the pair's spheres overlap on more than `SELF_CALIBRATE` of `SELF_SAMPLES` seeded
-    configurations in the joint box (infinite limits: +-pi). For such a pair, coal
-    measures the links (`SelfCollision`, built only then) at the configurations where
-    the spheres overlap, the least overlap first, up to `SELF_CALIBRATION_ITEMS` of them:
-    the slack is the overlap at which the links first touch, less `SELF_CALIBRATION_SAFETY`
-    (none touched: the two links' ``reach`` beyond their convex hulls, ``links``' order
-    of first appearance, `SphereModel.reach`), and at most that reach."""
+    """(P,) per self pair of ``check`` [m]: how far below 0 its floor (`SphereCheck.
+    set_self_floor`) may go in the sampled search, from `SELF_SAMPLES` seeded
+    configurations in the joint box (infinite limits: +-pi) and the two links' ``reach``
+    beyond their convex hulls (``links``' order of first appearance,
+    `SphereModel.reach`). A pair whose spheres overlap on more than `SELF_UNINFORMATIVE`
+    of them: that reach (the spheres cannot tell). On more than `SELF_CALIBRATE`: coal
+    measures the links (`SelfCollision`, built only then) where the spheres overlap, the
+    least overlap first, up to `SELF_CALIBRATION_ITEMS` configurations: the overlap at
+    which they first touch, less `SELF_CALIBRATION_SAFETY` (none touched: the reach), at
+    most the reach. Else 0."""
     if not check.self_pairs:
         return np.zeros(0)
     model = check.robot.model
@@ -115,6 +127,8 @@ def calibrated_slack(check: SphereCheck, links: Sequence[str],
         (a, b), cap = check.self_pairs[k], of[check.self_pairs[k][0]] + of[check.self_pairs[k][1]]
         at = np.flatnonzero(spheres[:, k] < 0.0)
         slack[k] = cap  # the least overlap first: the first touch is the least
+        if np.mean(spheres[:, k] < 0.0) > SELF_UNINFORMATIVE:
+            continue
         for i in at[np.argsort(-spheres[at, k], kind="stable")][:SELF_CALIBRATION_ITEMS]:
             if exact.clearance(Q[i], (a, b))[0] < 0.0:
                 slack[k] = min(max(-spheres[i, k] - SELF_CALIBRATION_SAFETY, 0.0), cap)
@@ -122,7 +136,7 @@ def calibrated_slack(check: SphereCheck, links: Sequence[str],
     return slack
 
 
-CALIBRATION_VERSION = 1
+CALIBRATION_VERSION = 2
 """Part of `cached_slack`'s disk cache key: bumped when the calibration changes."""
 
 
@@ -139,7 +153,8 @@ def cached_slack(check: SphereCheck, fitted: SphereModel) -> np.ndarray:
     robot = check.robot
     key = (f"{fitted.digest}|{rows!r}|{check.self_pairs!r}|{robot.q_min.tolist()!r}|"
            f"{robot.q_max.tolist()!r}|{SELF_SAMPLES}|{SELF_CALIBRATE!r}|"
-           f"{SELF_CALIBRATION_ITEMS}|{SELF_CALIBRATION_SAFETY!r}|{CALIBRATION_VERSION}")  # fmt: skip
+           f"{SELF_CALIBRATION_ITEMS}|{SELF_CALIBRATION_SAFETY!r}|{SELF_UNINFORMATIVE!r}|"
+           f"{CALIBRATION_VERSION}")  # fmt: skip
     path = sphere_cache_dir() / f"slack_{hashlib.sha256(key.encode()).hexdigest()[:24]}.json"
     if path.is_file():
         try:
