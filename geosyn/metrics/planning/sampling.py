@@ -145,8 +145,8 @@ def cached_slack(check: SphereCheck, fitted: SphereModel) -> np.ndarray:
     sphere model), kept on disk beside the fitted spheres (``slack_<hash>.json`` in
     `geosyn.robots.collision_spheres.sphere_cache_dir`, keyed by the model, the pairs, the
     joint limits and the calibration's constants): a warm process reads it back instead
-    of measuring again (0.7-4.4 s on the UR arms and the SO-101, measured). A damaged
-    entry is measured again, warned."""
+    of measuring again (0.24-0.44 s on the UR arms, 2.3 s on the SO-101, measured). A
+    damaged entry is measured again, warned."""
     from geosyn.robots.collision_spheres import sphere_cache_dir
 
     rows = [(s.joint, tuple(map(float, s.center)), float(s.radius)) for s in fitted.spheres]
