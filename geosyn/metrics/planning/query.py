@@ -6,7 +6,8 @@ the planner's spheres (in C, `geosyn.metrics.planning.sphere_native`, within
 (`geosyn.metrics.planning.sampled.pull_taut`: string pulling, partial shortcuts, then
 `geosyn.metrics.planning.relax`, first with its penalty below 3 cm, then tightened to
 the margin with valid steps only, within `SAMPLED_RELAX` of the budget) and verified
-like every plan (the exact check decides, self-collision included); the collocation
+like every plan (the exact check decides, self-collision included; one that fails is
+made again from other RRT-Connect seeds, `SAMPLED_RETRIES`); the collocation
 stages then get the time left (none when less than `MIN_COLLOCATION` is left, nor among
 obstacles when the paths can be moved on the exact geometry, `Query.collocates`: the
 sampled path, if any, is then relaxed further, and other seeds are pulled taut by
@@ -52,6 +53,7 @@ from geosyn.metrics.planning.sampled import (
     SAMPLED_CHECK_SHARE,
     SAMPLED_RELAX,
     SAMPLED_RELAX_MAX,
+    SAMPLED_RETRIES,
     SAMPLED_SEARCH,
     SAMPLED_SMALL,
     pull_taut,
@@ -81,7 +83,6 @@ __all__ = [
     "REFINEMENTS",
     "SAME",
     "SAME_SAMPLED",
-    "SAMPLED_RETRIES",
     "Query",
 ]
 
@@ -115,13 +116,6 @@ the 14 Panda benchmark scenes, measured)."""
 
 POLISH_FIRST_MAX = 1.0
 """Longest polishing [s] of the sampled plan before the collocations."""
-
-SAMPLED_RETRIES = 8
-"""Most further sampled first plans (other RRT-Connect seeds, `Query.sampled`) after one
-that failed its checks, each while the time left is more than the first attempt took
-and no collocation would take it. Before, a query refused at once: on a UR5, random
-queries whose first RRT-Connect path self-collided on the meshes were refused after
-0.11-0.13 s of a 1 s budget (`benchmarks/RESULTS.md`, issue 22, sixteenth round)."""
 
 SAME = 1e-6
 """Relative difference of energy or length below which two plans count as the same path

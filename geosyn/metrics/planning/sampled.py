@@ -54,6 +54,7 @@ __all__ = [
     "SAMPLED_CHECK_SHARE",
     "SAMPLED_RELAX",
     "SAMPLED_RELAX_MAX",
+    "SAMPLED_RETRIES",
     "SAMPLED_SEARCH",
     "SAMPLED_SMALL",
     "SAMPLED_TRIES",
@@ -102,6 +103,14 @@ benchmark scenes, `benchmarks/RESULTS.md`)."""
 SAMPLED_SMALL = 0.8
 """Share of a budget too small for collocation (less than `MIN_COLLOCATION` would be
 left after `SAMPLED_SEARCH`) that RRT-Connect may take for the sampled plan."""
+
+SAMPLED_RETRIES = 8
+"""Most further sampled first plans (other RRT-Connect seeds,
+`geosyn.metrics.planning.query.Query.sampled`) after one that failed its checks, each
+while the time left is more than the first attempt took and no collocation would take
+it. Before, a query refused at once: on a UR5, random queries whose first RRT-Connect
+path self-collided on the meshes were refused after 0.11-0.13 s of a 1 s budget
+(`benchmarks/RESULTS.md`, issue 22, sixteenth round)."""
 
 BUMP_SIGMA = 0.5
 """Standard deviation [rad] per joint of a `bumped_line`'s bump. Relaxed, such lines
