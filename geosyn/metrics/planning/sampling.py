@@ -122,15 +122,17 @@ def calibrated_slack(check: SphereCheck, links: Sequence[str],
     of = dict(zip(dict.fromkeys(links), reach, strict=True))
     slack = np.zeros(len(check.self_pairs))
     exact: SelfCollision | None = None
-    for k in np.flatnonzero(np.mean(spheres < 0.0, axis=0) > SELF_CALIBRATE):
+    share = np.mean(spheres < 0.0, axis=0)
+    for k in np.flatnonzero(share > SELF_CALIBRATE):
+        a, b = pair = check.self_pairs[k]
+        slack[k] = cap = of[a] + of[b]
+        if share[k] > SELF_UNINFORMATIVE:
+            continue  # the spheres cannot tell
         exact = exact or SelfCollision(check.robot, check.self_pairs)
-        (a, b), cap = check.self_pairs[k], of[check.self_pairs[k][0]] + of[check.self_pairs[k][1]]
         at = np.flatnonzero(spheres[:, k] < 0.0)
-        slack[k] = cap  # the least overlap first: the first touch is the least
-        if np.mean(spheres[:, k] < 0.0) > SELF_UNINFORMATIVE:
-            continue
-        for i in at[np.argsort(-spheres[at, k], kind="stable")][:SELF_CALIBRATION_ITEMS]:
-            if exact.clearance(Q[i], (a, b))[0] < 0.0:
+        at = at[np.argsort(-spheres[at, k], kind="stable")]  # the least overlap first
+        for i in at[:SELF_CALIBRATION_ITEMS]:
+            if exact.clearance(Q[i], pair)[0] < 0.0:  # the first touch: the least overlap
                 slack[k] = min(max(-spheres[i, k] - SELF_CALIBRATION_SAFETY, 0.0), cap)
                 break
     return slack
@@ -161,7 +163,7 @@ def cached_slack(check: SphereCheck, fitted: SphereModel) -> np.ndarray:
             found = np.array(json.loads(path.read_text())["slack"], dtype=float)
             if found.shape == (len(check.self_pairs),) and np.all(np.isfinite(found)):
                 return found
-            raise ValueError(f"{found.shape[0]} values for {len(check.self_pairs)} pairs")
+            raise ValueError(f"shape {found.shape} for {len(check.self_pairs)} pairs")
         except (OSError, ValueError, KeyError, TypeError) as err:
             warnings.warn(f"sphere cache: {path.name} is damaged ({err!r}); measuring again",
                           RuntimeWarning, 2)  # fmt: skip
