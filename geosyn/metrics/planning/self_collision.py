@@ -95,11 +95,10 @@ class SelfCollision:
         self._hulls = [coal_shape(o) for o in self.objects]  # a mesh: its convex hull
         self._geoms = [_mesh_bvh(o) if b else hull
                        for o, b, hull in zip(self.objects, self._bvh, self._hulls, strict=True)]  # fmt: skip
-        self._joint = [robot.joint_id(o.joint) if o.joint != "universe" else 0
-                       for o in self.objects]  # fmt: skip
-        self._joints = np.array(self._joint, dtype=int)
-        self._rotations = np.array([np.asarray(o.placement)[:3, :3] for o in self.objects])
-        self._translations = np.array([np.asarray(o.placement)[:3, 3] for o in self.objects])
+        self._joints = np.array([robot.joint_id(o.joint) if o.joint != "universe" else 0
+                                 for o in self.objects], dtype=int)  # fmt: skip
+        place = np.array([np.asarray(o.placement) for o in self.objects]).reshape(-1, 4, 4)
+        self._rotations, self._translations = place[:, :3, :3], place[:, :3, 3]
         by_link: dict[str, list[int]] = {}
         for k, o in enumerate(self.objects):
             by_link.setdefault(o.link, []).append(k)
