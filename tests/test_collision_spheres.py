@@ -15,6 +15,7 @@ import trimesh
 from geosyn.robots import load_robot
 from geosyn.robots.collision_spheres import SphereModel, _reach, file_spheres, subdivide
 from geosyn.robots.files import example_robot_data_dir
+from geosyn.robots.mesh_inside import SolidTest
 from geosyn.robots.robot import Robot
 
 
@@ -194,7 +195,7 @@ def test_reach_is_the_farthest_outside_point_not_an_inside_one() -> None:
     box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
     tris = np.asarray(box.vertices)[np.asarray(box.faces)]
     tree = cKDTree(subdivide(tris, 0.01).reshape(-1, 3))
+    solid = SolidTest(tris)
     X = np.array([[0.53, 0.0, 0.0], [0.0, -0.57, 0.0], [0.0, 0.0, 0.61], [0.0, 0.0, 0.0]])
-    assert abs(_reach(tris, tree, X, chunk=1) - 0.11) < 1e-12
-    assert abs(_reach(tris, tree, X) - 0.11) < 1e-12
-    assert _reach(tris, tree, np.array([[0.0, 0.0, 0.0], [0.1, 0.2, -0.3]])) == 0.0
+    assert abs(_reach(solid, tree, X) - 0.11) < 1e-12
+    assert _reach(solid, tree, np.array([[0.0, 0.0, 0.0], [0.1, 0.2, -0.3]])) == 0.0

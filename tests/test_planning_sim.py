@@ -39,8 +39,9 @@ def test_planned_path_around_a_box_makes_no_contact_in_mujoco() -> None:
     # 3 cm node margin: the planner's spheres and MuJoCo's capsules are different models
     planner = Planner(metric, capacity=1, margin=0.03)
     plan = planner.plan(q0, q1, [POST], budget=20.0)
-    fine = densify(plan.q, 4)
-    assert min(planner.term.min_clearance(q) for q in fine) > 0.0
+    # the plan is certified on the URDF meshes (its spheres may overlap the post where
+    # they reach beyond the links); MuJoCo's contacts below are the referee
+    assert plan.exact_clearance > 0.0
     run = _track(robot, metric, plan.q)
     assert run.status == "ok"
     assert np.all(run.contact_force == 0.0)

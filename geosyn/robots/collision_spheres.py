@@ -44,6 +44,7 @@ from geosyn.robots.collision_geometry import (
     surface_points,
     surface_triangles,
 )
+from geosyn.robots.mesh_inside import SolidTest
 from geosyn.robots.robot import CollisionSphere, Robot
 
 if TYPE_CHECKING:
@@ -70,7 +71,7 @@ FIT_SPACING = 0.02
 MAX_PER_LINK = 8
 """Most spheres fitted to one link."""
 
-FIT_VERSION = 2
+FIT_VERSION = 3
 """Part of the cache key: bumped when the fit changes."""
 
 
@@ -131,45 +132,14 @@ def clear_sphere_cache() -> int:
     return removed
 
 
-def _inside(tris: np.ndarray, X: np.ndarray, chunk: int = 256) -> np.ndarray:
-    """(len(X),) True where points ``X`` (K, 3) lie inside the closed triangle surface
-    ``tris`` (F, 3, 3): generalized winding number > 1/2 (Van Oosterom-Strackee).
-
-    Only points inside the surface's convex hull are evaluated (the others are
-    outside), per coordinate on (chunk, F) blocks: the (chunk, F, 3) temporaries of
-    ``np.cross``/``np.linalg.norm`` made it memory-bound (3-13x slower on arm meshes of
-    3,700-8,000 triangles, same answers).
-    """
-    from scipy.spatial import ConvexHull
-
-    T = np.asarray(tris, dtype=np.float64)
-    hull = ConvexHull(T.reshape(-1, 3)).equations  # the surface lies in its hull:
-    maybe = np.flatnonzero(np.max(X @ hull[:, :3].T + hull[:, 3], axis=1) <= 1e-9)
-    inside = np.zeros(len(X), dtype=bool)  # a point outside the hull is outside
-    X = X[maybe]
-    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = (T[:, j, :].T for j in range(3))
-    out = np.empty(len(X))
-    for i in range(0, len(X), chunk):
-        px, py, pz = (X[i : i + chunk, d : d + 1] for d in range(3))
-        Ax, Ay, Az = ax - px, ay - py, az - pz
-        Bx, By, Bz = bx - px, by - py, bz - pz
-        Cx, Cy, Cz = cx - px, cy - py, cz - pz
-        a = np.sqrt(Ax * Ax + Ay * Ay + Az * Az)
-        b = np.sqrt(Bx * Bx + By * By + Bz * Bz)
-        c = np.sqrt(Cx * Cx + Cy * Cy + Cz * Cz)
-        det = Ax * (By * Cz - Bz * Cy) + Ay * (Bz * Cx - Bx * Cz) + Az * (Bx * Cy - By * Cx)
-        den = (a * b * c + (Ax * Bx + Ay * By + Az * Bz) * c
-               + (Bx * Cx + By * Cy + Bz * Cz) * a + (Cx * Ax + Cy * Ay + Cz * Az) * b)  # fmt: skip
-        out[i : i + chunk] = np.arctan2(det, den).sum(axis=1) / (2.0 * np.pi)
-    inside[maybe] = np.abs(out) > 0.5
-    return inside
-
-
 def _enclosing_centre(points: np.ndarray, iterations: int = 40) -> np.ndarray:
-    """Approximate centre of the smallest ball enclosing ``points`` (Badoiu-Clarkson)."""
+    """Approximate centre of the smallest ball enclosing ``points`` (Badoiu-Clarkson).
+
+    The farthest point from ``c`` maximises ``|p|^2 - 2 p.c`` (one product per step)."""
     c = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    square = np.einsum("ij,ij->i", points, points)
     for i in range(1, iterations + 1):
-        far = points[np.argmax(np.einsum("ij,ij->i", points - c, points - c))]
+        far = points[np.argmax(square - 2.0 * (points @ c))]
         c = c + (far - c) / (i + 1)
     return c
 
@@ -213,19 +183,13 @@ def subdivide(tris: np.ndarray, spacing: float) -> np.ndarray:
     return out
 
 
-def _reach(tris: np.ndarray, tree: cKDTree, X: np.ndarray, chunk: int = 64) -> float:
+def _reach(solid: SolidTest, tree: cKDTree, X: np.ndarray) -> float:
     """The largest distance [m] from a point of ``X`` (K, 3) outside the closed surface
-    ``tris`` to its nearest surface sample (``tree``, a cKDTree of them); 0 when every
-    point is inside. The points are tested (`_inside`) farthest first, ``chunk`` at a
-    time, up to the first one outside: the same number as testing them all."""
+    of ``solid`` to its nearest surface sample (``tree``, a cKDTree of them); 0 when
+    every point is inside."""
     d = tree.query(X)[0]
-    order = np.argsort(-d, kind="stable")
-    for i in range(0, len(order), chunk):
-        block = order[i : i + chunk]
-        outside = ~_inside(tris, X[block])
-        if np.any(outside):
-            return float(d[block[outside]].max())
-    return 0.0
+    outside = ~solid.contains(X)
+    return float(d[outside].max()) if np.any(outside) else 0.0
 
 
 def fit_link_spheres(
@@ -265,9 +229,10 @@ def fit_link_spheres(
     # cells of the solid, not of its surface: k-means of points filling it (a surface
     # clustering splits a tube lengthwise, and its spheres bulge out)
     lo, hi = points.min(axis=0), points.max(axis=0)
-    axes = [np.linspace(a, b, 12) for a, b in zip(lo, hi, strict=True)]
+    axes = [a + (np.arange(12) + 0.5) * (b - a) / 12 for a, b in zip(lo, hi, strict=True)]
     seeds = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    seeds = seeds[_inside(tris, seeds)]
+    solid = SolidTest(tris)
+    seeds = seeds[solid.contains(seeds)]
     if len(seeds) < max_spheres:
         seeds = points
     best: tuple[np.ndarray, np.ndarray, float] = (np.zeros((0, 3)), np.zeros(0), math.inf)
@@ -280,7 +245,7 @@ def fit_link_spheres(
         R = np.array([float(need[owner == i, i].max()) + margin for i in keep])
         C = C[keep]
         X = (C[:, None, :] + R[:, None, None] * dirs[None]).reshape(-1, 3)
-        reach = _reach(tris, tree, X)
+        reach = _reach(solid, tree, X)
         if reach < best[2] - 1e-3:
             best = (C, R, reach)
         if reach <= excess:
@@ -306,19 +271,24 @@ def _self_pairs(robot: Robot, objects: tuple[CollisionObject, ...]) -> list[tupl
             [pts.get(o.link, np.zeros((0, 3))), P @ oMj.rotation.T + oMj.translation]
         )
     links = sorted(joint_of)
+    hulls: dict[str, np.ndarray | None] = {}
+    for link in links:
+        try:
+            hulls[link] = ConvexHull(pts[link]).equations
+        except Exception:  # degenerate hull: its pairs kept (checked exactly later)
+            hulls[link] = None
     out = []
     for a_i, a in enumerate(links):
+        eq, lo, hi = hulls[a], pts[a].min(axis=0), pts[a].max(axis=0)
         for b in links[a_i + 1 :]:
             ja, jb = joint_of[a], joint_of[b]
             if ja == jb or parent.get(ja) == jb or parent.get(jb) == ja:
                 continue
-            try:
-                eq = ConvexHull(pts[a]).equations
-            except Exception:  # degenerate hull: keep the pair (checked exactly later)
+            if eq is None:
                 out.append((a, b))
                 continue
-            inside = (pts[b] @ eq[:, :3].T + eq[:, 3]).max(axis=1) < 0.0
-            if not inside.any():
+            near = pts[b][np.all((pts[b] >= lo) & (pts[b] <= hi), axis=1)]  # a's box holds its hull
+            if not ((near @ eq[:, :3].T + eq[:, 3]).max(axis=1) < 0.0).any():
                 out.append((a, b))
     return out
 
