@@ -205,6 +205,29 @@ def test_a_plan_never_folds_the_panda_into_itself(
     np.testing.assert_allclose(plan.q[-1], FOLD_GOAL, atol=1e-9)
 
 
+HAND_ON_BASE_START = np.array([2.2595, 1.1366, -0.116, -2.3742, 1.7493, 3.4642, -1.3552])
+HAND_ON_BASE_GOAL = np.array([0.2256, -0.2018, 2.4976, -2.9502, 1.3444, 2.2987, -2.7329])
+
+
+def test_an_end_whose_spheres_overlap_lowers_the_floor_only_near_it(
+    panda_planner: Planner, panda_referee: _Referee
+) -> None:
+    """At this goal (seeded random query 5 of `benchmarks/planning_random.py`) the hand's
+    spheres overlap the base's by 69 mm while the meshes are 2.7 mm apart. A floor
+    lowered to that overlap along the whole path let the sampled paths touch hand and base
+    3.1 rad from the goal, and the query was refused (8 times the same path); the floor
+    ramps back up away from the ends (`SELF_FLOOR_RAMP`), and the query is planned within
+    2 s, self-clear for Pinocchio's collision model at its exact resolution."""
+    check = panda_planner.sphere_check
+    k = check.self_pairs.index(("panda_hand", "panda_link0"))
+    assert check.self_clearances(HAND_ON_BASE_GOAL)[0, k] < -0.06  # the test means something
+    assert panda_referee.distances(HAND_ON_BASE_GOAL)[("panda_hand", "panda_link0")] > 0.0
+    plan = panda_planner.plan(HAND_ON_BASE_START, HAND_ON_BASE_GOAL, budget=2.0, seed=0)
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    assert not any(panda_referee.collides(q) for q in Q)
+    assert plan.self_clearance >= 0.0
+
+
 def test_the_verification_catches_a_self_colliding_path(
     panda_planner: Planner, panda_referee: _Referee
 ) -> None:

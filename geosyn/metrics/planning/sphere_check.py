@@ -60,6 +60,8 @@ class SphereCheck:
         self._ramp: tuple[np.ndarray, np.ndarray, float] = (
             np.zeros((0, robot.model.nq)), np.zeros(0), 0.0)  # fmt: skip
         self._self_floor = np.zeros(0)
+        self._floor_ends: tuple[np.ndarray, np.ndarray, float] = (
+            np.zeros((0, robot.model.nq)), np.zeros((0, 0)), 0.0)  # fmt: skip
 
     def set_self_pairs(self, spheres: Sequence[CollisionSphere], links: Sequence[str],
                        pairs: Sequence[tuple[str, str]]) -> None:  # fmt: skip
@@ -89,6 +91,7 @@ class SphereCheck:
         self._I, self._J = np.array(first, dtype=int), np.array(second, dtype=int)
         self._start = np.array(start, dtype=int)
         self._self_floor = np.zeros(len(kept))
+        self._floor_ends = (np.zeros((0, self.robot.model.nq)), np.zeros((0, len(kept))), 0.0)
 
     def frames(self, Q: np.ndarray) -> Frames:
         """((K, J, 3, 3), (K, J, 3)) world rotations and positions of the joints carrying
@@ -116,22 +119,36 @@ class SphereCheck:
         d = np.linalg.norm(c[:, self._I] - c[:, self._J], axis=2) - r[self._I] - r[self._J]
         return np.asarray(np.minimum.reduceat(d, self._start, axis=1))
 
-    def set_self_floor(self, *Q: np.ndarray) -> None:
-        """Per pair, the lowest sphere distance `self_valid` accepts: the least of 0,
-        minus the pair's ``self_slack`` [m] and the pair's distance at the configurations
-        ``Q`` (n,) [rad] each (e.g. start and goal). The spheres reach beyond the links:
-        a query whose ends are exactly clear but sphere-close keeps them valid."""
-        floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
-        for q in Q:
-            floor = np.minimum(floor, self.self_clearances(q)[0] if len(floor) else floor)
-        self._self_floor = floor
+    def set_self_floor(self, *Q: np.ndarray, slope: float = 0.0) -> None:
+        """Per pair, the lowest sphere distance `self_valid` accepts (`self_floors`): the
+        least of 0 and minus the pair's ``self_slack`` [m], lowered near the
+        configurations ``Q`` (n,) [rad] each (at most 2, e.g. start and goal) to the
+        pair's distance there, ramping back up at ``slope`` [m/rad] of joint-space
+        distance from them (0: lowered everywhere). The spheres reach beyond the links:
+        a query whose ends are exactly clear but sphere-close keeps them valid, without
+        letting the pair overlap as deeply far from them."""
+        if len(Q) > 2:
+            raise ValueError("set_self_floor: at most 2 ends")
+        self._self_floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
+        E = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
+        self._floor_ends = (E, self.self_clearances(E), float(slope))
+
+    def self_floors(self, Q: np.ndarray) -> np.ndarray:
+        """(K, P) the floor of each self pair in force at each configuration of ``Q``
+        (K, n) [rad] (`set_self_floor`)."""
+        Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
+        out = np.broadcast_to(self._self_floor, (len(Q), len(self._self_floor)))
+        E, D, slope = self._floor_ends
+        for e, d in zip(E, D, strict=True):
+            out = np.minimum(out, d[None, :] + slope * np.linalg.norm(Q - e, axis=1)[:, None])
+        return np.asarray(out)
 
     def self_valid(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
         """(K,) True where no self pair's sphere distance is below its floor
-        (`set_self_floor`; ``frames`` as in `self_clearances`)."""
+        (`self_floors`; ``frames`` as in `self_clearances`)."""
         if not self.self_pairs:
             return np.ones(len(np.asarray(Q).reshape(-1, self.robot.model.nq)), dtype=bool)
-        return np.asarray(np.all(self.self_clearances(Q, frames) >= self._self_floor, axis=1))
+        return np.asarray(np.all(self.self_clearances(Q, frames) >= self.self_floors(Q), axis=1))
 
     def set_ramp(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
                  slope: float) -> None:  # fmt: skip

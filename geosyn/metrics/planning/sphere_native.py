@@ -58,7 +58,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_free": (None, [_P]),
         "geosyn_spheres_set_spheres": (_I, [_P, _I, _I, _P, _P, _P]),
         "geosyn_spheres_set_pairs": (_I, [_P, _I, _P, _P, _I, _P, _P]),
-        "geosyn_spheres_set_floor": (None, [_P, _P]),
+        "geosyn_spheres_set_floor": (_I, [_P, _P, _I, _P, _P, _D]),
         "geosyn_spheres_set_obstacles": (_I, [_P, _I, _P, _P]),
         "geosyn_spheres_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_self_clearances": (None, [_P, _P, _I, _P]),
@@ -209,12 +209,16 @@ class NativeSphereCheck(SphereCheck):
                                               _address(floor)):  # fmt: skip
             raise MemoryError("geosyn_spheres_set_pairs: out of memory")
 
-    def set_self_floor(self, *Q: np.ndarray) -> None:
+    def set_self_floor(self, *Q: np.ndarray, slope: float = 0.0) -> None:
         """As `SphereCheck.set_self_floor`; also hands the floors to C."""
-        super().set_self_floor(*Q)
+        super().set_self_floor(*Q, slope=slope)
         if self._n_pairs:
             floor = np.ascontiguousarray(self._self_floor, dtype=float)
-            self._lib.geosyn_spheres_set_floor(self._handle, _address(floor))
+            E, D, slope = self._floor_ends
+            E, D = np.ascontiguousarray(E), np.ascontiguousarray(D)
+            if self._lib.geosyn_spheres_set_floor(self._handle, _address(floor), len(E),
+                                                  _address(E), _address(D), slope):  # fmt: skip
+                raise ValueError("set_self_floor: at most 2 ends")
 
     def set_ramp(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
                  slope: float) -> None:  # fmt: skip
@@ -310,7 +314,7 @@ class NativeSphereCheck(SphereCheck):
         Q = self._configurations(Q)
         if not self._n_pairs:
             return np.ones(len(Q), dtype=bool)
-        return np.asarray(np.all(self.self_clearances(Q) >= self._self_floor, axis=1))
+        return np.asarray(np.all(self.self_clearances(Q) >= self.self_floors(Q), axis=1))
 
     def valid(self, Q: np.ndarray, margin: float) -> np.ndarray:
         """As `SphereCheck.valid`, in one C call."""

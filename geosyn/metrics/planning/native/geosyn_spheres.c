@@ -8,7 +8,9 @@
  *   - the smallest signed distance sphere - obstacle (exact formulas of
  *     `geosyn.world.distance` for spheres, boxes, capsules, cylinders and half-spaces);
  *   - per self-collision link pair, the smallest distance between its spheres;
- *   - validity: clearance >= margin and every pair at or above its floor.
+ *   - validity: clearance >= margin and every pair at or above its floor (lowered near
+ *     a query's ends to their own pair distances, ramping back up with the distance
+ *     from them in joint space, as the margin).
  * Robot-independent: one library for every robot (the robot is data, set at creation).
  * No allocation after the set-up calls; not thread-safe per handle (one work area).
  */
@@ -40,6 +42,10 @@ typedef struct {
     int n_sphere_pairs, n_pairs;
     int *first, *second, *start; /* sphere pairs; (n_pairs + 1) starts */
     double *floor;
+    /* the floors near a query's ends: at q, pair i's floor is min(floor[i],
+     * end_floor[e n_pairs + i] + floor_slope |q - floor_ends[e]|) over the ends */
+    int n_floor_ends;
+    double floor_ends[2 * 64], *end_floor, floor_slope;
     int n_obstacles, *okind;
     double *opar;
     /* the margin ramp near a query's ends: at q, the margin in force is
@@ -87,7 +93,7 @@ GS_API void geosyn_spheres_free(void *handle) {
     free(m->R); free(m->p);
     free_spheres(&m->obs);
     free_spheres(&m->own);
-    free(m->first); free(m->second); free(m->start); free(m->floor);
+    free(m->first); free(m->second); free(m->start); free(m->floor); free(m->end_floor);
     free(m->okind); free(m->opar);
     free(m);
 }
@@ -151,18 +157,32 @@ GS_API int geosyn_spheres_set_pairs(void *handle, int n_sphere_pairs, const int 
                                     const double *floor) {
     gs_model *m = handle;
     free(m->first); free(m->second); free(m->start); free(m->floor);
+    free(m->end_floor);
     m->n_sphere_pairs = n_sphere_pairs;
     m->n_pairs = n_pairs;
     m->first = copy(first, sizeof(int) * n_sphere_pairs);
     m->second = copy(second, sizeof(int) * n_sphere_pairs);
     m->start = copy(start, sizeof(int) * (n_pairs + 1));
     m->floor = copy(floor, sizeof(double) * n_pairs);
-    return (m->first && m->second && m->start && m->floor) ? 0 : -1;
+    m->end_floor = calloc(2 * (size_t)n_pairs + 1, sizeof(double));
+    m->n_floor_ends = 0;
+    return (m->first && m->second && m->start && m->floor && m->end_floor) ? 0 : -1;
 }
 
-GS_API void geosyn_spheres_set_floor(void *handle, const double *floor) {
+/* floor: (n_pairs,) the floors away from the ends [m]; n_ends (0-2) configurations
+ * ends (n_ends, nq) with their pair distances end_floor (n_ends, n_pairs) [m] and the
+ * slope [m/rad] (see gs_model). */
+GS_API int geosyn_spheres_set_floor(void *handle, const double *floor, int n_ends,
+                                    const double *ends, const double *end_floor,
+                                    double slope) {
     gs_model *m = handle;
+    if (n_ends < 0 || n_ends > 2 || m->nq > 64) return -1;
     memcpy(m->floor, floor, sizeof(double) * m->n_pairs);
+    memcpy(m->floor_ends, ends, sizeof(double) * m->nq * n_ends);
+    memcpy(m->end_floor, end_floor, sizeof(double) * m->n_pairs * n_ends);
+    m->n_floor_ends = n_ends;
+    m->floor_slope = slope;
+    return 0;
 }
 
 /* Obstacles, GS_OBSTACLE numbers each, by kind:
@@ -331,11 +351,16 @@ static double pair_distance(const gs_model *m, int pair) {
     return best;
 }
 
-/* Whether pair `pair` keeps its floor: its joints' balls first (a lower bound of
+/* Whether pair `pair` keeps its floor (lowered near the ends: `away` (n_floor_ends,)
+ * the joint-space distances from them): its joints' balls first (a lower bound of
  * every sphere distance), then its spheres, squared distances. Needs both placed. */
-static int pair_ok(const gs_model *m, int pair) {
+static int pair_ok(const gs_model *m, int pair, const double *away) {
     const gs_spheres *s = &m->own;
     double floor = m->floor[pair];
+    for (int e = 0; e < m->n_floor_ends; ++e) {
+        double v = m->end_floor[(size_t)m->n_pairs * e + pair] + m->floor_slope * away[e];
+        if (v < floor) floor = v;
+    }
     int k0 = m->start[pair], k1 = m->start[pair + 1];
     if (k0 == k1) return 1;
     int ga = s->group[m->first[k0]], gb = s->group[m->second[k0]];
@@ -436,10 +461,17 @@ static int config_valid(gs_model *m, const double *q, double margin, int self) {
         if (clearance(m, margin) < margin) return 0;
     }
     if (self && m->n_pairs) {
+        double away[2];
+        for (int e = 0; e < m->n_floor_ends; ++e) {
+            const double *x = m->floor_ends + m->nq * e;
+            double d2 = 0.0;
+            for (int i = 0; i < m->nq; ++i) d2 += (q[i] - x[i]) * (q[i] - x[i]);
+            away[e] = sqrt(d2);
+        }
         place_spheres(m, &m->own);
         place_bounds(m, &m->own);
         for (int i = 0; i < m->n_pairs; ++i)
-            if (!pair_ok(m, i)) return 0;
+            if (!pair_ok(m, i, away)) return 0;
     }
     return 1;
 }
