@@ -59,14 +59,12 @@ def _mesh_bvh(obj: CollisionObject) -> Any:
     """coal BVH of a mesh object's own triangles (in the object's frame)."""
     import coal
 
-    vertices, triangles = coal.StdVec_Vec3s(), coal.StdVec_Triangle()
-    for v in np.asarray(obj.vertices, dtype=np.float64):
-        vertices.append(v)
-    for a, b, c in np.asarray(obj.faces, dtype=int):
-        triangles.append(coal.Triangle(int(a), int(b), int(c)))
+    vertices = np.ascontiguousarray(obj.vertices, dtype=np.float64)
+    faces = np.ascontiguousarray(obj.faces, dtype=np.int64)
     bvh = coal.BVHModelOBBRSS()
-    bvh.beginModel(len(triangles), len(vertices))
-    bvh.addSubModel(vertices, triangles)
+    bvh.beginModel(len(faces), len(vertices))
+    bvh.addVertices(vertices)
+    bvh.addTriangles(faces)
     bvh.endModel()
     return bvh
 
