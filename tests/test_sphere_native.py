@@ -54,6 +54,22 @@ def _world_centres(robot, spheres, q) -> np.ndarray:
     return np.array(out)
 
 
+def _pair_distances(robot, fitted, pairs, Q: np.ndarray) -> np.ndarray:
+    """(K, P) each link pair's smallest sphere distance [m] at each configuration of Q,
+    from centres placed by Pinocchio (the referee)."""
+    radius = np.array([s.radius for s in fitted.spheres])
+    links = list(fitted.links)
+    out = np.empty((len(Q), len(pairs)))
+    for k, q in enumerate(Q):
+        c = _world_centres(robot, fitted.spheres, q)
+        for p, (a, b) in enumerate(pairs):
+            ia = [i for i, link in enumerate(links) if link == a]
+            ib = [j for j, link in enumerate(links) if link == b]
+            out[k, p] = min(np.linalg.norm(c[i] - c[j]) - radius[i] - radius[j]
+                            for i in ia for j in ib)  # fmt: skip
+    return out
+
+
 def _obstacles(rng) -> list[shapes.Shape]:
     R = pin.rpy.rpyToMatrix(*rng.uniform(-1.0, 1.0, 3))
     return [
@@ -127,16 +143,7 @@ def test_self_clearances_and_validity_follow_the_rule() -> None:
     check.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
     rng = np.random.default_rng(5)
     Q = rng.uniform(robot.q_min, robot.q_max, size=(300, 7))
-    radius = np.array([s.radius for s in fitted.spheres])
-    links = list(fitted.links)
-    own = np.empty((len(Q), len(check.self_pairs)))
-    for k, q in enumerate(Q):
-        c = _world_centres(robot, fitted.spheres, q)
-        for p, (a, b) in enumerate(check.self_pairs):
-            ia = [i for i, link in enumerate(links) if link == a]
-            ib = [j for j, link in enumerate(links) if link == b]
-            own[k, p] = min(np.linalg.norm(c[i] - c[j]) - radius[i] - radius[j]
-                            for i in ia for j in ib)  # fmt: skip
+    own = _pair_distances(robot, fitted, check.self_pairs, Q)
     assert np.abs(check.self_clearances(Q) - own).max() < TOL
     check.set_obstacles([shapes.Box((0.5, 0.0, 0.4), (0.1, 0.3, 0.3), np.eye(3))])
     clear = check.clearances(Q)
@@ -338,21 +345,8 @@ def test_self_floors_ramp_back_up_away_from_the_ends_in_c_and_numpy() -> None:
     pool = rng.uniform(robot.q_min, robot.q_max, size=(400, 7))
     ends = pool[np.argsort(slow.self_clearances(pool).min(axis=1))[:2]]  # most overlap
     Q = np.concatenate([e + rng.normal(0.0, 0.4, size=(200, 7)) for e in ends])
-    radius = np.array([s.radius for s in fitted.spheres])
-    links = list(fitted.links)
-
-    def own(X: np.ndarray) -> np.ndarray:  # (K, P) from Pinocchio-placed centres
-        out = np.empty((len(X), len(slow.self_pairs)))
-        for k, q in enumerate(X):
-            c = _world_centres(robot, fitted.spheres, q)
-            for p, (a, b) in enumerate(slow.self_pairs):
-                ia = [i for i, link in enumerate(links) if link == a]
-                ib = [j for j, link in enumerate(links) if link == b]
-                out[k, p] = min(np.linalg.norm(c[i] - c[j]) - radius[i] - radius[j]
-                                for i in ia for j in ib)  # fmt: skip
-        return out
-
-    d, d_end = own(Q), own(ends)
+    d = _pair_distances(robot, fitted, slow.self_pairs, Q)
+    d_end = _pair_distances(robot, fitted, slow.self_pairs, ends)
     assert d_end.min() < -0.01  # the ends overlap their spheres
     for slope in (0.05, 0.0):
         away = np.linalg.norm(Q[:, None, :] - ends[None], axis=2)  # (K, 2)
