@@ -7,9 +7,9 @@ itself (`connect`). In C wherever the robot's joints allow
 (`geosyn.metrics.planning.sphere_native`, about 1 us a configuration on the Panda), else
 in numpy (`geosyn.metrics.planning.sphere_check`, said once).
 
-A query sets its obstacles and ends (`start`): the self pairs' floors are lowered to
-the ends' own sphere distances, and near each end the sampling margin ramps down to the
-end's own clearance (`SAMPLING_RAMP`): the spheres reach beyond the links, so an end
+A query sets its obstacles and ends (`start`): near each end the self pairs' floors
+ramp down to the end's own sphere distances (`SELF_FLOOR_RAMP`) and the sampling margin
+to the end's own clearance (`SAMPLING_RAMP`): the spheres reach beyond the links, so an end
 clear of the exact geometry may sit nearer on the spheres. A self pair whose spheres
 overlap on much of the joint box (`SELF_CALIBRATE`) has its floor calibrated on the
 file's own geometry (`calibrated_slack`): lowered to just above the least overlap of its
@@ -234,7 +234,8 @@ class Sampling:
 
     def start(self, obstacles: Sequence[Shape], q0: np.ndarray, q1: np.ndarray) -> None:
         """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
-        sphere distances, the sampling margin ramped down to theirs (module docstring)."""
+        sphere distances near them, the sampling margin ramped down to theirs (module
+        docstring)."""
         self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
         self.check.set_self_floor(q0, q1, slope=SELF_FLOOR_RAMP)
