@@ -25,7 +25,12 @@ from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning.errors import InCollision, NoPathFound
 from geosyn.metrics.planning.exact_path import checked_configurations
 from geosyn.metrics.planning.planner import Planner
-from geosyn.metrics.planning.self_collision import INTERSECTING, SELF_NEAR, SelfCollision
+from geosyn.metrics.planning.self_collision import (
+    INTERSECTING,
+    SELF_NEAR,
+    SelfCollision,
+    check_self_end,
+)
 from geosyn.robots import load_robot
 from geosyn.robots.collision_geometry import CollisionObject
 
@@ -250,6 +255,28 @@ def test_a_self_colliding_start_is_refused(panda_planner: Planner, panda_referee
                if panda_referee.collides(q))  # fmt: skip
     with pytest.raises(InCollision, match="self-collision"):
         panda_planner.plan(hit, FOLD_GOAL, budget=0.5)
+
+
+def test_an_end_is_refused_exactly_where_pinocchio_finds_a_self_collision() -> None:
+    """UR5 (its forearm and wrist 3 hulls overlap where the meshes are apart): at 150
+    seeded configurations, `check_self_end` (hulls first, triangles only where they
+    intersect) refuses exactly those where Pinocchio's collision model of the URDF finds
+    a self-collision on the same pairs; both answers occur."""
+    robot = load_robot("ur5")
+    planner = Planner(KineticEnergyMetric(robot))
+    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    rng, refused, agree = np.random.default_rng(3), 0, 0
+    for _ in range(150):
+        q = robot.random_q(rng)
+        try:
+            check_self_end(planner.self_collision, planner.sphere_check, q, "start")
+            hit = False
+        except InCollision:
+            hit = True
+        agree += hit == referee.collides(q)
+        refused += hit
+    assert agree == 150
+    assert 5 <= refused <= 145, refused
 
 
 def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(

@@ -243,10 +243,24 @@ def check_self_end(
     checker: SelfCollision | None, spheres: SphereCheck, q: np.ndarray, which: str
 ) -> None:
     """Raise `InCollision` if ``q`` (n,) [rad], the ``which`` end of a query, is in
-    self-collision (coal on the pairs, only where a pair's sphere bound is negative)."""
-    if checker is None or spheres.self_clearances(q).min(initial=math.inf) >= 0.0:
+    self-collision, naming the deepest pair: coal only on the pairs whose sphere bound is
+    negative, their convex hulls first, the triangles where the hulls intersect."""
+    if checker is None:
         return
-    d, a, b = checker.clearance(q)
+    bound = spheres.self_clearances(q)[0]
+    near = np.flatnonzero(bound < 0.0)
+    if not near.size:
+        return
+    placed = checker.placements(*checker.joint_frames(q))
+    worst: tuple[float, str, str] = (0.0, "", "")
+    for k in near:
+        a, b = spheres.self_pairs[k]
+        d, exact = checker.placed_bound(placed, (a, b))
+        if d < 0.0 and not exact:
+            d = checker.placed_clearance(placed, (a, b))
+        if d < worst[0]:
+            worst = (d, a, b)
+    d, a, b = worst
     if d < 0.0:
         raise InCollision(
             f"{which} is in self-collision: links {a!r} and {b!r} of the robot's own "
