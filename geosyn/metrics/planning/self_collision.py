@@ -167,15 +167,27 @@ class SelfCollision:
     def placed_clearance(self, placed: list[Any], pair: tuple[str, str]) -> float:
         """Smallest signed distance [m] of ``pair`` (one of the pairs) with its objects at
         ``placed`` (`placements`): `clearance` at that configuration without its forward
-        kinematics (`INTERSECTING` alike)."""
+        kinematics (`INTERSECTING` alike). A pair of several objects measures their
+        triangles nearest hulls first, and only while a hull distance (a lower bound) is
+        below the least distance found."""
         import coal
 
-        best = math.inf
-        for _, _, i, j in self._of_pair.get(pair, []):
+        best, meshes, checks = math.inf, [], self._of_pair.get(pair, [])
+        for _, _, i, j in checks:
+            d = -math.inf  # one object pair: no ordering to make
+            if len(checks) > 1 or not (self._bvh[i] or self._bvh[j]):
+                d = float(coal.distance(self._hulls[i], placed[i], self._hulls[j], placed[j],
+                                        self._request, coal.DistanceResult()))  # fmt: skip
+            if self._bvh[i] or self._bvh[j]:
+                meshes.append((d, i, j))
+            else:  # convex shapes: their distance
+                best = min(best, d)
+        for bound, i, j in sorted(meshes):
+            if bound >= best:
+                break
             gi, gj = self._geoms[i], self._geoms[j]
-            if (self._bvh[i] or self._bvh[j]) and coal.collide(
-                gi, placed[i], gj, placed[j], coal.CollisionRequest(), coal.CollisionResult()
-            ):
+            if coal.collide(gi, placed[i], gj, placed[j], coal.CollisionRequest(),
+                            coal.CollisionResult()):  # fmt: skip
                 d = INTERSECTING
             else:
                 d = float(coal.distance(gi, placed[i], gj, placed[j], self._request,
