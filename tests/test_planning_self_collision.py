@@ -354,6 +354,31 @@ def test_the_ur5_self_check_measures_triangles_only_where_the_hulls_do_not_decid
     assert len(calls) <= 3, calls
 
 
+def test_a_decided_path_cut_short_reports_a_lower_bound_and_a_crossing_is_still_found(
+    monkeypatch: pytest.MonkeyPatch, panda_planner: Planner, panda_referee: _Referee
+) -> None:
+    """With no time to refine (`SELF_REFINE_TIME` 0): the UR5 pan above, self-clear,
+    reports a value between 0 and Pinocchio's smallest pair distance over its checked
+    configurations (a lower bound, not NaN); the Panda's folding line, which Pinocchio
+    finds self-colliding, is still found negative (the items that could intersect are
+    refined first, whatever the time)."""
+    from geosyn.metrics.planning import self_collision
+
+    monkeypatch.setattr(self_collision, "SELF_REFINE_TIME", 0.0)
+    robot = load_robot("ur5")
+    planner = Planner(KineticEnergyMetric(robot))
+    q0 = np.array([0.0, -1.2, 1.6, -1.9, -1.57, 0.0])
+    line = np.array([q0, q0 + np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.0])])
+    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    Q = checked_configurations(line, planner.exact_resolution)
+    lowest = min(min(referee.distances(q).values()) for q in Q)
+    cut = planner.self_check(line)
+    assert 0.0 <= cut <= lowest + 1e-9, (cut, lowest)
+    fold = np.array([FOLD_START, FOLD_GOAL])
+    assert any(panda_referee.collides(q) for q in checked_configurations(fold, 0.02))
+    assert panda_planner.self_check(fold) < 0.0
+
+
 def test_random_ur10_queries_are_planned_past_the_spheres_excess() -> None:
     """Eight seeded random UR10 queries, no obstacles, 2 s each: at least 5 are planned
     (7 measured; 6 with both cores busy). Before the self floors were calibrated on the

@@ -50,7 +50,9 @@ class Plan(NamedTuple):
             (`geosyn.metrics.planning.self_collision.path_self_clearance`: the sphere
             bounds everywhere, coal where they are closest); never negative for a
             returned plan (a self-colliding path is refused); at most `SELF_NEAR`
-            (0.02 m: "at least" that); NaN when the robot has no file geometry.
+            (0.02 m: "at least" that); a lower bound of it when its refinement was cut
+            short (`SELF_REFINE_TIME` after the path was decided self-clear); NaN when
+            the robot has no file geometry.
         certified_clearance: a lower bound [m] of ``exact_clearance`` between the checked
             configurations too (`geosyn.metrics.planning.certify`), with
             ``Planner.plan(..., certify=True)``; NaN otherwise or without file geometry.

@@ -25,6 +25,13 @@ mesh item with a hull bound gets coal's distance between the triangles. The resu
 same exact minimum as refining every item; the triangles are measured only where the
 hulls do not already decide (a pair the path keeps a few centimetres apart is then
 measured on its hulls, 4-9 us, instead of its triangles, 100-350 us, on the UR5).
+
+Lowest bound first, every item that could intersect is refined before any that cannot:
+once the next bound is not negative the path is decided (self-clear). Refining on for the
+exact minimum is then bounded by `SELF_REFINE_TIME`; cut short, the result is the
+smallest bound left (a lower bound of the exact minimum, not negative). On the SO-101
+(meshes of 17,000-54,000 triangles, a pair 9 mm apart along a 1,429-configuration line)
+the exact minimum took 6.7 s and ran the 2 s query out of time.
 """
 
 from __future__ import annotations
@@ -45,7 +52,14 @@ from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import Robot
 from geosyn.world.exact_clearance import coal_shape
 
-__all__ = ["INTERSECTING", "SELF_NEAR", "SelfCollision", "check_self_end", "path_self_clearance"]
+__all__ = [
+    "INTERSECTING",
+    "SELF_NEAR",
+    "SELF_REFINE_TIME",
+    "SelfCollision",
+    "check_self_end",
+    "path_self_clearance",
+]
 
 SELF_NEAR = 0.02
 """Self-clearance [m] beyond which the sphere bound is not refined: a plan whose pairs'
@@ -53,6 +67,10 @@ sphere distances all exceed it reports this value ("at least")."""
 
 INTERSECTING = -1e-6
 """Clearance [m] reported for two intersecting triangle meshes (coal gives no depth)."""
+
+SELF_REFINE_TIME = 0.05
+"""Most time [s] `path_self_clearance` refines a decided path towards its exact minimum
+(module docstring)."""
 
 
 def _mesh_bvh(obj: CollisionObject) -> Any:
@@ -209,11 +227,13 @@ def path_self_clearance(
     pairs set, `SphereCheck.set_self_pairs`).
 
     Returns the exact minimum when it is below `SELF_NEAR` and not negative, else
-    `SELF_NEAR` ("at least"); a negative value (some exact penetration, not
-    necessarily the deepest) when the path self-collides; NaN without ``checker`` or
-    when ``time.perf_counter()`` passes ``deadline`` [s] first. ``kinematics``: the
-    joints' placements of every checked configuration at once (e.g. in C): the same
-    result without one Pinocchio call per measured item.
+    `SELF_NEAR` ("at least"); a lower bound of it, not negative, when the path was
+    decided self-clear and refining it took more than `SELF_REFINE_TIME` or passed
+    ``deadline`` [s]; a negative value (some exact penetration, not necessarily the
+    deepest) when the path self-collides; NaN without ``checker`` or when
+    ``time.perf_counter()`` passes ``deadline`` before the path is decided.
+    ``kinematics``: the joints' placements of every checked configuration at once (e.g.
+    in C): the same result without one Pinocchio call per measured item.
     """
     if checker is None:
         return math.nan
@@ -229,11 +249,14 @@ def path_self_clearance(
         at = np.unique(near // bound.shape[1])
         R, p = kinematics(Q[at])
         frames = {int(i): (R[r], p[r]) for r, i in enumerate(at)}
+    refine_end = math.inf  # set once decided: every item left is apart
     while line and line[0][0] < low:  # every item left is at least ``low`` apart
+        if math.isinf(refine_end) and line[0][0] >= 0.0:
+            refine_end = time.perf_counter() + SELF_REFINE_TIME
         value, hull, index = heapq.heappop(line)
         count += 1
-        if count % 16 == 0 and time.perf_counter() > deadline:
-            return math.nan
+        if count % 16 == 0 and time.perf_counter() > min(deadline, refine_end):
+            return min(low, value) if value >= 0.0 else math.nan  # bounds: lowest first
         i, k = (int(x) for x in np.unravel_index(index, bound.shape))
         if i not in placed:
             placed[i] = checker.placements(*(frames.get(i) or checker.joint_frames(Q[i])))
