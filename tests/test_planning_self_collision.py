@@ -13,16 +13,16 @@ lower bounds of the exact ones, and that a self-colliding start is refused.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import pytest
+from self_collision_referee import SelfCollisionReferee
 
 from geosyn.metrics import KineticEnergyMetric
-from geosyn.metrics.planning.errors import InCollision, NoPathFound
+from geosyn.metrics.planning.errors import InCollision
 from geosyn.metrics.planning.exact_path import checked_configurations
 from geosyn.metrics.planning.planner import Planner
 from geosyn.metrics.planning.self_collision import (
@@ -75,31 +75,6 @@ def test_self_clearance_matches_pinocchio_on_the_ur5_meshes() -> None:
         assert abs(d - ref) <= 1e-6, (d, ref)
 
 
-def test_pairs_of_several_fine_meshes_match_pinocchio() -> None:
-    """SO-101 (2-4 STL meshes per link, 17,000-54,000 triangles each): per self pair,
-    `SelfCollision.clearance` (the object pairs' triangles measured nearest hulls first,
-    only while a hull distance is below the least found) equals Pinocchio's smallest
-    distance over the same mesh pairs (1e-9 m; intersecting: `INTERSECTING` against
-    Pinocchio's collision) at 4 seeded configurations. (The Panda's fingers, 4 boxes
-    each, cannot tell: measuring only the nearest hull's pair gives the same there.)"""
-    robot = load_robot("so101")
-    several = (("base_link", "lower_arm_link"), ("base_link", "wrist_link"),
-               ("base_link", "gripper_link"), ("shoulder_link", "wrist_link"),
-               ("shoulder_link", "gripper_link"), ("upper_arm_link", "gripper_link"))  # fmt: skip
-    checker, referee = SelfCollision(robot, several), _Referee(robot, several)
-    assert min(len(checker._of_pair[ab]) for ab in several) >= 4  # object pairs each
-    rng = np.random.default_rng(4)
-    for _ in range(4):
-        q = robot.random_q(rng)
-        ref = referee.distances(q)
-        for pair in several:
-            ours = checker.clearance(q, pair)[0]
-            if ref[pair] == -math.inf:
-                assert ours == INTERSECTING
-            else:
-                assert abs(ours - ref[pair]) < 1e-9, (pair, ours, ref[pair])
-
-
 def test_overlapping_hulls_of_clear_meshes_are_not_a_self_collision() -> None:
     """The forearm and wrist-3 hulls (coal's distance between the convex hulls of the
     file's vertices) overlap at a seeded configuration where the meshes are clear: the
@@ -146,62 +121,18 @@ FOLD_START = np.array([-2.43, -0.95, 1.23, -2.67, 0.62, 0.59, 1.39])
 FOLD_GOAL = np.array([-2.42, -0.92, 1.6, -2.8, 0.04, 1.19, 1.38])
 
 
-class _Referee:
-    """Pinocchio's own collision model of a robot's URDF (coal on its collision
-    geometry), with the self pairs of the robot's file, link by link."""
-
-    def __init__(self, robot: Any, pairs: tuple[tuple[str, str], ...]) -> None:
-        urdf = Path(str(robot.source_file))
-        self.nq = robot.nq
-        self.full = pin.buildModelFromUrdf(str(urdf))
-        share = [str(p) for p in urdf.parents if p.name == "share"]
-        self.gm = pin.buildGeomFromUrdf(self.full, str(urdf), pin.GeometryType.COLLISION,
-                                        package_dirs=share)  # fmt: skip
-        by_link: dict[str, list[int]] = {}
-        for i, g in enumerate(self.gm.geometryObjects):
-            by_link.setdefault(self.full.frames[g.parentFrame].name, []).append(i)
-        for a, b in pairs:
-            for i in by_link.get(a, []):
-                for j in by_link.get(b, []):
-                    self.gm.addCollisionPair(pin.CollisionPair(i, j))
-        self.gd, self.data = self.gm.createData(), self.full.createData()
-
-    def _place(self, q: np.ndarray) -> None:
-        qf = pin.neutral(self.full)
-        qf[: self.nq] = q
-        pin.updateGeometryPlacements(self.full, self.data, self.gm, self.gd, qf)
-
-    def collides(self, q: np.ndarray) -> bool:
-        self._place(q)
-        return bool(pin.computeCollisions(self.gm, self.gd, False))
-
-    def distances(self, q: np.ndarray) -> dict[tuple[str, str], float]:
-        """Smallest distance [m] per link pair (-inf where the meshes intersect)."""
-        self._place(q)
-        pin.computeCollisions(self.gm, self.gd, False)
-        pin.computeDistances(self.gm, self.gd)
-        out: dict[tuple[str, str], float] = {}
-        for k, cp in enumerate(self.gm.collisionPairs):
-            key = (self.full.frames[self.gm.geometryObjects[cp.first].parentFrame].name,
-                   self.full.frames[self.gm.geometryObjects[cp.second].parentFrame].name)  # fmt: skip
-            hit = self.gd.collisionResults[k].isCollision()
-            d = -math.inf if hit else self.gd.distanceResults[k].min_distance
-            out[key] = min(out.get(key, math.inf), d)
-        return out
-
-
 @pytest.fixture(scope="module")
 def panda_planner() -> Planner:
     return Planner(KineticEnergyMetric(load_robot("panda")))
 
 
 @pytest.fixture(scope="module")
-def panda_referee(panda_planner: Planner) -> _Referee:
-    return _Referee(panda_planner.robot, panda_planner.sphere_check.self_pairs)
+def panda_referee(panda_planner: Planner) -> SelfCollisionReferee:
+    return SelfCollisionReferee(panda_planner.robot, panda_planner.sphere_check.self_pairs)
 
 
 def test_sphere_self_distances_are_lower_bounds_of_pinocchios(
-    panda_planner: Planner, panda_referee: _Referee
+    panda_planner: Planner, panda_referee: SelfCollisionReferee
 ) -> None:
     """Per self pair, the spheres' distance is at most Pinocchio's exact one (the fitted
     spheres cover the meshes), at seeded random configurations (1e-9 m)."""
@@ -216,7 +147,7 @@ def test_sphere_self_distances_are_lower_bounds_of_pinocchios(
 
 
 def test_a_plan_never_folds_the_panda_into_itself(
-    panda_planner: Planner, panda_referee: _Referee
+    panda_planner: Planner, panda_referee: SelfCollisionReferee
 ) -> None:
     """The straight line (and the unconstrained geodesic near it) folds the hand into
     link 2; the returned plan goes round: Pinocchio finds no self-collision at any
@@ -240,7 +171,7 @@ HAND_ON_BASE_GOAL = np.array([0.2256, -0.2018, 2.4976, -2.9502, 1.3444, 2.2987, 
 
 
 def test_an_end_whose_spheres_overlap_lowers_the_floor_only_near_it(
-    panda_planner: Planner, panda_referee: _Referee
+    panda_planner: Planner, panda_referee: SelfCollisionReferee
 ) -> None:
     """At this goal (seeded random query 5 of `benchmarks/planning_random.py`) the hand's
     spheres overlap the base's by 69 mm while the meshes are 2.7 mm apart. A floor
@@ -259,7 +190,7 @@ def test_an_end_whose_spheres_overlap_lowers_the_floor_only_near_it(
 
 
 def test_the_verification_catches_a_self_colliding_path(
-    panda_planner: Planner, panda_referee: _Referee
+    panda_planner: Planner, panda_referee: SelfCollisionReferee
 ) -> None:
     """The straight line, which Pinocchio finds self-colliding, gets a negative
     self-clearance (refused); each half of it up to the last configuration Pinocchio
@@ -273,7 +204,9 @@ def test_the_verification_catches_a_self_colliding_path(
     assert panda_planner.self_ok(panda_planner.self_check(clear_part))
 
 
-def test_a_self_colliding_start_is_refused(panda_planner: Planner, panda_referee: _Referee) -> None:
+def test_a_self_colliding_start_is_refused(
+    panda_planner: Planner, panda_referee: SelfCollisionReferee
+) -> None:
     mid = 0.5 * (FOLD_START + FOLD_GOAL)
     rng = np.random.default_rng(0)
     hit = next(q for q in (mid + 0.05 * s * rng.uniform(-1, 1, 7) for s in range(20))
@@ -289,7 +222,7 @@ def test_an_end_is_refused_exactly_where_pinocchio_finds_a_self_collision() -> N
     a self-collision on the same pairs; both answers occur."""
     robot = load_robot("ur5")
     planner = Planner(KineticEnergyMetric(robot))
-    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
     rng, refused, agree = np.random.default_rng(3), 0, 0
     for _ in range(150):
         q = robot.random_q(rng)
@@ -305,7 +238,7 @@ def test_an_end_is_refused_exactly_where_pinocchio_finds_a_self_collision() -> N
 
 
 def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(
-    panda_planner: Planner, panda_referee: _Referee
+    panda_planner: Planner, panda_referee: SelfCollisionReferee
 ) -> None:
     """A path up to just before the fold's self-collision: its self-clearance, computed
     with the joints placed in C for every checked configuration (the planner's default),
@@ -348,7 +281,7 @@ def test_the_ur5_self_check_measures_triangles_only_where_the_hulls_do_not_decid
     monkeypatch.setattr(SelfCollision, "placed_clearance",
                         lambda self, *a: calls.append(a[-1]) or measured(self, *a))  # fmt: skip
     ours = planner.self_check(line)
-    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
     lowest = min(min(referee.distances(q).values()) for q in Q)
     assert 0.0 < lowest < SELF_NEAR
     assert abs(ours - lowest) < 1e-6, (ours, lowest)
@@ -356,7 +289,7 @@ def test_the_ur5_self_check_measures_triangles_only_where_the_hulls_do_not_decid
 
 
 def test_a_decided_path_cut_short_reports_a_lower_bound_and_a_crossing_is_still_found(
-    monkeypatch: pytest.MonkeyPatch, panda_planner: Planner, panda_referee: _Referee
+    monkeypatch: pytest.MonkeyPatch, panda_planner: Planner, panda_referee: SelfCollisionReferee
 ) -> None:
     """With no time to refine (`SELF_REFINE_TIME` 0): the UR5 pan above, self-clear,
     reports a value between 0 and Pinocchio's smallest pair distance over its checked
@@ -370,7 +303,7 @@ def test_a_decided_path_cut_short_reports_a_lower_bound_and_a_crossing_is_still_
     planner = Planner(KineticEnergyMetric(robot))
     q0 = np.array([0.0, -1.2, 1.6, -1.9, -1.57, 0.0])
     line = np.array([q0, q0 + np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.0])])
-    referee = _Referee(robot, planner.sphere_check.self_pairs)
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
     Q = checked_configurations(line, planner.exact_resolution)
     lowest = min(min(referee.distances(q).values()) for q in Q)
     cut = planner.self_check(line)
@@ -378,31 +311,3 @@ def test_a_decided_path_cut_short_reports_a_lower_bound_and_a_crossing_is_still_
     fold = np.array([FOLD_START, FOLD_GOAL])
     assert any(panda_referee.collides(q) for q in checked_configurations(fold, 0.02))
     assert panda_planner.self_check(fold) < 0.0
-
-
-def test_random_ur10_queries_are_planned_past_the_spheres_excess() -> None:
-    """Eight seeded random UR10 queries, no obstacles, 2 s each: at least 5 are planned
-    (8 measured with the seventeenth round's sphere fits, 7 before; 6 with both cores
-    busy). Before the self floors were calibrated on the
-    meshes, and before a sampled plan that failed its checks was tried again, 1 was: the
-    spheres' excess blocked 47 % of the joint box where the links are apart. Pinocchio's
-    collision model of the URDF (the referee) finds no self-collision on any returned
-    path, at every 5th configuration of its exact resolution and at its ends."""
-    robot = load_robot("ur10_robot")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = _Referee(robot, planner.sphere_check.self_pairs)
-    rng, plans, tried = np.random.default_rng(0), [], 0
-    while tried < 8:
-        q0, q1 = robot.random_q(rng), robot.random_q(rng)
-        if referee.collides(q0) or referee.collides(q1):
-            continue
-        tried += 1
-        try:
-            plans.append(planner.plan(q0, q1, budget=2.0, seed=0))
-        except NoPathFound:
-            pass
-    assert len(plans) >= 5, len(plans)
-    for plan in plans:
-        Q = checked_configurations(plan.q, plan.exact_resolution)
-        assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
-        assert plan.self_clearance >= 0.0
