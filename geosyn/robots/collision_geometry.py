@@ -30,6 +30,7 @@ __all__ = [
     "CollisionObject",
     "collision_objects",
     "edge_cuts",
+    "file_bvh",
     "geometry_digest",
     "surface_points",
     "surface_triangles",
@@ -117,7 +118,20 @@ def _from_urdf(robot: Robot, path: Path) -> list[CollisionObject]:
             )  # fmt: skip
         out.append(CollisionObject(go.name, joint, link, (jMl * lMo).homogeneous, kind, size,
                                    verts, faces))  # fmt: skip
+        if kind == "mesh":
+            _FILE_BVH[out[-1]] = g
     return out
+
+
+#: The coal BVH Pinocchio built for each URDF mesh object while reading the file.
+_FILE_BVH: weakref.WeakKeyDictionary[CollisionObject, object] = weakref.WeakKeyDictionary()
+
+
+def file_bvh(obj: CollisionObject) -> object | None:
+    """The coal BVH (its triangles in the object's frame, `CollisionObject.vertices` and
+    ``faces``) Pinocchio built for a URDF mesh object when the file was read, or None
+    (another kind or file): a caller that needs it need not build it again."""
+    return _FILE_BVH.get(obj)
 
 
 def _from_mjcf(robot: Robot, path: Path) -> list[CollisionObject]:

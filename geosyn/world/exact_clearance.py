@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -119,8 +120,20 @@ def _obstacle_geometry(shape: Shape) -> tuple[Any, np.ndarray]:
     raise TypeError(f"unknown shape {type(shape).__name__}")  # check_shape ran before
 
 
+#: Each collision object's coal geometry, made once per process (the exact clearance and
+#: the self-collision check of one robot share them; coal only reads them).
+_SHAPES: weakref.WeakKeyDictionary[CollisionObject, Any] = weakref.WeakKeyDictionary()
+
+
 def coal_shape(obj: CollisionObject) -> Any:
-    """The coal geometry of a robot collision object (a mesh: its convex hull)."""
+    """The coal geometry of a robot collision object (a mesh: its convex hull), made
+    once per object."""
+    if (shape := _SHAPES.get(obj)) is None:
+        shape = _SHAPES[obj] = _make_shape(obj)
+    return shape
+
+
+def _make_shape(obj: CollisionObject) -> Any:
     import coal
 
     s = obj.size

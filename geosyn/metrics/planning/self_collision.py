@@ -47,7 +47,7 @@ import pinocchio as pin
 from geosyn.metrics.planning.errors import InCollision
 from geosyn.metrics.planning.exact_path import Kinematics, checked_configurations
 from geosyn.metrics.planning.sphere_check import SphereCheck
-from geosyn.robots.collision_geometry import CollisionObject, collision_objects
+from geosyn.robots.collision_geometry import CollisionObject, collision_objects, file_bvh
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import Robot
 from geosyn.world.exact_clearance import coal_shape
@@ -74,9 +74,12 @@ SELF_REFINE_TIME = 0.05
 
 
 def _mesh_bvh(obj: CollisionObject) -> Any:
-    """coal BVH of a mesh object's own triangles (in the object's frame)."""
+    """coal BVH of a mesh object's own triangles (in the object's frame): the one
+    Pinocchio built reading the URDF (`file_bvh`), else built here."""
     import coal
 
+    if (built := file_bvh(obj)) is not None:
+        return built
     vertices = np.ascontiguousarray(obj.vertices, dtype=np.float64)
     faces = np.ascontiguousarray(obj.faces, dtype=np.int64)
     bvh = coal.BVHModelOBBRSS()
