@@ -14,7 +14,7 @@ from scipy.spatial import ConvexHull
 
 from geosyn.robots import load_robot
 from geosyn.robots.collision_geometry import collision_objects, surface_triangles
-from geosyn.robots.mesh_inside import SolidTest, inside
+from geosyn.robots.mesh_inside import SolidTest
 
 TOL = 1e-6
 """Points closer than this [m] to a face plane are left out of the comparisons (on the
@@ -55,7 +55,7 @@ def test_points_inside_a_convex_polyhedron_are_those_behind_every_face() -> None
                  trimesh.creation.cylinder(radius=0.05, height=0.4, sections=6)):  # fmt: skip
         X = rng.uniform(mesh.bounds[0] - 0.05, mesh.bounds[1] + 0.05, (4000, 3))
         truth, clear = _in_hull(np.asarray(mesh.vertices), X)
-        got = inside(_tris(mesh), X)
+        got = SolidTest(_tris(mesh)).contains(X)
         assert np.array_equal(got[clear], truth[clear])
         assert 0.1 < truth.mean() < 0.9  # both answers occur
 
@@ -109,6 +109,6 @@ def test_a_robot_stl_mesh_agrees_with_the_generalized_winding_number() -> None:
         X = rng.uniform(lo, hi, (300, 3))
         w = _winding(tris, X)
         assert np.abs(w - np.round(w)).max() < 1e-3
-        got = inside(tris, X)
+        got = SolidTest(tris).contains(X)
         assert np.array_equal(got, np.abs(w) > 0.5)
         assert 10 < got.sum() < 290

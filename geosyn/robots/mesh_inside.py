@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SolidTest", "inside"]
+__all__ = ["SolidTest"]
 
 
 def _ray_frame() -> np.ndarray:
@@ -96,9 +96,3 @@ class SolidTest:
     def contains(self, X: np.ndarray) -> np.ndarray:
         """(K,) bool: points ``X`` (K, 3) [m] inside the surface (winding number not 0)."""
         return np.asarray(np.abs(self.winding(X)) > 0.5)
-
-
-def inside(tris: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """(K,) bool: points ``X`` (K, 3) [m] inside the closed surface ``tris`` (F, 3, 3)
-    (`SolidTest`, for one call)."""
-    return SolidTest(tris).contains(X)
