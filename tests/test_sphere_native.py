@@ -151,7 +151,8 @@ def test_self_clearances_and_validity_follow_the_rule() -> None:
     folded = int(np.argmin(own.min(axis=1)))  # a configuration with sphere overlaps
     assert own[folded].min() < 0.0
     for ends in ((), (Q[folded],)):
-        check.set_self_floor(*ends)  # floors: min(0, each pair's distance at the ends)
+        # floors: min(0, each pair's distance at the ends); the margin unchanged there
+        check.set_ends(ends, np.full(len(ends), np.inf), 0.0)
         floor = np.minimum(0.0, own[folded]) if ends else np.zeros(len(check.self_pairs))
         for margin in (0.0, 0.01, float(np.median(clear))):
             expected = (clear >= margin) & np.all(own >= floor, axis=1)
@@ -320,11 +321,11 @@ def test_the_ramp_lowers_the_margin_only_near_the_ends_in_c_and_numpy() -> None:
     force = np.minimum(margin, np.min([c + slope * np.linalg.norm(Q - e, axis=1)
                                        for e, c in zip(ends, c_end, strict=True)], axis=0))  # fmt: skip
     for check in (native, slow):
-        check.set_ramp(ends, c_end, slope)
+        check.set_ends(ends, c_end, slope)
         expected = clear >= force
         assert 0 < expected.sum() < len(Q) and (clear >= margin).sum() < expected.sum()
         np.testing.assert_array_equal(check.valid(Q, margin), expected)
-        check.set_ramp([], [], 0.0)
+        check.set_ends([], [], 0.0)
         np.testing.assert_array_equal(check.valid(Q, margin), clear >= margin)
 
 
@@ -353,12 +354,53 @@ def test_self_floors_ramp_back_up_away_from_the_ends_in_c_and_numpy() -> None:
         floor = np.minimum(0.0, (d_end[None] + slope * away[:, :, None]).min(axis=1))
         expected = np.all(d >= floor - 1e-12, axis=1)
         for check in (native, slow):
-            check.set_self_floor(*ends, slope=slope)
+            check.set_ends(ends, np.full(2, np.inf), 0.0, floor_slope=slope)
             np.testing.assert_array_equal(check.valid(Q, 0.0), expected)
         assert 0 < expected.sum() < len(Q)
         if slope:
             ramped = expected
     assert ramped.sum() < expected.sum()  # the ramp refuses what the flat floors let by
+    # both ramps from the one set of ends, round a wall: the margin and the floors
+    wall = [shapes.Box((0.45, 0.0, 0.35), (0.02, 0.25, 0.35), np.eye(3))]
+    radius = np.array([s.radius for s in fitted.spheres])
+    clear = np.array(
+        [
+            np.min(signed_distance(wall[0], _world_centres(robot, fitted.spheres, q)) - radius)
+            for q in Q
+        ]
+    )  # Pinocchio-placed centres: the referee
+    margin, slope = 0.05, 0.2
+
+    def valid(slope: float, floor_slope: float) -> np.ndarray:  # written out
+        force = np.minimum(margin, (c_end[None] + slope * away).min(axis=1))
+        floor = np.minimum(0.0, (d_end[None] + floor_slope * away[:, :, None]).min(axis=1))
+        return (clear >= force - 1e-12) & np.all(d >= floor - 1e-12, axis=1)
+
+    c_end = np.minimum(slow.clearances(ends), margin) - 0.15
+    both = valid(slope, 0.05)
+    assert (both != valid(0.05, slope)).any()  # each ramp has its own slope
+    for check in (native, slow):
+        check.set_obstacles(wall)
+        check.set_ends(ends, c_end, slope, floor_slope=0.05)
+        np.testing.assert_array_equal(check.valid(Q, margin), both)
+        check.set_ends([], [], 0.0)  # no ends: the margin and floors 0 everywhere
+        flat = (clear >= margin) & np.all(d >= 0.0, axis=1)
+        np.testing.assert_array_equal(check.valid(Q, margin), flat)
+    assert 0 < both.sum() < len(Q) and both.sum() != ramped.sum()
+
+
+def test_a_query_takes_at_most_two_ends_with_one_clearance_each() -> None:
+    """`set_ends` refuses three ends, or a clearance count that is not the ends', in C
+    and numpy, with `InvalidArgument` naming what it takes; the ends set before stay."""
+    robot = load_robot("panda")
+    spheres = _spheres(robot, np.random.default_rng(13), per_joint=1)
+    q = np.zeros((3, 7))
+    for check in (NativeSphereCheck(robot, spheres), SphereCheck(robot, spheres)):
+        check.set_ends(q[:1], [0.01], 0.1)
+        for ends, clear in ((q, [0.0, 0.0, 0.0]), (q[:2], [0.0])):
+            with pytest.raises(InvalidArgument, match="set_ends: at most 2 ends"):
+                check.set_ends(ends, clear, 0.1)
+        assert check.margins(q[:1], 0.05)[0] == 0.01
 
 
 def test_self_pairs_whose_spheres_overlap_often_are_calibrated_on_the_meshes() -> None:

@@ -110,7 +110,7 @@ among the seeded configurations may be a little more than over the whole joint b
 def calibrated_slack(check: SphereCheck, links: Sequence[str],
                      reach: Sequence[float]) -> np.ndarray:  # fmt: skip
     """(P,) per self pair of ``check`` [m]: how far below 0 its floor (`SphereCheck.
-    set_self_floor`) may go in the sampled search, from `SELF_SAMPLES` seeded
+    set_ends`) may go in the sampled search, from `SELF_SAMPLES` seeded
     configurations in the joint box (infinite limits: +-pi) and the two links' ``reach``
     beyond their convex hulls (``links``' order of first appearance,
     `SphereModel.reach`). A pair whose spheres overlap on more than `SELF_UNINFORMATIVE`
@@ -238,13 +238,14 @@ class Sampling:
         docstring)."""
         self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
-        self.check.set_self_floor(q0, q1, slope=SELF_FLOOR_RAMP)
         ends = self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK
-        self.check.set_ramp([q0, q1], np.minimum(ends, self.margin), SAMPLING_RAMP)
+        self.check.set_ends([q0, q1], np.minimum(ends, self.margin), SAMPLING_RAMP,
+                            SELF_FLOOR_RAMP)  # fmt: skip
 
     def finish(self) -> None:
-        """End of a query: no ramp (the sampling margin everywhere)."""
-        self.check.set_ramp([], [], 0.0)
+        """End of a query: no ends (the sampling margin and the self floors away from any
+        ends, everywhere)."""
+        self.check.set_ends([], [], 0.0)
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """The obstacles the checks use (`start` sets them for a query)."""

@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.planning.rrt import segment_points
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.distance import signed_distance
@@ -33,6 +35,23 @@ __all__ = ["Frames", "SphereCheck"]
 
 Frames = tuple[np.ndarray, np.ndarray]
 """((K, J, 3, 3), (K, J, 3)): world rotations and positions of the sphere joints."""
+
+
+class _Ends(NamedTuple):
+    """A query's ends as `SphereCheck.set_ends` keeps them: the ends E (k, n) [rad], their
+    clearances (k,) [m] and the margin's slope [m/rad], the self pairs' sphere distances
+    there D (k, P) [m] and the floors' slope [m/rad]."""
+
+    E: np.ndarray
+    clear: np.ndarray
+    slope: float
+    D: np.ndarray
+    floor_slope: float
+
+    @classmethod
+    def none(cls, nq: int, pairs: int) -> _Ends:
+        """No ends (a robot of ``nq`` coordinates, ``pairs`` self pairs)."""
+        return cls(np.zeros((0, nq)), np.zeros(0), 0.0, np.zeros((0, pairs)), 0.0)
 
 
 class SphereCheck:
@@ -57,17 +76,15 @@ class SphereCheck:
         self.obstacles: tuple[Shape, ...] = ()
         self.self_pairs: tuple[tuple[str, str], ...] = ()
         self.self_slack = np.zeros(0)
-        self._ramp: tuple[np.ndarray, np.ndarray, float] = (
-            np.zeros((0, robot.model.nq)), np.zeros(0), 0.0)  # fmt: skip
         self._self_floor = np.zeros(0)
-        self._floor_ends: tuple[np.ndarray, np.ndarray, float] = (
-            np.zeros((0, robot.model.nq)), np.zeros((0, 0)), 0.0)  # fmt: skip
+        self._ends = _Ends.none(robot.model.nq, 0)
 
     def set_self_pairs(self, spheres: Sequence[CollisionSphere], links: Sequence[str],
                        pairs: Sequence[tuple[str, str]]) -> None:  # fmt: skip
         """Check the link ``pairs`` for self-collision on ``spheres`` (each covering the
         link of the same index of ``links``; pairs without spheres are left out).
-        Allocates; the floors of `self_valid` are reset to 0."""
+        Allocates; the floors of `self_valid` are reset to 0, and a query's ends
+        (`set_ends`) dropped."""
         ids = [self.robot.joint_id(s.joint) if s.joint != "universe" else 0 for s in spheres]
         self._joints = sorted(set(self._ids) | set(ids))  # one kinematics for both
         self._slot = np.array([self._joints.index(j) for j in self._ids], dtype=int)
@@ -87,11 +104,11 @@ class SphereCheck:
                 first += [i for i in ia for _ in ib]
                 second += [j for _ in ia for j in ib]
         self.self_pairs = tuple(kept)
-        self.self_slack = np.zeros(len(kept))  # [m] each floor at most minus it (`set_self_floor`)
+        self.self_slack = np.zeros(len(kept))  # [m] each floor at most minus it (`set_ends`)
         self._I, self._J = np.array(first, dtype=int), np.array(second, dtype=int)
         self._start = np.array(start, dtype=int)
         self._self_floor = np.zeros(len(kept))
-        self._floor_ends = (np.zeros((0, self.robot.model.nq)), np.zeros((0, len(kept))), 0.0)
+        self._ends = _Ends.none(self.robot.model.nq, len(kept))
 
     def frames(self, Q: np.ndarray) -> Frames:
         """((K, J, 3, 3), (K, J, 3)) world rotations and positions of the joints carrying
@@ -119,28 +136,46 @@ class SphereCheck:
         d = np.linalg.norm(c[:, self._I] - c[:, self._J], axis=2) - r[self._I] - r[self._J]
         return np.asarray(np.minimum.reduceat(d, self._start, axis=1))
 
-    def set_self_floor(self, *Q: np.ndarray, slope: float = 0.0) -> None:
-        """Per pair, the lowest sphere distance `self_valid` accepts (`self_floors`): the
-        least of 0 and minus the pair's ``self_slack`` [m], lowered near the
-        configurations ``Q`` (n,) [rad] each (at most 2, e.g. start and goal) to the
-        pair's distance there, ramping back up at ``slope`` [m/rad] of joint-space
-        distance from them (0: lowered everywhere). The spheres reach beyond the links:
-        a query whose ends are exactly clear but sphere-close keeps them valid, without
-        letting the pair overlap as deeply far from them."""
-        if len(Q) > 2:
-            raise ValueError("set_self_floor: at most 2 ends")
+    def set_ends(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
+                 slope: float, floor_slope: float = 0.0) -> None:  # fmt: skip
+        """A query's ``ends`` (at most 2, e.g. start and goal, (n,) [rad] each), near which
+        `valid` asks for less:
+
+        - the margin in force at ``q`` is ``min(margin, c_e + slope |q - e|)`` over the
+          ends ``e`` with their ``clearances`` ``c_e`` [m] (``slope`` [m/rad]; `margins`);
+        - each self pair's floor is ``min(0, -self_slack, d_e + floor_slope |q - e|)``,
+          ``d_e`` the pair's sphere distance at ``e`` (``floor_slope`` [m/rad], 0: lowered
+          everywhere; `self_floors`). The spheres reach beyond the links: a query whose
+          ends are exactly clear but sphere-close keeps them valid, without letting the
+          pair overlap as deeply far from them.
+
+        No ends: the margin and the floors ``min(0, -self_slack)`` everywhere. One set of
+        ends for both (the C check measures ``|q - e|`` once per configuration).
+
+        Raises:
+            InvalidArgument: more than 2 ends, or not one clearance per end.
+        """
+        n = self.robot.model.nq
+        E = np.asarray(ends, dtype=float).reshape(-1, n)
+        c = np.asarray(clearances, dtype=float).reshape(-1)
+        if len(E) > 2 or len(c) != len(E):
+            raise InvalidArgument(
+                f"set_ends: at most 2 ends (n,) = ({n},) with one clearance each, got "
+                f"{len(E)} end(s) and {len(c)} clearance(s)"
+            )
         self._self_floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
-        E = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
-        self._floor_ends = (E, self.self_clearances(E), float(slope))
+        D = self.self_clearances(E) if self.self_pairs else np.zeros((len(E), 0))
+        self._ends = _Ends(E, c, float(slope), D, float(floor_slope))
 
     def self_floors(self, Q: np.ndarray) -> np.ndarray:
         """(K, P) the floor of each self pair in force at each configuration of ``Q``
-        (K, n) [rad] (`set_self_floor`)."""
+        (K, n) [rad] (`set_ends`)."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
         out = np.broadcast_to(self._self_floor, (len(Q), len(self._self_floor)))
-        E, D, slope = self._floor_ends
-        for e, d in zip(E, D, strict=True):
-            out = np.minimum(out, d[None, :] + slope * np.linalg.norm(Q - e, axis=1)[:, None])
+        ends = self._ends
+        for e, d in zip(ends.E, ends.D, strict=True):
+            away = np.linalg.norm(Q - e, axis=1)[:, None]
+            out = np.minimum(out, d[None, :] + ends.floor_slope * away)
         return np.asarray(out)
 
     def self_valid(self, Q: np.ndarray, frames: Frames | None = None) -> np.ndarray:
@@ -150,30 +185,19 @@ class SphereCheck:
             return np.ones(len(np.asarray(Q).reshape(-1, self.robot.model.nq)), dtype=bool)
         return np.asarray(np.all(self.self_clearances(Q, frames) >= self.self_floors(Q), axis=1))
 
-    def set_ramp(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
-                 slope: float) -> None:  # fmt: skip
-        """Near the configurations ``ends`` (at most 2, (n,) [rad]), `valid` asks for less
-        clearance: at ``q`` the margin in force is ``min(margin, c_e + slope |q - e|)``
-        over the ends ``e`` with their ``clearances`` ``c_e`` [m] (``slope`` [m/rad]); no
-        ends: the margin everywhere."""
-        E = np.asarray(ends, dtype=float).reshape(-1, self.robot.model.nq)
-        if len(E) > 2:
-            raise ValueError("set_ramp: at most 2 ends")
-        self._ramp = (E, np.asarray(clearances, dtype=float).reshape(len(E)), float(slope))
-
     def margins(self, Q: np.ndarray, margin: float) -> np.ndarray:
         """(K,) the margin in force [m] at each configuration of ``Q`` (K, n) [rad]
-        (`set_ramp`)."""
-        E, c, slope = self._ramp
+        (`set_ends`)."""
+        ends = self._ends
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
         out = np.full(len(Q), float(margin))
-        for e, ce in zip(E, c, strict=True):
-            out = np.minimum(out, ce + slope * np.linalg.norm(Q - e, axis=1))
+        for e, ce in zip(ends.E, ends.clear, strict=True):
+            out = np.minimum(out, ce + ends.slope * np.linalg.norm(Q - e, axis=1))
         return out
 
     def valid(self, Q: np.ndarray, margin: float) -> np.ndarray:
         """(K,) True where the configurations ``Q`` (K, n) [rad] keep clearance >= the
-        margin in force (``margin`` [m], lower near the ramp's ends: `margins`) to the
+        margin in force (``margin`` [m], lower near a query's ends: `margins`) to the
         obstacles and no self pair is below its floor (`self_valid`)."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
         R, p = self.frames(Q)

@@ -58,14 +58,13 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_free": (None, [_P]),
         "geosyn_spheres_set_spheres": (_I, [_P, _I, _I, _P, _P, _P]),
         "geosyn_spheres_set_pairs": (_I, [_P, _I, _P, _P, _I, _P, _P]),
-        "geosyn_spheres_set_floor": (_I, [_P, _P, _I, _P, _P, _D]),
         "geosyn_spheres_set_obstacles": (_I, [_P, _I, _P, _P]),
         "geosyn_spheres_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_self_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_obstacle_distances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_group_distances": (None, [_P, _P, _I, _P, _I, _P]),
         "geosyn_spheres_frames": (None, [_P, _P, _I, _P, _P]),
-        "geosyn_spheres_set_ramp": (_I, [_P, _I, _P, _P, _D]),
+        "geosyn_spheres_set_ends": (_I, [_P, _I, _P, _P, _D, _P, _P, _D]),
         "geosyn_spheres_valid": (_I, [_P, _P, _I, _D, _I, _I, _P]),
         "geosyn_spheres_segment_valid": (_I, [_P, _P, _P, _D, _D, _I]),
         "geosyn_spheres_path_valid": (_I, [_P, _P, _I, _D, _D, _I]),
@@ -88,7 +87,7 @@ def _verdict(code: int) -> bool:
     """A C segment check's answer: 1 valid, 0 not; -1 (more coordinates than its buffers,
     `NATIVE_MAX_NQ`: `joint_table` refuses such robots first) raised, never read as valid."""
     if code < 0:
-        raise ValueError(f"the C sphere check takes at most {NATIVE_MAX_NQ} coordinates")
+        raise InvalidArgument(f"the C sphere check takes at most {NATIVE_MAX_NQ} coordinates")
     return bool(code)
 
 
@@ -162,14 +161,17 @@ class NativeSphereCheck(SphereCheck):
 
     Raises:
         CodegenError: the C check could not be compiled (no compiler).
-        ValueError: a joint the C kinematics does not model (`joint_table`'s reason).
+        InvalidArgument: a joint the C kinematics does not model (`joint_table`'s reason).
     """
 
     def __init__(self, robot: Robot, spheres: Sequence[CollisionSphere]) -> None:
         super().__init__(robot, spheres)
         table = joint_table(robot)
         if isinstance(table, str):
-            raise ValueError(table)
+            raise InvalidArgument(
+                f"robot {robot.name!r}: {table} (the C check takes "
+                "revolute and prismatic joints of one coordinate)"
+            )
         lib = _library()
         self._lib = lib
         self._table = [np.ascontiguousarray(a) for a in table]
@@ -209,26 +211,16 @@ class NativeSphereCheck(SphereCheck):
                                               _address(floor)):  # fmt: skip
             raise MemoryError("geosyn_spheres_set_pairs: out of memory")
 
-    def set_self_floor(self, *Q: np.ndarray, slope: float = 0.0) -> None:
-        """As `SphereCheck.set_self_floor`; also hands the floors to C."""
-        super().set_self_floor(*Q, slope=slope)
-        if self._n_pairs:
-            floor = np.ascontiguousarray(self._self_floor, dtype=float)
-            E, D, slope = self._floor_ends
-            E, D = np.ascontiguousarray(E), np.ascontiguousarray(D)
-            if self._lib.geosyn_spheres_set_floor(self._handle, _address(floor), len(E),
-                                                  _address(E), _address(D), slope):  # fmt: skip
-                raise ValueError("set_self_floor: at most 2 ends")
-
-    def set_ramp(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
-                 slope: float) -> None:  # fmt: skip
-        """As `SphereCheck.set_ramp`; also hands the ramp to C."""
-        super().set_ramp(ends, clearances, slope)
-        E, c, _ = self._ramp
-        E, c = np.ascontiguousarray(E), np.ascontiguousarray(c)
-        if self._lib.geosyn_spheres_set_ramp(self._handle, len(c), _address(E), _address(c),
-                                             float(slope)):  # fmt: skip
-            raise ValueError("set_ramp: at most 2 ends")
+    def set_ends(self, ends: Sequence[np.ndarray], clearances: Sequence[float] | np.ndarray,
+                 slope: float, floor_slope: float = 0.0) -> None:  # fmt: skip
+        """As `SphereCheck.set_ends`; also hands the ends, margins and floors to C."""
+        super().set_ends(ends, clearances, slope, floor_slope)
+        E, c, _, D, _ = (np.ascontiguousarray(a) for a in self._ends)
+        floor = np.ascontiguousarray(self._self_floor, dtype=float)
+        if self._lib.geosyn_spheres_set_ends(self._handle, len(E), _address(E), _address(c),
+                                             float(slope), _address(floor), _address(D),
+                                             float(floor_slope)):  # fmt: skip
+            raise InvalidArgument(f"set_ends: at most 2 ends and {NATIVE_MAX_NQ} coordinates")
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """As `SphereCheck.set_obstacles` (the same obstacles again: nothing to do)."""

@@ -42,16 +42,13 @@ typedef struct {
     int n_sphere_pairs, n_pairs;
     int *first, *second, *start; /* sphere pairs; (n_pairs + 1) starts */
     double *floor;
-    /* the floors near a query's ends: at q, pair i's floor is min(floor[i],
-     * end_floor[e n_pairs + i] + floor_slope |q - floor_ends[e]|) over the ends */
-    int n_floor_ends;
-    double floor_ends[2 * 64], *end_floor, floor_slope;
     int n_obstacles, *okind;
     double *opar;
-    /* the margin ramp near a query's ends: at q, the margin in force is
-     * min(margin, end_clear[e] + slope |q - ends[e]|) over the n_ends ends */
+    /* a query's n_ends (0-2) ends: at q, the margin in force is min(margin, end_clear[e]
+     * + slope |q - ends[e]|) and pair i's floor min(floor[i], end_floor[e n_pairs + i]
+     * + floor_slope |q - ends[e]|) over the ends */
     int n_ends;
-    double ends[2 * 64], end_clear[2], slope;
+    double ends[2 * 64], end_clear[2], slope, *end_floor, floor_slope;
 } gs_model;
 
 static void *copy(const void *src, size_t bytes) {
@@ -165,24 +162,8 @@ GS_API int geosyn_spheres_set_pairs(void *handle, int n_sphere_pairs, const int 
     m->start = copy(start, sizeof(int) * (n_pairs + 1));
     m->floor = copy(floor, sizeof(double) * n_pairs);
     m->end_floor = calloc(2 * (size_t)n_pairs + 1, sizeof(double));
-    m->n_floor_ends = 0;
+    m->n_ends = 0; /* the ends' pair distances are the old pairs' */
     return (m->first && m->second && m->start && m->floor && m->end_floor) ? 0 : -1;
-}
-
-/* floor: (n_pairs,) the floors away from the ends [m]; n_ends (0-2) configurations
- * ends (n_ends, nq) with their pair distances end_floor (n_ends, n_pairs) [m] and the
- * slope [m/rad] (see gs_model). */
-GS_API int geosyn_spheres_set_floor(void *handle, const double *floor, int n_ends,
-                                    const double *ends, const double *end_floor,
-                                    double slope) {
-    gs_model *m = handle;
-    if (n_ends < 0 || n_ends > 2 || m->nq > 64) return -1;
-    memcpy(m->floor, floor, sizeof(double) * m->n_pairs);
-    memcpy(m->floor_ends, ends, sizeof(double) * m->nq * n_ends);
-    memcpy(m->end_floor, end_floor, sizeof(double) * m->n_pairs * n_ends);
-    m->n_floor_ends = n_ends;
-    m->floor_slope = slope;
-    return 0;
 }
 
 /* Obstacles, GS_OBSTACLE numbers each, by kind:
@@ -200,28 +181,25 @@ GS_API int geosyn_spheres_set_obstacles(void *handle, int n, const int *kind, co
     return (m->okind && m->opar) ? 0 : -1;
 }
 
-/* The margin ramp (see gs_model): n_ends (0-2) configurations (n_ends, nq), their
- * clearances [m] and the slope [m/rad]. */
-GS_API int geosyn_spheres_set_ramp(void *handle, int n_ends, const double *ends,
-                                   const double *clear, double slope) {
+/* A query's ends (see gs_model): n_ends (0-2) configurations (n_ends, nq) with their
+ * clearances clear (n_ends,) [m] and the margin's slope [m/rad]; the pairs' floors away
+ * from them floor (n_pairs,) [m], their pair distances end_floor (n_ends, n_pairs) [m]
+ * and the floors' slope floor_slope [m/rad]. */
+GS_API int geosyn_spheres_set_ends(void *handle, int n_ends, const double *ends,
+                                   const double *clear, double slope, const double *floor,
+                                   const double *end_floor, double floor_slope) {
     gs_model *m = handle;
     if (n_ends < 0 || n_ends > 2 || m->nq > 64) return -1;
     m->n_ends = n_ends;
     memcpy(m->ends, ends, sizeof(double) * m->nq * n_ends);
     memcpy(m->end_clear, clear, sizeof(double) * n_ends);
     m->slope = slope;
-    return 0;
-}
-
-static double ramped(const gs_model *m, const double *q, double margin) {
-    for (int e = 0; e < m->n_ends; ++e) {
-        const double *x = m->ends + m->nq * e;
-        double d2 = 0.0;
-        for (int i = 0; i < m->nq; ++i) d2 += (q[i] - x[i]) * (q[i] - x[i]);
-        double v = m->end_clear[e] + m->slope * sqrt(d2);
-        if (v < margin) margin = v;
+    if (m->n_pairs) {
+        memcpy(m->floor, floor, sizeof(double) * m->n_pairs);
+        memcpy(m->end_floor, end_floor, sizeof(double) * m->n_pairs * n_ends);
     }
-    return margin;
+    m->floor_slope = floor_slope;
+    return 0;
 }
 
 static void kinematics(gs_model *m, const double *q) {
@@ -351,13 +329,13 @@ static double pair_distance(const gs_model *m, int pair) {
     return best;
 }
 
-/* Whether pair `pair` keeps its floor (lowered near the ends: `away` (n_floor_ends,)
+/* Whether pair `pair` keeps its floor (lowered near the ends: `away` (n_ends,)
  * the joint-space distances from them): its joints' balls first (a lower bound of
  * every sphere distance), then its spheres, squared distances. Needs both placed. */
 static int pair_ok(const gs_model *m, int pair, const double *away) {
     const gs_spheres *s = &m->own;
     double floor = m->floor[pair];
-    for (int e = 0; e < m->n_floor_ends; ++e) {
+    for (int e = 0; e < m->n_ends; ++e) {
         double v = m->end_floor[(size_t)m->n_pairs * e + pair] + m->floor_slope * away[e];
         if (v < floor) floor = v;
     }
@@ -454,20 +432,21 @@ GS_API void geosyn_spheres_self_clearances(void *handle, const double *Q, int K,
 
 /* Whether configuration q keeps clearance >= margin and (self) every pair its floor. */
 static int config_valid(gs_model *m, const double *q, double margin, int self) {
-    margin = ramped(m, q, margin);
+    double away[2]; /* the joint-space distances from the ends, for both ramps */
+    for (int e = 0; e < m->n_ends; ++e) {
+        const double *x = m->ends + m->nq * e;
+        double d2 = 0.0;
+        for (int i = 0; i < m->nq; ++i) d2 += (q[i] - x[i]) * (q[i] - x[i]);
+        away[e] = sqrt(d2);
+        double v = m->end_clear[e] + m->slope * away[e];
+        if (v < margin) margin = v;
+    }
     kinematics(m, q);
     if (m->n_obstacles && m->obs.n) {
         place_bounds(m, &m->obs);
         if (clearance(m, margin) < margin) return 0;
     }
     if (self && m->n_pairs) {
-        double away[2];
-        for (int e = 0; e < m->n_floor_ends; ++e) {
-            const double *x = m->floor_ends + m->nq * e;
-            double d2 = 0.0;
-            for (int i = 0; i < m->nq; ++i) d2 += (q[i] - x[i]) * (q[i] - x[i]);
-            away[e] = sqrt(d2);
-        }
         place_spheres(m, &m->own);
         place_bounds(m, &m->own);
         for (int i = 0; i < m->n_pairs; ++i)
