@@ -260,6 +260,10 @@ def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> Non
         assert slow.segment_valid(x, y, 0.005, 0.0)
     again, _ = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=7)
     np.testing.assert_array_equal(path, again)
+    # a near box of share 0: no draw for it, the same path
+    same, _ = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=7,
+                                 near=(lo, hi, 0.0))  # fmt: skip
+    np.testing.assert_array_equal(path, same)
     # string pulling: fewer vertices, no longer in joint space, every edge still valid
     pulled = string_pull(lambda a, b, r: native.segment_valid(a, b, r, 0.0), path)
     joint = [float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in (path, pulled)]
@@ -300,6 +304,37 @@ def test_a_robot_the_c_kinematics_cannot_model_falls_back_to_numpy_and_says_so()
         check, note = sphere_check(robot, spheres)
     assert type(check) is SphereCheck and robot.model.names[1] in note
     assert math.isinf(check.clearances(np.zeros(robot.nq))[0])
+
+
+def test_rrt_connect_in_c_samples_the_near_box_its_share_of_the_time() -> None:
+    """Round the wall of the test above, with every sample from the box of the ends
+    widened by 0.5 rad (share 1): each tree grows from an end towards points of that
+    convex box, so every vertex of every path (6 seeds) lies in it, and each edge is
+    valid on the numpy check 10x finer; with share 0, every path leaves it (the same
+    seeds)."""
+    from geosyn.robots.collision_spheres import file_spheres
+
+    robot = load_robot("panda")
+    fitted = file_spheres(robot)
+    native, slow = NativeSphereCheck(robot, fitted.spheres), SphereCheck(robot, fitted.spheres)
+    wall = [shapes.Box((0.45, 0.0, 0.35), (0.02, 0.25, 0.35), np.eye(3))]
+    for check in (native, slow):
+        check.set_obstacles(wall)
+    q0 = np.array([-0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
+    q1 = np.array([0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
+    lo, hi = robot.q_min, robot.q_max
+    near_lo = np.maximum(lo, np.minimum(q0, q1) - 0.5)
+    near_hi = np.minimum(hi, np.maximum(q0, q1) + 0.5)
+    for seed in range(6):
+        inside, _ = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=seed,
+                                       near=(near_lo, near_hi, 1.0))  # fmt: skip
+        assert inside is not None
+        assert np.all((inside >= near_lo) & (inside <= near_hi))
+        for x, y in zip(inside[:-1], inside[1:], strict=True):
+            assert slow.segment_valid(x, y, 0.005, 0.0)
+        whole, _ = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=seed,
+                                      near=(near_lo, near_hi, 0.0))  # fmt: skip
+        assert whole is not None and not np.all((whole >= near_lo) & (whole <= near_hi))
 
 
 def test_the_ramp_lowers_the_margin_only_near_the_ends_in_c_and_numpy() -> None:

@@ -31,8 +31,10 @@ from geosyn.core.validation import check_vec3
 __all__ = [
     "DYNAMIC_DOMAIN",
     "RRT_STEP",
+    "Near",
     "SegmentValidity",
     "Validity",
+    "check_near",
     "rrt_connect",
     "segment_points",
     "shortcut",
@@ -49,6 +51,10 @@ DYNAMIC_DOMAIN = (2.0, 0.6, 1e-4)
 """Default dynamic domain of the sampled tree's extension: (radius [rad] a node takes at
 its first failed extension, smallest radius [rad], alpha: the radius shrinks by the
 factor 1 - alpha at each further failure, grows by 1 + alpha at each success)."""
+
+Near = tuple[np.ndarray, np.ndarray, float]
+"""``(lo (n,), hi (n,), share)``: a box [rad] inside an RRT-Connect's sampling box and
+the share of its samples drawn there (`rrt_connect`'s ``near``)."""
 
 SegmentValidity = Callable[[np.ndarray, np.ndarray, float], bool]
 """``segment(a (n,), b (n,), resolution) -> bool``: whether the joint segment from ``a``
@@ -99,6 +105,23 @@ class _Tree:
         return np.array(out)  # node i back to the root
 
 
+def check_near(near: Near, lo: np.ndarray, hi: np.ndarray) -> Near:
+    """``near`` (`Near`) as float arrays and a float, or `InvalidArgument` naming what is
+    allowed: its box within ``[lo, hi]`` (n,) [rad], lower <= upper, share in [0, 1]."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    try:
+        n_lo, n_hi = (np.asarray(x, dtype=float).reshape(lo.shape) for x in near[:2])
+        share = float(near[2])
+    except (TypeError, ValueError, IndexError) as err:
+        raise InvalidArgument(f"near: (lo (n,), hi (n,), share) with n = {lo.size}, got "
+                              f"{near!r}") from err  # fmt: skip
+    if not (np.all(lo <= n_lo) and np.all(n_lo <= n_hi) and np.all(n_hi <= hi)
+            and 0.0 <= share <= 1.0):  # fmt: skip
+        raise InvalidArgument("near: a box with lo <= near lo <= near hi <= hi [rad] and a "
+                              f"share in [0, 1], got share {share!r}")  # fmt: skip
+    return n_lo, n_hi, share
+
+
 def check_domain(domain: tuple[float, float, float] | None) -> tuple[float, float, float] | None:
     """``domain`` (see `rrt_connect`) as floats, or `InvalidArgument` naming what is allowed."""
     if domain is None:
@@ -124,6 +147,7 @@ def rrt_connect(
     max_nodes: int = 20000,
     domain: tuple[float, float, float] | None = DYNAMIC_DOMAIN,
     balance: bool = True,
+    near: Near | None = None,
 ) -> tuple[np.ndarray | None, int]:
     """A collision-free piecewise-linear path from ``q0`` to ``q1``, or None.
 
@@ -142,12 +166,17 @@ def rrt_connect(
             smallest radius [rad], alpha); None: none (plain RRT-Connect).
         balance: the turn passes to the other tree only when it has fewer than twice
             the nodes of the tree that grew; False: the trees take turns.
+        near: (lo (n,), hi (n,), share): that share of the samples drawn from this box
+            inside ``[q_min, q_max]`` (e.g. round the ends: shorter first paths), the
+            rest from the whole box (a connection wherever the whole box has one); None:
+            all from the whole box (and no draw for the choice).
 
     Returns:
         ``(path, nodes)``: (T, n) path from ``q0`` to ``q1`` (None if none was found within
         the budget) and the number of tree nodes grown.
     """
     domain = check_domain(domain)
+    n_lo, n_hi, share = (q_min, q_max, 0.0) if near is None else check_near(near, q_min, q_max)
     t_end = time.perf_counter() + budget
     rng = np.random.default_rng(seed)
     if _edge_valid(valid, q0, q1, resolution):
@@ -174,7 +203,8 @@ def rrt_connect(
 
     while time.perf_counter() < t_end and max(t.size for t in trees) < max_nodes - 1:
         a, b = trees
-        j, _ = extend(a, rng.uniform(q_min, q_max), True)
+        box = (n_lo, n_hi) if share > 0.0 and rng.uniform() < share else (q_min, q_max)
+        j, _ = extend(a, rng.uniform(*box), True)
         if j >= 0:
             target = a.q[j]
             while time.perf_counter() < t_end and b.size < max_nodes - 1:

@@ -30,7 +30,7 @@ import numpy as np
 
 from geosyn.core.codegen import CodegenError, compile_shared
 from geosyn.core.errors import InvalidArgument
-from geosyn.metrics.planning.rrt import DYNAMIC_DOMAIN, RRT_STEP, check_domain
+from geosyn.metrics.planning.rrt import DYNAMIC_DOMAIN, RRT_STEP, Near, check_domain, check_near
 from geosyn.metrics.planning.sphere_check import Frames, SphereCheck
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere
@@ -70,7 +70,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_path_valid": (_I, [_P, _P, _I, _D, _D, _I]),
         "geosyn_spheres_rrt_connect": (
             _I,
-            [_P, _P, _P, _D, _D, _D, _I, _P, _P, _P, _P, _P, _P, _P, _I, _P, _P, _D, _P, _I, _P],
+            [_P] * 5 + [_D] * 4 + [_I] + [_P] * 7 + [_I, _P, _P, _D, _P, _I, _P],
         ),
     }
     for name, (res, args) in signatures.items():
@@ -350,15 +350,18 @@ class NativeSphereCheck(SphereCheck):
                     margin: float, step: float = RRT_STEP, resolution: float = 0.05,
                     budget: float = 2.0, seed: int = 0, max_nodes: int = 20000,
                     domain: tuple[float, float, float] | None = DYNAMIC_DOMAIN,
-                    balance: bool = True) -> tuple[np.ndarray | None, int]:  # fmt: skip
+                    balance: bool = True, near: Near | None = None,
+                    ) -> tuple[np.ndarray | None, int]:  # fmt: skip
         """RRT-Connect in C: `geosyn.metrics.planning.rrt.rrt_connect`'s search (the
-        same arguments and result; balanced trees, the dynamic domain) on `valid` at
-        ``margin`` [m], with its own seeded sampler (xorshift128+), in calls of at most
-        `RRT_SLICE` s."""
+        same arguments and result; balanced trees, the dynamic domain, the ``near`` box)
+        on `valid` at ``margin`` [m], with its own seeded sampler (xorshift128+), in
+        calls of at most `RRT_SLICE` s."""
         domain = check_domain(domain)
         n = self.robot.model.nq
         q0, q1 = (np.ascontiguousarray(x, dtype=float) for x in (q0, q1))
         lo, hi = (np.ascontiguousarray(x, dtype=float) for x in (lo, hi))
+        n_lo, n_hi, share = (lo, hi, 0.0) if near is None else check_near(near, lo, hi)
+        n_lo, n_hi = np.ascontiguousarray(n_lo), np.ascontiguousarray(n_hi)
         if self.segment_valid(q0, q1, resolution, margin):
             return np.array([q0, q1]), 2
         trees = [np.empty((max_nodes, n)) for _ in range(2)]
@@ -372,7 +375,8 @@ class NativeSphereCheck(SphereCheck):
         status = 0
         while status == 0 and (left := end - time.perf_counter()) > 0:
             status = self._lib.geosyn_spheres_rrt_connect(
-                self._handle, _address(lo), _address(hi), float(step), float(resolution),
+                self._handle, _address(lo), _address(hi), _address(n_lo), _address(n_hi),
+                share, float(step), float(resolution),
                 float(margin), int(bool(self._n_pairs)), _address(trees[0]),
                 _address(parents[0]), _address(radii[0]), _address(trees[1]),
                 _address(parents[1]), _address(radii[1]), _address(size), int(max_nodes),

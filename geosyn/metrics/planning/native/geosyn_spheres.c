@@ -570,12 +570,14 @@ static int extend(gs_model *m, gs_tree *t, const double *target, double step, do
  * resumable: the trees (q (max_nodes, n), parent (max_nodes,), radius (max_nodes,),
  * size[2]), whose turn it is (*turn: the tree that grows towards the next sample) and
  * the sampler's state (rng[2]) live in the caller's arrays. Grows them towards uniform
- * samples of the box [lo, hi] for at most `seconds`; the sampled tree's extension has a
+ * samples of the box [lo, hi], or, with probability near, of the box [near_lo, near_hi]
+ * (near 0: no draw for it), for at most `seconds`; the sampled tree's extension has a
  * dynamic domain when dd[0] > 0 (`extend`); balance: the turn passes to the other tree
  * unless that one has at least twice the nodes. Returns 1 when they connect (ends[0] in
  * tree 0, ends[1] in tree 1 are the same configuration), 0 when the time is spent, -1
  * when a tree is full. */
 GS_API int geosyn_spheres_rrt_connect(void *handle, const double *lo, const double *hi,
+                                      const double *near_lo, const double *near_hi, double near,
                                       double step, double resolution, double margin, int self,
                                       double *q0, int *p0, double *r0, double *q1, int *p1,
                                       double *r1, int *size, int max_nodes, int *turn,
@@ -590,7 +592,12 @@ GS_API int geosyn_spheres_rrt_connect(void *handle, const double *lo, const doub
     while (seconds_now() < end) {
         gs_tree *a = &trees[*turn], *b = &trees[1 - *turn];
         if (*a->size >= max_nodes || *b->size >= max_nodes) return -1;
-        for (int i = 0; i < n; ++i) sample[i] = lo[i] + uniform(rng) * (hi[i] - lo[i]);
+        const double *a_lo = lo, *a_hi = hi;
+        if (near > 0.0 && uniform(rng) < near) {
+            a_lo = near_lo;
+            a_hi = near_hi;
+        }
+        for (int i = 0; i < n; ++i) sample[i] = a_lo[i] + uniform(rng) * (a_hi[i] - a_lo[i]);
         int reached = 0, j = extend(m, a, sample, step, resolution, margin, self, max_nodes,
                                     &reached, work, dd);
         if (j >= 0) {
