@@ -235,13 +235,13 @@ def test_a_robot_of_more_coordinates_than_the_c_check_takes_gets_numpy() -> None
     assert isinstance(reason, str) and "65 coordinates" in reason
 
 
-def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> None:
-    """Start and goal on either side of a wall: the path joins them, each of its edges
-    passes the numpy check 10x finer than RRT's resolution, and the same seed gives
-    the same path; `string_pull` keeps it valid and makes it shorter."""
-    robot = load_robot("panda")
+def _wall_scene() -> tuple[NativeSphereCheck, SphereCheck, np.ndarray, np.ndarray,
+                           np.ndarray, np.ndarray]:  # fmt: skip
+    """(C check, numpy check, start, goal, joint limits lo, hi): the Panda's fitted
+    spheres round a wall, start and goal on either side of it."""
     from geosyn.robots.collision_spheres import file_spheres
 
+    robot = load_robot("panda")
     fitted = file_spheres(robot)
     native, slow = NativeSphereCheck(robot, fitted.spheres), SphereCheck(robot, fitted.spheres)
     wall = [shapes.Box((0.45, 0.0, 0.35), (0.02, 0.25, 0.35), np.eye(3))]
@@ -249,8 +249,15 @@ def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> Non
         check.set_obstacles(wall)
     q0 = np.array([-0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
     q1 = np.array([0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
+    return native, slow, q0, q1, robot.q_min, robot.q_max
+
+
+def test_rrt_connect_in_c_finds_a_valid_path_round_a_wall_and_is_seeded() -> None:
+    """Start and goal on either side of a wall: the path joins them, each of its edges
+    passes the numpy check 10x finer than RRT's resolution, and the same seed gives
+    the same path; `string_pull` keeps it valid and makes it shorter."""
+    native, slow, q0, q1, lo, hi = _wall_scene()
     assert not native.segment_valid(q0, q1, 0.05, 0.0)
-    lo, hi = robot.q_min, robot.q_max
     path, grown = native.rrt_connect(q0, q1, lo, hi, margin=0.0, budget=5.0, seed=7)
     assert path is not None and grown > 2
     np.testing.assert_array_equal(path[0], q0)
@@ -312,17 +319,7 @@ def test_rrt_connect_in_c_samples_the_near_box_its_share_of_the_time() -> None:
     convex box, so every vertex of every path (6 seeds) lies in it, and each edge is
     valid on the numpy check 10x finer; with share 0, every path leaves it (the same
     seeds)."""
-    from geosyn.robots.collision_spheres import file_spheres
-
-    robot = load_robot("panda")
-    fitted = file_spheres(robot)
-    native, slow = NativeSphereCheck(robot, fitted.spheres), SphereCheck(robot, fitted.spheres)
-    wall = [shapes.Box((0.45, 0.0, 0.35), (0.02, 0.25, 0.35), np.eye(3))]
-    for check in (native, slow):
-        check.set_obstacles(wall)
-    q0 = np.array([-0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
-    q1 = np.array([0.9, 0.4, 0.0, -1.6, 0.0, 2.0, 0.8])
-    lo, hi = robot.q_min, robot.q_max
+    native, slow, q0, q1, lo, hi = _wall_scene()
     near_lo = np.maximum(lo, np.minimum(q0, q1) - 0.5)
     near_hi = np.minimum(hi, np.maximum(q0, q1) + 0.5)
     for seed in range(6):
