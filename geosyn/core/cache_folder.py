@@ -27,6 +27,7 @@ __all__ = [
     "clear_cache",
     "default_cache_dir",
     "fill_once",
+    "read_json",
     "resolve_cache_dir",
     "store_json",
 ]
@@ -180,6 +181,23 @@ def fill_once(lock: Path, read: Callable[[], T | None], make: Callable[[], T]) -
     with cache_lock(lock):
         found = read()
         return make() if found is None else found
+
+
+def read_json(path: Path, parse: Callable[[Any], T], what: str, redo: str,
+              stacklevel: int = 2, warn: bool = True) -> T | None:  # fmt: skip
+    """``parse`` of the JSON record at ``path`` (`store_json`'s), or None: no file, or a
+    damaged one (unreadable, not JSON, or refused by ``parse`` with ValueError, KeyError
+    or TypeError), warned when ``warn`` as "``what``: <file> is damaged (why); ``redo``"
+    at ``stacklevel`` above the caller: the caller makes the entry again."""
+    if not path.is_file():
+        return None
+    try:
+        return parse(json.loads(path.read_text()))
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        if warn:
+            warnings.warn(f"{what}: {path.name} is damaged ({err!r}); {redo}",
+                          RuntimeWarning, stacklevel + 1)  # fmt: skip
+        return None
 
 
 def store_json(path: Path, record: Any, what: str, stacklevel: int = 2) -> None:

@@ -24,17 +24,15 @@ geometry and the settings; `clear_sphere_cache` empties it.
 
 from __future__ import annotations
 
-import json
 import math
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pinocchio as pin
 
-from geosyn.core.cache_folder import default_cache_dir, fill_once, store_json
+from geosyn.core.cache_folder import default_cache_dir, fill_once, read_json, store_json
 from geosyn.core.validation import check_float
 from geosyn.robots.collision_geometry import (
     CollisionObject,
@@ -339,23 +337,15 @@ def _read_cache(
 ) -> SphereModel | None:
     """The spheres cached at ``path``, or None (missing, or damaged: refitted, and
     warned if ``warn``)."""
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text())
+
+    def parse(data: Any) -> SphereModel:
         read = tuple(CollisionSphere(s["joint"], tuple(s["center"]), s["radius"])
                      for s in data["spheres"])  # fmt: skip
         pairs = tuple((a, b) for a, b in data["self_pairs"])
         return SphereModel(read, tuple(data["links"]), margin, excess,
                            tuple(data["reach"]), pairs, digest, True)  # fmt: skip
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        if warn:
-            warnings.warn(
-                f"sphere cache: {path.name} is damaged ({err!r}); fitting again",
-                RuntimeWarning,
-                3,
-            )
-        return None
+
+    return read_json(path, parse, "sphere cache", "fitting again", 3, warn)
 
 
 def _fit(

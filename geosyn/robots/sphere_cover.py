@@ -20,16 +20,15 @@ obstacle term, an MPC or a planner for the same robot and spheres reads it back.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from geosyn.core.cache_folder import store_json
+from geosyn.core.cache_folder import read_json, store_json
 from geosyn.core.errors import InvalidArgument
 from geosyn.robots.collision_geometry import (
     CollisionObject,
@@ -113,16 +112,12 @@ def _miss_path(objects: tuple[CollisionObject, ...], spheres: Sequence[Collision
 
 def _read_miss(path: Path) -> SphereMiss | None:
     """The miss cached at ``path``, or None (missing, or damaged: measured again, warned)."""
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text())
+
+    def parse(data: Any) -> SphereMiss:
         return SphereMiss(float(data["distance"]), str(data["link"]),
                           tuple(str(b) for b in data["bare"]))  # fmt: skip
-    except (OSError, ValueError, KeyError, TypeError) as err:
-        warnings.warn(f"sphere cache: {path.name} is damaged ({err!r}); measuring again",
-                      RuntimeWarning, 4)  # fmt: skip
-        return None
+
+    return read_json(path, parse, "sphere cache", "measuring again", 4)
 
 
 def _store(path: Path, miss: SphereMiss) -> SphereMiss:

@@ -32,15 +32,13 @@ give the exact check its aids (`aids`: joint placements in C and lower bounds of
 from __future__ import annotations
 
 import hashlib
-import json
 import math
-import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from geosyn.core.cache_folder import store_json
+from geosyn.core.cache_folder import read_json, store_json
 from geosyn.metrics.planning.exact_path import PathAids
 from geosyn.metrics.planning.rrt import Near, rrt_connect
 from geosyn.metrics.planning.self_collision import SelfCollision
@@ -185,15 +183,15 @@ def cached_slack(check: SphereCheck, fitted: SphereModel) -> np.ndarray:
            f"{SELF_CALIBRATION_ITEMS}|{SELF_CALIBRATION_SAFETY!r}|{SELF_UNINFORMATIVE!r}|"
            f"{CALIBRATION_VERSION}")  # fmt: skip
     path = sphere_cache_dir() / f"slack_{hashlib.sha256(key.encode()).hexdigest()[:24]}.json"
-    if path.is_file():
-        try:
-            found = np.array(json.loads(path.read_text())["slack"], dtype=float)
-            if found.shape == (len(check.self_pairs),) and np.all(np.isfinite(found)):
-                return found
-            raise ValueError(f"shape {found.shape} for {len(check.self_pairs)} pairs")
-        except (OSError, ValueError, KeyError, TypeError) as err:
-            warnings.warn(f"sphere cache: {path.name} is damaged ({err!r}); measuring again",
-                          RuntimeWarning, 2)  # fmt: skip
+
+    def parse(data: Any) -> np.ndarray:
+        found = np.array(data["slack"], dtype=float)
+        if found.shape == (len(check.self_pairs),) and np.all(np.isfinite(found)):
+            return found
+        raise ValueError(f"shape {found.shape} for {len(check.self_pairs)} finite values")
+
+    if (found := read_json(path, parse, "sphere cache", "measuring again")) is not None:
+        return found
     slack = calibrated_slack(check, fitted.links, fitted.reach)
     store_json(path, {"slack": slack.tolist()}, "the sphere cache", 2)
     return slack
