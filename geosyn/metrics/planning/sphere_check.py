@@ -164,8 +164,7 @@ class SphereCheck:
                 f"{len(E)} end(s) and {len(c)} clearance(s)"
             )
         self._self_floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
-        D = self.self_clearances(E) if self.self_pairs else np.zeros((len(E), 0))
-        self._ends = _Ends(E, c, float(slope), D, float(floor_slope))
+        self._ends = _Ends(E, c, float(slope), self.self_clearances(E), float(floor_slope))
 
     def self_floors(self, Q: np.ndarray) -> np.ndarray:
         """(K, P) the floor of each self pair in force at each configuration of ``Q``
