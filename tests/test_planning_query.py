@@ -19,7 +19,10 @@ import pytest
 from geosyn.core.errors import GeosynError
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning.homotopy import kept_plan
+from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.planner import densify
+from geosyn.metrics.planning.verify import feasible_result
 from geosyn.metrics.shaping import CapacityExceeded
 from geosyn.robots import load_robot
 from geosyn.world import Box, Sphere
@@ -112,3 +115,39 @@ def test_a_negative_prebuild_is_refused_by_name() -> None:
     """``prebuild`` is an obstacle count: below 0 it is refused, naming it."""
     with pytest.raises(GeosynError, match="prebuild"):
         Planner(KineticEnergyMetric(ROBOT), capacity=1, prebuild=-1)
+
+
+def _plan(path: np.ndarray, kind: str, energy: float, seed: str) -> Plan:
+    """A `Plan` of ``path`` whose result says ``kind`` and ``energy`` (stated, not solved)."""
+    res = feasible_result(KineticEnergyMetric(ROBOT), path, seed)._replace(kind=kind, energy=energy)
+    return Plan(res, seed, 0.1, 0.0, ())
+
+
+def test_kept_plan_is_the_lowest_energy_one_not_longer_than_the_straight_lines() -> None:
+    """The homotopy rule on stated energies, with the lengths measured here (Pinocchio's
+    mass matrix): a lower-energy plan that is longer than the straight line's is dropped,
+    a shorter and lower one kept; within a relative 1e-6 the earlier plan stays; a sampled
+    plan replaces a solved one only when 1e-3 lower (0.5e-3 lower: not; 2e-3: kept)."""
+    metric = KineticEnergyMetric(ROBOT)
+    s = np.linspace(0.0, 1.0, 25)[:, None]
+    straight = Q0 + s * (Q1 - Q0)
+    bent = straight + np.sin(np.pi * s) * np.array([0.0, -1.0])  # the arm stretched on the way
+    assert length(bent) > 1.05 * length(straight)  # the premise, on crba
+    line = _plan(bent, "constrained", 2.0, "straight line")
+    longer = _plan(bent + np.sin(2 * np.pi * s) * np.array([0.3, 0.0]), "constrained", 1.0, "a")
+    assert length(longer.q) > length(bent)
+    attempts: list[str] = []
+    assert kept_plan(metric, line, [longer], attempts) is line
+    assert attempts == ["1 plan(s) from other seeds longer than the straight line's: not kept",
+                        "kept the lowest-energy of 2 plans: straight line (energies 2.0000, "
+                        "1.0000)"]  # fmt: skip
+    shorter = _plan(straight, "constrained", 1.5, "b")
+    assert kept_plan(metric, line, [longer, shorter], []) is shorter
+    tie = _plan(straight, "constrained", 1.5 * (1.0 + 0.5e-6), "c")
+    assert kept_plan(metric, line, [shorter, tie], []) is shorter
+    assert kept_plan(metric, line, [tie, shorter], []) is tie
+    near = _plan(straight, "feasible", 1.5 * (1.0 - 0.5e-3), "sampled")
+    assert kept_plan(metric, line, [shorter, near], []) is shorter
+    low = _plan(straight, "feasible", 1.5 * (1.0 - 2e-3), "sampled")
+    assert kept_plan(metric, line, [shorter, low], []) is low
+    assert kept_plan(metric, None, [low], []) is low  # without a straight line's plan

@@ -25,13 +25,12 @@ The query's clock, the list of what was tried and the unfinished paths kept for 
 anytime return live here; the planner (its NLPs, checks and clearance bounds) is shared
 by every query. The order of the search is stated in `geosyn.metrics.planning.planner`.
 
-Homotopy rule: after a constrained plan from the straight line, up to
-``planner.alternatives`` RRT-Connect seeds (other ways round the obstacles) are solved,
-each only while the time left is at least the time the first plan took (a solve from a
-seed costs about as much), its sampling bounded by that time and its collocation by
-twice that (so a seed that does not connect cannot take the rest of a long budget). A plan from another seed replaces the kept one only when its
-energy is lower and its metric length (midpoint rule on its nodes) is not longer, so the
-returned path is never longer than the straight-line seed's solution.
+Homotopy rule (`geosyn.metrics.planning.homotopy`): after a constrained plan from the
+straight line, up to ``planner.alternatives`` RRT-Connect seeds (other ways round the
+obstacles) are solved, each only while the time left is at least the time the first plan
+took (a solve from a seed costs about as much), its sampling bounded by that time and its
+collocation by twice that (so a seed that does not connect cannot take the rest of a long
+budget); the kept plan is the lowest-energy one not longer than the straight line's.
 """
 
 from __future__ import annotations
@@ -46,6 +45,7 @@ from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.coarse import coarse_to_fine
 from geosyn.metrics.planning.errors import NoPathFound
+from geosyn.metrics.planning.homotopy import kept_plan
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.polish import sphere_polish
 from geosyn.metrics.planning.rrt import shortcut
@@ -59,7 +59,7 @@ from geosyn.metrics.planning.sampled import (
     pull_taut,
 )
 from geosyn.metrics.planning.sampling import sampling_box
-from geosyn.metrics.planning.smoothing import even_in_metric, metric_length
+from geosyn.metrics.planning.smoothing import even_in_metric
 from geosyn.metrics.planning.thin import THIN_FIRST, thinner_plan
 from geosyn.metrics.planning.tighten import EXACT_KEEP, exact_movable
 from geosyn.metrics.planning.verify import (
@@ -81,8 +81,6 @@ __all__ = [
     "POLISH_FIRST",
     "POLISH_FIRST_MAX",
     "REFINEMENTS",
-    "SAME",
-    "SAME_SAMPLED",
     "Query",
 ]
 
@@ -116,18 +114,6 @@ the 14 Panda benchmark scenes, measured)."""
 
 POLISH_FIRST_MAX = 1.0
 """Longest polishing [s] of the sampled plan before the collocations."""
-
-SAME = 1e-6
-"""Relative difference of energy or length below which two plans count as the same path
-(seeds that converge to one minimum differ by the solver's tolerance)."""
-
-
-SAME_SAMPLED = 1e-3
-"""Relative energy by which a sampled plan (midpoint rule on its samples) must be lower
-than a collocation's (its own quadrature) to be kept instead: below it the two are the
-same path within their discretisations (a sampled path tightened to the margin reaches
-the collocation's optimum to 6e-5 on planar2 round a ball, measured), and the solved
-one is kept."""
 
 
 class Query:
@@ -387,29 +373,9 @@ class Query:
         return plans
 
     def keep(self, line: Plan | None, others: list[Plan]) -> Plan:
-        """The kept plan among ``line`` (the straight line's, if any) and ``others``:
-        the lowest-energy one not longer than ``line`` (both within a relative `SAME`:
-        seeds that converge to the same path keep the earlier plan; a sampled plan only
-        when lower than every solved one by `SAME_SAMPLED`)."""
-        candidates = ([line] if line is not None else []) + others
-        plans = candidates
-        if line is not None and others:
-            cap = metric_length(self.p.metric, line.q) * (1.0 + SAME)
-            plans = [line] + [o for o in others if metric_length(self.p.metric, o.q) <= cap]
-        lowest = min(p.result.energy for p in plans)
-        best = next(p for p in plans if p.result.energy <= lowest + SAME * abs(lowest))
-        solved = [p for p in plans if p.result.kind != "feasible"]
-        if best.result.kind == "feasible" and solved:  # a sampled plan: another quadrature
-            top = min(solved, key=lambda p: p.result.energy)
-            if best.result.energy > (1.0 - SAME_SAMPLED) * top.result.energy:
-                best = top
-        if dropped := len(candidates) - len(plans):
-            self.attempts.append(f"{dropped} plan(s) from other seeds longer than the "
-                                 "straight line's: not kept")  # fmt: skip
-        if len(candidates) > 1:
-            energies = ", ".join(f"{p.result.energy:.4f}" for p in candidates)
-            self.attempts.append(f"kept the lowest-energy of {len(candidates)} plans: "
-                                 f"{best.seed} (energies {energies})")  # fmt: skip
+        """`geosyn.metrics.planning.homotopy.kept_plan` of ``line`` (the straight line's,
+        if any) and ``others``, with this query's wall time, attempts and first time."""
+        best = kept_plan(self.p.metric, line, others, self.attempts)
         first = self.first if not math.isnan(self.first) else best.first_feasible_time
         return best._replace(wall_time=time.perf_counter() - self.t0,
                              attempts=tuple(self.attempts), first_feasible_time=first)  # fmt: skip
