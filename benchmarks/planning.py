@@ -306,6 +306,13 @@ def main(argv: list[str] | None = None) -> None:
                 f"{_fmt(s and s.clearance_mesh, '9.4f'):>9s} {chk:>10s} "
                 f"{'-' if s is None else ('OUT' if s.outside_limits else 'ok'):>6s}"
             )
+    pairs = [(scores.get(f"{sc.name}/geosyn"), scores.get(f"{sc.name}/geodex")) for sc in scenes]
+    pairs = [(a, b) for a, b in pairs if a is not None and b is not None]
+    if pairs:  # geodex's path may enter the meshes: a shorter path, not one for the robot
+        longer = [(a, b) for a, b in pairs if a.length > b.length]
+        print(f"\ngeosyn <= geodex on {len(pairs) - len(longer)} of {len(pairs)} scenes both "
+              f"solved; longer than a geodex path clear of the meshes on "
+              f"{sum(b.clearance_mesh >= 0 for _, b in longer)}")  # fmt: skip
 
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -17,7 +17,9 @@ every ``--check-step`` rad.
 Printed per budget: paths returned (geosyn: how many of them are its sampled plan, not
 collocated: ``Plan.seed == "sampled"``), median and largest wall time to the returned
 path (geosyn: also its CPU time and its first feasible path's time), the length ratio
-geosyn / geodex on the scenes both solved, how many of them geosyn is <= geodex on, and
+geosyn / geodex on the scenes both solved, how many of them geosyn is <= geodex on, on
+how many geosyn is longer than a geodex path that is clear of the URDF meshes (``>gdx
+free``: the others are longer than a path that enters the robot's own geometry), and
 the paths that touch the meshes (< 0) or collide for geodex's checker, geosyn's paths whose
 clearance of the meshes is certified >= 0 between the resampled configurations too
 (`geosyn.metrics.planning.certify`), and the paths with a sample outside the URDF's joint
@@ -148,7 +150,8 @@ def _summary(T: float, r: dict, g: dict[str, dict], s: dict[str, dict]) -> None:
         f"{_median([s[n]['cpu_time'] for n in s_ok]):7.3f} "
         f"{_median([s[n]['first_feasible_time'] for n in s_ok]):7.3f} | "
         f"{_median(ratios):7.3f} [{min(ratios, default=math.nan):.3f}, "
-        f"{max(ratios, default=math.nan):.3f}] {sum(x <= 1.0 for x in ratios):4d}/{len(both):<3d} | "
+        f"{max(ratios, default=math.nan):.3f}] {sum(x <= 1.0 for x in ratios):4d}/{len(both):<3d} "
+        f"{sum(x > 1.0 and g[n]['mesh_clearance'] >= 0 for n, x in zip(both, ratios, strict=True)):9d} | "
         f"{sum(g[n]['mesh_clearance'] < 0 for n in g_ok):6d}/{sum(s[n]['mesh_clearance'] < 0 for n in s_ok):<7d} "
         f"{sum(not s[n]['geodex_free'] for n in s_ok):10d} "
         f"{sum(s[n]['certified_clearance'] >= 0 for n in s_ok):5d}/{len(s_ok):<3d} | "
@@ -244,7 +247,7 @@ def main(argv: list[str] | None = None) -> None:
           f"distance to the URDF collision meshes; paths resampled every {args.check_step:g} rad")  # fmt: skip
     print(f"{'T [s]':>6s} {'load':>5s} | {'gdx ok':>6s} {'gdx wall med/max':>16s} | "
           f"{'gsy ok':>6s} {'smp':>3s} {'gsy wall med/max':>16s} {'cpu med':>7s} {'1st med':>7s} | "
-          f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s} {'cert gsy':>9s} | "
+          f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} {'>gdx free':>9s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s} {'cert gsy':>9s} | "
           f"{'limits gdx/gsy':>13s}")  # fmt: skip
     for who in [w for w in WHO[1:] if w in next(iter(runs.values()))]:
         if who == "geosyn_matched":
