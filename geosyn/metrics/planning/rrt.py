@@ -105,10 +105,13 @@ class _Tree:
         return np.array(out)  # node i back to the root
 
 
-def check_near(near: Near, lo: np.ndarray, hi: np.ndarray) -> Near:
+def check_near(near: Near | None, lo: np.ndarray, hi: np.ndarray) -> Near:
     """``near`` (`Near`) as float arrays and a float, or `InvalidArgument` naming what is
-    allowed: its box within ``[lo, hi]`` (n,) [rad], lower <= upper, share in [0, 1]."""
+    allowed: its box within ``[lo, hi]`` (n,) [rad], lower <= upper, share in [0, 1].
+    None: ``(lo, hi, 0.0)``, no share of the samples."""
     lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    if near is None:
+        return lo, hi, 0.0
     try:
         n_lo, n_hi = (np.asarray(x, dtype=float).reshape(lo.shape) for x in near[:2])
         share = float(near[2])
@@ -176,7 +179,7 @@ def rrt_connect(
         the budget) and the number of tree nodes grown.
     """
     domain = check_domain(domain)
-    n_lo, n_hi, share = (q_min, q_max, 0.0) if near is None else check_near(near, q_min, q_max)
+    n_lo, n_hi, share = check_near(near, q_min, q_max)
     t_end = time.perf_counter() + budget
     rng = np.random.default_rng(seed)
     if _edge_valid(valid, q0, q1, resolution):

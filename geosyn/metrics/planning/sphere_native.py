@@ -360,7 +360,7 @@ class NativeSphereCheck(SphereCheck):
         n = self.robot.model.nq
         q0, q1 = (np.ascontiguousarray(x, dtype=float) for x in (q0, q1))
         lo, hi = (np.ascontiguousarray(x, dtype=float) for x in (lo, hi))
-        n_lo, n_hi, share = (lo, hi, 0.0) if near is None else check_near(near, lo, hi)
+        n_lo, n_hi, share = check_near(near, lo, hi)
         n_lo, n_hi = np.ascontiguousarray(n_lo), np.ascontiguousarray(n_hi)
         if self.segment_valid(q0, q1, resolution, margin):
             return np.array([q0, q1]), 2
