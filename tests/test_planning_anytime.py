@@ -156,8 +156,9 @@ def test_among_obstacles_a_file_geometry_planner_solves_no_nlp(panda: Case) -> N
     """On a robot with file geometry (the Panda's URDF meshes), a query among obstacles
     does not collocate (`Planner.collocates`), even with a budget that leaves time for
     it: the planner and that query build no NLP, the plan is the sampled one, clear of the
-    meshes on Pinocchio's and coal's referee (every 0.005 rad). A free-space query then
-    builds its NLPs (outside its budget: `Plan.nlp_build_time`) and returns the geodesic,
+    meshes on Pinocchio's and coal's referee (every 0.005 rad). A free-space query whose
+    budget is too short to collocate builds none either; one of 5 s then builds its NLPs
+    (outside its budget: `Plan.nlp_build_time`) and returns the geodesic,
     whose energy (unit duration, midpoint rule on 24 nodes) is the squared distance of
     the log map by shooting (an independent solver), 1e-4 relative (4e-5 measured)."""
     robot, _, q0, q1 = panda
@@ -168,6 +169,8 @@ def test_among_obstacles_a_file_geometry_planner_solves_no_nlp(panda: Case) -> N
     assert not any("collocation from" in a for a in plan.attempts)
     referee = _mesh_referee(robot, BLOCK)
     assert min(referee(q) for q in checked_configurations(plan.q, 0.005)) > 0.0
+    short = planner.plan(q0, q1, [], budget=0.5)  # too short to collocate: nothing built
+    assert short.nlp_build_time == 0.0 and short.result.kind == "feasible"
     free = planner.plan(q0, q1, [], budget=5.0)
     assert free.nlp_build_time > 0.0 and free.result.kind == "geodesic"
     d = distance(planner.metric, q0, q1)

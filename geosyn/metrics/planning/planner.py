@@ -73,7 +73,13 @@ from geosyn.metrics.planning.certify import CertifiedClearance, certified_plan, 
 from geosyn.metrics.planning.coarse import clearance_bounds
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
 from geosyn.metrics.planning.plan import Plan
-from geosyn.metrics.planning.query import ANYTIME_SLACK, COARSE_TO_FINE, REFINEMENTS, Query
+from geosyn.metrics.planning.query import (
+    ANYTIME_SLACK,
+    COARSE_TO_FINE,
+    MIN_COLLOCATION,
+    REFINEMENTS,
+    Query,
+)
 from geosyn.metrics.planning.sampling import Sampling
 from geosyn.metrics.planning.self_collision import (
     SelfCollision,
@@ -235,7 +241,9 @@ class Planner:
         constrained point, filled or not (2.3-2.7x CPU time on 1-2 obstacle scenes with 8
         slots rather than 1-2, measured), so a query solves its own slot count's NLPs,
         built with the planner (``prebuild``) or on its first query that `collocates`
-        (`Plan.nlp_build_time`, or `prepare`), then kept."""
+        with a budget over `query.MIN_COLLOCATION` (`Plan.nlp_build_time`, or `prepare`;
+        a smaller budget never collocates: on the Panda, building them took a free query
+        of 0.1 s 0.2 s more, measured), then kept."""
         cap = self._full_term.capacity
         return cap if count >= cap else min(cap, 1 << max(count - 1, 0).bit_length())
 
@@ -438,8 +446,9 @@ class Planner:
         q1 = check_vector(q1, n, "q1")
         budget = check_positive(budget, "budget", "s")
         seed = check_int(seed, "seed")
-        # the budget's clock starts after it
-        built = self._use_slots(len(obstacles), self.collocates(len(obstacles)))
+        # built only for a query that may collocate; the budget's clock starts after it
+        nlps = self.collocates(len(obstacles)) and budget > MIN_COLLOCATION
+        built = self._use_slots(len(obstacles), nlps)
         try:
             self.term.set_obstacles(obstacles)
             self._check_end(q0, "start")
