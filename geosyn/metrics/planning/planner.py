@@ -72,6 +72,7 @@ from geosyn.metrics.planning.anytime import ANYTIME_CHECKS
 from geosyn.metrics.planning.certify import CertifiedClearance, certified_plan, planner_certificate
 from geosyn.metrics.planning.coarse import clearance_bounds
 from geosyn.metrics.planning.goals import EndEffectorGoal, plan_to_goal
+from geosyn.metrics.planning.nlp_slots import NlpSlots
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.query import (
     ANYTIME_SLACK,
@@ -83,8 +84,9 @@ from geosyn.metrics.planning.query import (
 from geosyn.metrics.planning.sampling import Sampling
 from geosyn.metrics.planning.self_collision import (
     SelfCollision,
+    SelfContact,
     check_self_end,
-    path_self_clearance,
+    path_self_contact,
 )
 from geosyn.metrics.planning.smoothing import densify
 from geosyn.metrics.planning.thin import THIN_SHRINKS, ThinSearch
@@ -207,10 +209,10 @@ class Planner:
         self.hessian = hessian
         self.tol = check_positive(tol, "tol")
         self.softmin = softmin
-        self._spheres, self._distance = spheres, distance
         self._full_term = self.term
-        self._terms: dict[int, ObstacleTerm] = {self.term.capacity: self.term}
-        self._collocations: dict[tuple[int, int, int], Collocation] = {}
+        self.nlps = NlpSlots(self.metric, robot, self.term, spheres, distance,
+                             margin=self.margin, compile=compile, hessian=hessian,
+                             tol=self.tol, softmin=softmin)  # fmt: skip
         if self.collocates(prebuild):  # others on their first query that collocates
             self.prepare(prebuild)
         if self.sphere_check.self_pairs:  # every query checks its ends with it: built now
@@ -220,7 +222,7 @@ class Planner:
     def _build_nlps(self) -> None:
         """Build the NLPs every query of the current slot count uses (and the clearance
         function of its `bounds`)."""
-        if self.term.capacity not in self._collocations_built():
+        if not self.nlps.has(self.term.capacity):
             self.term.clearances(
                 np.clip(np.zeros(self.metric.n), self.robot.q_min, self.robot.q_max)
             )
@@ -229,23 +231,13 @@ class Planner:
             self.collocation(self.coarse_nodes, self.coarse_subdivisions)
             self.collocation(self.nodes).solver(self.seeded_mu_init)
 
-    def _collocations_built(self) -> set[int]:
-        """Slot counts with a collocation built."""
-        return {key[0] for key in self._collocations}
-
     def slots(self, count: int) -> int:
-        """Obstacle slots of the NLPs a query with ``count`` obstacles solves: the
-        smallest power of two >= ``count`` (at least 1), at most ``capacity``.
-
-        Every slot costs its clearance constraints and their derivatives at every
-        constrained point, filled or not (2.3-2.7x CPU time on 1-2 obstacle scenes with 8
-        slots rather than 1-2, measured), so a query solves its own slot count's NLPs,
-        built with the planner (``prebuild``) or on its first query that `collocates`
-        with a budget over `query.MIN_COLLOCATION` (`Plan.nlp_build_time`, or `prepare`;
-        a smaller budget never collocates: on the Panda, building them took a free query
-        of 0.1 s 0.2 s more, measured), then kept."""
-        cap = self._full_term.capacity
-        return cap if count >= cap else min(cap, 1 << max(count - 1, 0).bit_length())
+        """Obstacle slots of the NLPs a query with ``count`` obstacles solves
+        (`geosyn.metrics.planning.nlp_slots`), built with the planner (``prebuild``) or
+        on its first query that `collocates` with a budget over `query.MIN_COLLOCATION`
+        (`Plan.nlp_build_time`, or `prepare`; a smaller budget never collocates: building
+        them took a first free Panda query of 0.1 s 0.2 s more, measured)."""
+        return self.nlps.slots(count)
 
     def prepare(self, count: int) -> float:
         """Build now the NLPs of queries with ``count`` obstacles (>= 0), rather than on
@@ -269,16 +261,10 @@ class Planner:
         `collocation`; built now when ``nlps``, else on first use); the time [s] spent
         building them (0 when built before)."""
         t0 = time.perf_counter()
-        cap = self.slots(count)
-        if cap not in self._terms:
-            term = ObstacleTerm((), capacity=cap, spheres=self._spheres, distance=self._distance)
-            term.bind(self.robot)
-            self._terms[cap] = term
-        self.term = self._terms[cap]
-        built = len(self._collocations)
+        self.term, built = self.nlps.term(count), self.nlps.built()
         if nlps:
             self._build_nlps()
-        return time.perf_counter() - t0 if len(self._collocations) > built else 0.0
+        return time.perf_counter() - t0 if self.nlps.built() > built else 0.0
 
     @functools.cached_property
     def thin(self) -> tuple[ThinSearch, ...]:
@@ -296,14 +282,7 @@ class Planner:
     def collocation(self, nodes: int, subdivisions: int = 1) -> Collocation:
         """The collocation with ``nodes`` segments and ``subdivisions`` constrained points
         inside each, for the current obstacle slots (built on first use, then kept)."""
-        key = (self.term.capacity, nodes, subdivisions)
-        if key not in self._collocations:
-            self._collocations[key] = Collocation(
-                self.metric, nodes=nodes, clearance=self.term, margin=self.margin,
-                compile=self.compile, hessian=self.hessian, tol=self.tol,
-                softmin=self.softmin, subdivisions=subdivisions,
-            )  # fmt: skip
-        return self._collocations[key]
+        return self.nlps.collocation(self.term, nodes, subdivisions)
 
     def check(
         self, path: np.ndarray, smooth: bool = True, fine: bool = True
@@ -341,9 +320,15 @@ class Planner:
     def self_check(self, path: np.ndarray, deadline: float = math.inf) -> float:
         """Self-clearance [m] of ``path`` (T, n) [rad] at ``exact_resolution``
         (`path_self_clearance`; NaN without file geometry or past ``deadline``)."""
+        return self.self_contact(path, deadline)[0]
+
+    def self_contact(self, path: np.ndarray,
+                     deadline: float = math.inf) -> tuple[float, SelfContact | None]:  # fmt: skip
+        """`self_check` and, when negative, where the links intersect
+        (`path_self_contact`)."""
         checker = self.self_collision if self.sphere_check.self_pairs else None
-        return path_self_clearance(checker, self.sphere_check, path, self.exact_resolution,
-                                   deadline, self.sampling.aids.kinematics)  # fmt: skip
+        return path_self_contact(checker, self.sphere_check, path, self.exact_resolution,
+                                 deadline, self.sampling.aids.kinematics)  # fmt: skip
 
     def self_ok(self, clearance: float) -> bool:
         """Whether a path of that `self_check` value may be returned: not negative, and

@@ -1,24 +1,19 @@
 """`Query`: one planning query of a `Planner`, from a checked start and goal to a `Plan`.
 
 Anytime: a query first makes a plan without an NLP (`Query.sampled`): RRT-Connect on
-the planner's spheres (in C, `geosyn.metrics.planning.sphere_native`, within
-`SAMPLED_SEARCH`; the straight line when it is free on them), pulled taut in the metric
-(`geosyn.metrics.planning.sampled.pull_taut`: string pulling, partial shortcuts, then
-`geosyn.metrics.planning.relax`, first with its penalty below 3 cm, then tightened to
-the margin with valid steps only, within `SAMPLED_RELAX` of the budget) and verified
-like every plan (the exact check decides, self-collision included; one that fails is
-made again from other RRT-Connect seeds, `SAMPLED_RETRIES`); the collocation
-stages then get the time left (none when less than `MIN_COLLOCATION` is left, nor among
-obstacles when the paths can be moved on the exact geometry, `Query.collocates`: the
-sampled path, if any, is then relaxed further, and other seeds are pulled taut by
-turns, straight lines bent by a random bump
-(`geosyn.metrics.planning.sampled.relaxed_line`) and RRT-Connect paths, the shortest
-then verified: `Query.polish`, and seeds searched on a thinner sphere model pushed out on
-the exact geometry, `geosyn.metrics.planning.thin`; with more, it is polished so for
-`POLISH_FIRST` of the budget before the collocations start), and the kept plan is the
-best verified one by the homotopy rule below (the sampled plan is one of the "other
-seeds": never kept when longer than the straight line's solution; without collocations,
-the shortest of the seeds pulled taut, the straight line bumped among them).
+the planner's spheres (in C, within `SAMPLED_SEARCH`; the straight line when it is free
+on them), pulled taut in the metric (`geosyn.metrics.planning.sampled.pull_taut`, within
+`SAMPLED_RELAX` of the budget) and verified like every plan (the exact check decides,
+self-collision included; one that fails is made again from other RRT-Connect seeds,
+`SAMPLED_RETRIES`, after a self-collision with that pair's floor raised: `Query.retry`).
+The collocation stages then get the time left: none when less than `MIN_COLLOCATION` is
+left, nor among obstacles when the paths can be moved on the exact geometry
+(`Query.collocates`): the sampled plan is then polished (`Query.polish`: other seeds
+pulled taut, bumped straight lines and RRT-Connect paths by turns, and seeds on a thinner
+sphere model pushed out on the exact geometry, `geosyn.metrics.planning.thin`); with
+more, it is polished so for `POLISH_FIRST` of the budget before the collocations start.
+The kept plan is the best verified one by the homotopy rule below (the sampled plan is
+one of the "other seeds": never kept when longer than the straight line's solution).
 ``Plan.first_feasible_time`` says when the first verified plan was found.
 
 The query's clock, the list of what was tried and the unfinished paths kept for an
@@ -72,6 +67,7 @@ from geosyn.metrics.planning.verify import (
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
+    from geosyn.metrics.planning.self_collision import SelfContact
     from geosyn.world.exact_clearance import PathClearance
 
 __all__ = [
@@ -133,6 +129,9 @@ class Query:
         self.restart = 1  # the polishing's next seed (`taut_seeds`): a second one goes on
         self.exact_failed = False  # the last sampled plan crossed the exact geometry
         self.floor = math.nan  # the given spheres' clearance allowed (`decide`)
+        self.contact: SelfContact | None = None  # where the last sampled plan self-collided
+        self.learning = True  # `retry` may raise self floors
+        self.connected = False  # the last sampled plan's RRT-Connect found a path
 
     def decide(self, exact: PathClearance, spheres: float) -> tuple[float, str]:
         """`deciding_clearance` of a path of this query (its exact check, its smallest
@@ -225,6 +224,7 @@ class Query:
         if index:
             search = min(search, 0.5 * max(self.left(), 0.0))
         path, grown = self.connect(index, search)
+        self.connected = path is not None
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
@@ -240,6 +240,23 @@ class Query:
             plan = self.verified(rough, f"{how} shortened in the metric")
         self.first_path = self.sampled_path
         return plan
+
+    def retry(self, index: int) -> Plan | None:
+        """`sampled` from RRT-Connect seed ``seed + index``, after one that failed its
+        checks; if it self-collided on the exact geometry, its pair's floor raised first
+        (`Sampling.learn_floor`), or, when a raised floor left no connection, the
+        calibrated floors back for the rest of the query (the links are apart elsewhere
+        at that overlap). Said in the attempts."""
+        raised = None
+        if self.contact is not None and self.learning:
+            raised, line = self.p.sampling.learn_floor(self.contact)
+            self.attempts.append(line)
+        quick = self.sampled(index)
+        if raised is not None and not self.connected:
+            self.p.sampling.forget_floors()
+            self.learning = False
+            self.attempts.append("self floors as calibrated: the raised one left no connection")
+        return quick
 
     def polish(self, plan: Plan, budget: float = math.inf) -> Plan:
         """``plan`` (sampled) improved in the time left: seeds pulled taut on the covering
@@ -282,7 +299,8 @@ class Query:
                             self.t0 + ANYTIME_SLACK * self.budget, p.sampling.aids)  # fmt: skip
         ok = self.decide(exact, float(np.nanmin([coarse, fine])))[0] >= 0.0
         self.exact_failed = bool(exact.clearance < 0.0)  # not NaN: decided, and crossed
-        own = p.self_check(path, self.t0 + ANYTIME_SLACK * self.budget) if ok else math.nan
+        own, self.contact = (p.self_contact(path, self.t0 + ANYTIME_SLACK * self.budget)
+                             if ok else (math.nan, None))  # fmt: skip
         self.check_time = time.perf_counter() - t
         if not ok or not p.self_ok(own):
             self.attempts.append(f"sampled plan: {how} fails the checks (exact clearance "
@@ -397,7 +415,7 @@ class Query:
                 or (self.collocates() and self.left() > MIN_COLLOCATION)
             ):
                 break
-            quick = self.sampled(index)
+            quick = self.retry(index)
         others: list[Plan] = [quick] if quick is not None else []
         meshes = quick is not None and not self.collocates()  # else: as a fallback
         if meshes or self.left() <= MIN_COLLOCATION:

@@ -23,7 +23,11 @@ query's ends (`near_box`), the rest from the whole sampling box: first paths tha
 near start and goal where such a way exists (fewer long ways round), a connection
 wherever the whole box has one.
 The exact check decides every returned plan,
-self-collision included.
+self-collision included. Where it finds a path the spheres passed intersecting itself
+(a calibrated or uninformative floor let it through), the query raises that pair's floor
+above the spheres' distance there for its remaining search (`Sampling.learn_floor`):
+lazy collision checking, the exact geometry correcting the spheres where they were
+wrong, so that the next search does not return the same path.
 For a robot with a file, the file's fitted spheres also
 give the exact check its aids (`aids`: joint placements in C and lower bounds of every
 (collision object, obstacle) distance from the spheres that cover the object's link).
@@ -39,9 +43,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from geosyn.core.cache_folder import read_json, store_json
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.planning.exact_path import PathAids
 from geosyn.metrics.planning.rrt import Near, rrt_connect
-from geosyn.metrics.planning.self_collision import SelfCollision
+from geosyn.metrics.planning.self_collision import SelfCollision, SelfContact
 from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.metrics.planning.sphere_native import NativeSphereCheck, sphere_check
 from geosyn.robots.robot import CollisionSphere, Robot
@@ -58,6 +63,7 @@ __all__ = [
     "SELF_CALIBRATION_ITEMS",
     "SELF_CALIBRATION_SAFETY",
     "SELF_FLOOR_RAMP",
+    "SELF_LEARN_STEP",
     "SELF_SAMPLES",
     "SELF_UNINFORMATIVE",
     "CALIBRATION_VERSION",
@@ -112,6 +118,12 @@ links' reach beyond their convex hulls. Calibrating these too (the UR5's base an
 arm touch from 39 mm of overlap, and are apart up to 56 mm) planned 14 of 24 seeded
 random queries on a UR5 with its gripper against 17 (`benchmarks/RESULTS.md`, issue 22,
 sixteenth round)."""
+
+SELF_LEARN_STEP = 0.005
+"""[m] above a self pair's sphere distance at a configuration where the exact check found
+its links intersecting, to which `Sampling.learn_floor` raises the pair's floor for the
+rest of the query. A calibrated slack comes from `SELF_SAMPLES` configurations: the links
+may touch at a shallower overlap elsewhere."""
 
 SELF_SAMPLES = 1000
 """Configurations drawn (seed 0) to find the pairs `SELF_CALIBRATE` calibrates."""
@@ -243,6 +255,8 @@ class Sampling:
         self._object_link = np.zeros(0, dtype=int)  # each file collision object's link
         self._covered = np.zeros(0, dtype=int)  # the objects whose link has fitted spheres
         self.aids = PathAids()
+        self._ends: tuple[np.ndarray, np.ndarray] | None = None  # the query's (`start`)
+        self._calibrated: np.ndarray | None = None  # the slack a query's contacts lowered
         if exact is None:
             return
         from geosyn.robots.collision_spheres import file_spheres  # cached on disk
@@ -263,15 +277,52 @@ class Sampling:
         """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
         sphere distances near them, the sampling margin ramped down to theirs (module
         docstring)."""
-        self._obstacles = tuple(obstacles)
+        self._obstacles, self._ends = tuple(obstacles), (q0, q1)
         self.check.set_obstacles(self._obstacles)
         ends = self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK
         self.check.set_ends([q0, q1], np.minimum(ends, self.margin), SAMPLING_RAMP,
                             SELF_FLOOR_RAMP)  # fmt: skip
 
+    def learn_floor(self, contact: SelfContact) -> tuple[float | None, str]:
+        """For the rest of the query (`start`), raise the floor of the self pair of
+        ``contact`` (where the exact check found its links intersecting on a path the
+        spheres passed) to `SELF_LEARN_STEP` above the pair's sphere distance there, so
+        that the search no longer passes that configuration (module docstring). Not when
+        the floor is already higher (the path passed between the checked samples, or near
+        an end), nor above the pair's sphere distance at an end (the floors ramp up from
+        there, `SELF_FLOOR_RAMP`: the end would be shut in). Returns the new floor [m] (or
+        None) and a sentence saying what was done."""
+        if self._ends is None:
+            raise InvalidArgument("learn_floor: only within a query (after start)")
+        k = int(contact.pair)
+        a, b = self.check.self_pairs[k]
+        d = float(self.check.self_clearances(contact.q)[0, k])
+        slack = max(-d - SELF_LEARN_STEP, 0.0)
+        ends = self.check.self_clearances(np.array(self._ends))[:, k]
+        if slack >= self.check.self_slack[k] or -slack > float(ends.min()):
+            return None, (f"self pair {a}/{b}: floor not raised (already above the spheres' "
+                          "distance where the links intersect, or it would shut an end in)")  # fmt: skip
+        if self._calibrated is None:
+            self._calibrated = self.check.self_slack
+        lowered = self.check.self_slack.copy()
+        lowered[k] = slack
+        self.check.self_slack = lowered
+        self.start(self._obstacles, *self._ends)  # the floors again, from the new slack
+        return -slack, (f"self pair {a}/{b}: floor raised to {-slack:.4f} m for this query "
+                        f"(the links intersect where their spheres are {d:.4f} m apart)")  # fmt: skip
+
+    def forget_floors(self) -> None:
+        """The calibrated floors back for the rest of the query (`learn_floor`'s undone)."""
+        if self._calibrated is not None:
+            self.check.self_slack, self._calibrated = self._calibrated, None
+            if self._ends is not None:
+                self.start(self._obstacles, *self._ends)
+
     def finish(self) -> None:
         """End of a query: no ends (the sampling margin and the self floors away from any
-        ends, everywhere)."""
+        ends, everywhere), the calibrated floors back (`learn_floor`)."""
+        self._ends = None
+        self.forget_floors()
         self.check.set_ends([], [], 0.0)
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:

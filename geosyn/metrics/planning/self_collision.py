@@ -39,7 +39,7 @@ from __future__ import annotations
 import heapq
 import math
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -58,7 +58,9 @@ __all__ = [
     "SELF_REFINE_TIME",
     "SelfCollision",
     "check_self_end",
+    "SelfContact",
     "path_self_clearance",
+    "path_self_contact",
 ]
 
 SELF_NEAR = 0.02
@@ -217,6 +219,15 @@ class SelfCollision:
         return best
 
 
+class SelfContact(NamedTuple):
+    """Where a path self-collides (`path_self_contact`): at the checked configuration
+    ``q`` (n,) [rad], the links of self pair ``pair`` (an index of the spheres'
+    ``self_pairs``) intersect."""
+
+    q: np.ndarray
+    pair: int
+
+
 def path_self_clearance(
     checker: SelfCollision | None,
     spheres: SphereCheck,
@@ -225,21 +236,34 @@ def path_self_clearance(
     deadline: float = math.inf,
     kinematics: Kinematics | None = None,
 ) -> float:
+    """`path_self_contact`'s clearance [m] alone."""
+    return path_self_contact(checker, spheres, path, resolution, deadline, kinematics)[0]
+
+
+def path_self_contact(
+    checker: SelfCollision | None,
+    spheres: SphereCheck,
+    path: np.ndarray,
+    resolution: float,
+    deadline: float = math.inf,
+    kinematics: Kinematics | None = None,
+) -> tuple[float, SelfContact | None]:
     """Smallest exact self-clearance [m] of the linear interpolation of ``path`` (T, n)
     [rad] at most ``resolution`` [rad] apart (the module's rule; ``spheres`` has the same
     pairs set, `SphereCheck.set_self_pairs`).
 
-    Returns the exact minimum when it is below `SELF_NEAR` and not negative, else
-    `SELF_NEAR` ("at least"); a lower bound of it, not negative, when the path was
-    decided self-clear and refining it took more than `SELF_REFINE_TIME` or passed
-    ``deadline`` [s]; a negative value (some exact penetration, not necessarily the
-    deepest) when the path self-collides; NaN without ``checker`` or when
-    ``time.perf_counter()`` passes ``deadline`` before the path is decided.
+    Returns ``(clearance, contact)``. The clearance: the exact minimum when it is below
+    `SELF_NEAR` and not negative, else `SELF_NEAR` ("at least"); a lower bound of it,
+    not negative, when the path was decided self-clear and refining it took more than
+    `SELF_REFINE_TIME` or passed ``deadline`` [s]; a negative value (some exact
+    penetration, not necessarily the deepest) when the path self-collides; NaN without
+    ``checker`` or when ``time.perf_counter()`` passes ``deadline`` before the path is
+    decided. The contact: where that penetration was found when negative, else None.
     ``kinematics``: the joints' placements of every checked configuration at once (e.g.
     in C): the same result without one Pinocchio call per measured item.
     """
     if checker is None:
-        return math.nan
+        return math.nan, None
     Q = checked_configurations(path, resolution)
     bound = spheres.self_clearances(Q)  # (K, P)
     near = np.flatnonzero(bound.ravel() < SELF_NEAR)
@@ -259,7 +283,7 @@ def path_self_clearance(
         value, hull, index = heapq.heappop(line)
         count += 1
         if count % 16 == 0 and time.perf_counter() > min(deadline, refine_end):
-            return min(low, value) if value >= 0.0 else math.nan  # bounds: lowest first
+            return (min(low, value) if value >= 0.0 else math.nan), None  # lowest first
         i, k = (int(x) for x in np.unravel_index(index, bound.shape))
         if i not in placed:
             placed[i] = checker.placements(*(frames.get(i) or checker.joint_frames(Q[i])))
@@ -273,8 +297,8 @@ def path_self_clearance(
             d = checker.placed_clearance(placed[i], pair)
         low = min(low, d)
         if low < 0.0:
-            break
-    return low
+            return low, SelfContact(Q[i].copy(), k)
+    return low, None
 
 
 def check_self_end(
