@@ -98,16 +98,18 @@ def _pair_sphere_distance(robot: object, fitted: object, pair: tuple[str, str],
 
 
 def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -> None:
-    """UR5, `UR5_START` -> `UR5_GOAL`, no obstacles, 2 s (the benchmark's random queries):
+    """UR5, `UR5_START` -> `UR5_GOAL`, no obstacles, the default budget (5 s):
     Pinocchio's collision model of the URDF finds the straight line's links intersecting,
     where the sampling check (the calibrated floors) passes it. The exact self check's
     contact is a configuration Pinocchio finds colliding; `Sampling.learn_floor` raises
     that pair's floor to its sphere distance there (Pinocchio's forward kinematics on the
     fitted spheres, 1e-9 m) plus `SELF_LEARN_STEP`, after which the check refuses it; the
-    query's end (`finish`) restores the calibrated floors. The query is planned (0.6-0.85 s
-    measured, the other core busy), no configuration of its path at the exact resolution
-    colliding for Pinocchio; without the raised floors every retry is the same straight
-    line and the query is refused."""
+    query's end (`finish`) restores the calibrated floors. The query is planned (its first
+    plan after 0.6-0.85 s, measured with the other core busy; the sampled plans are tried
+    again after a self-collision even when collocation has time: its NLP has no term for
+    it, and its geodesic crosses the links), no configuration of its path at the exact
+    resolution colliding for Pinocchio; without the raised floors (2 s) every retry is the
+    same straight line and the query is refused."""
     from geosyn.metrics.planning.query import Query
     from geosyn.metrics.planning.sampling import SELF_LEARN_STEP
     from geosyn.robots.collision_spheres import file_spheres
@@ -133,7 +135,7 @@ def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -
     finally:
         sampling.finish()
     np.testing.assert_array_equal(sampling.check.self_slack, calibrated)
-    plan = planner.plan(UR5_START, UR5_GOAL, budget=2.0, seed=0)
+    plan = planner.plan(UR5_START, UR5_GOAL, seed=0)  # the default 5 s: time to collocate
     Q = checked_configurations(plan.q, plan.exact_resolution)
     assert not any(referee.collides(q) for q in Q)
     np.testing.assert_array_equal(sampling.check.self_slack, calibrated)

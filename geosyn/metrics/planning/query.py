@@ -5,7 +5,8 @@ the planner's spheres (in C, within `SAMPLED_SEARCH`; the straight line when it 
 on them), pulled taut in the metric (`geosyn.metrics.planning.sampled.pull_taut`, within
 `SAMPLED_RELAX` of the budget) and verified like every plan (the exact check decides,
 self-collision included; one that fails is made again from other RRT-Connect seeds,
-`SAMPLED_RETRIES`, after a self-collision with that pair's floor raised: `Query.retry`).
+`SAMPLED_RETRIES`; after a self-collision with that pair's floor raised, `Query.retry`,
+and even when collocation has time: its NLP has no self-collision term).
 The collocation stages then get the time left: none when less than `MIN_COLLOCATION` is
 left, nor among obstacles when the paths can be moved on the exact geometry
 (`Query.collocates`): the sampled plan is then polished (`Query.polish`: other seeds
@@ -408,11 +409,11 @@ class Query:
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
         quick, took = self.sampled(), time.perf_counter() - self.t0
-        for index in range(1, SAMPLED_RETRIES + 1):  # while no collocation would use the time
-            if (
+        for index in range(1, SAMPLED_RETRIES + 1):  # while no collocation would use the
+            if (  # time, or after a self-collision (the NLP has no term for it)
                 quick is not None
                 or self.left() <= took
-                or (self.collocates() and self.left() > MIN_COLLOCATION)
+                or (self.collocates() and self.left() > MIN_COLLOCATION and self.contact is None)
             ):
                 break
             quick = self.retry(index)
