@@ -244,7 +244,7 @@ def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(
     with the joints placed in C for every checked configuration (the planner's default),
     is Pinocchio's smallest pair distance over those configurations (1e-6 m), and the
     same as without the C placements (Pinocchio's forward kinematics per item)."""
-    from geosyn.metrics.planning.self_collision import path_self_clearance
+    from geosyn.metrics.planning.self_collision import path_self_contact
 
     assert panda_planner.sampling.aids.kinematics is not None  # the C check is in use
     line = np.array([FOLD_START, FOLD_GOAL])
@@ -256,9 +256,10 @@ def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(
                  for q in checked_configurations(part, panda_planner.exact_resolution))  # fmt: skip
     assert 0.0 < lowest < SELF_NEAR  # the test means something
     assert abs(ours - lowest) < 1e-6
-    plain = path_self_clearance(panda_planner.self_collision, panda_planner.sphere_check,
-                                part, panda_planner.exact_resolution)  # fmt: skip
-    assert abs(plain - ours) < 1e-12
+    plain, contact = path_self_contact(panda_planner.self_collision,
+                                       panda_planner.sphere_check, part,
+                                       panda_planner.exact_resolution)  # fmt: skip
+    assert abs(plain - ours) < 1e-12 and contact is None
 
 
 def test_the_ur5_self_check_measures_triangles_only_where_the_hulls_do_not_decide(

@@ -37,7 +37,7 @@ One query, within a stated time budget:
    an obstacle is solved again with more constrained points (`REFINEMENTS`) and, after an
    exact failure, a sphere margin larger by the penetration plus `REPAIR_STEP`, until one
    passes, or refused; and for self-collision on the file's self pairs
-   (`geosyn.metrics.planning.self_collision.path_self_clearance`, same resolution): a
+   (`geosyn.metrics.planning.self_collision.path_self_contact`, same resolution): a
    self-colliding path is refused (the sampled plans avoid it: their validity includes
    the self pairs' sphere distances), never returned. Every plan keeps the joint
    limits at every sample (the box is convex, so between them too): the collocation has
@@ -319,7 +319,7 @@ class Planner:
 
     def self_check(self, path: np.ndarray, deadline: float = math.inf) -> float:
         """Self-clearance [m] of ``path`` (T, n) [rad] at ``exact_resolution``
-        (`path_self_clearance`; NaN without file geometry or past ``deadline``)."""
+        (`path_self_contact`; NaN without file geometry or past ``deadline``)."""
         return self.self_contact(path, deadline)[0]
 
     def self_contact(self, path: np.ndarray,

@@ -10,7 +10,7 @@ primitive itself (`geosyn.world.exact_clearance.coal_shape`); `clearance` return
 smallest coal distance over the pairs. Triangle meshes that intersect have no
 penetration depth in coal: such a pair counts as `INTERSECTING`. The planner checks IK
 goals with it (`geosyn.metrics.planning.goals`), the start and goal of every query, and
-every returned plan (`path_self_clearance`).
+every returned plan (`path_self_contact`).
 
 Rule for plans: a path is checked at the configurations of
 `geosyn.metrics.planning.exact_path.checked_configurations` (the exact check's
@@ -59,7 +59,6 @@ __all__ = [
     "SelfCollision",
     "check_self_end",
     "SelfContact",
-    "path_self_clearance",
     "path_self_contact",
 ]
 
@@ -71,7 +70,7 @@ INTERSECTING = -1e-6
 """Clearance [m] reported for two intersecting triangle meshes (coal gives no depth)."""
 
 SELF_REFINE_TIME = 0.05
-"""Most time [s] `path_self_clearance` refines a decided path towards its exact minimum
+"""Most time [s] `path_self_contact` refines a decided path towards its exact minimum
 (module docstring)."""
 
 
@@ -226,18 +225,6 @@ class SelfContact(NamedTuple):
 
     q: np.ndarray
     pair: int
-
-
-def path_self_clearance(
-    checker: SelfCollision | None,
-    spheres: SphereCheck,
-    path: np.ndarray,
-    resolution: float,
-    deadline: float = math.inf,
-    kinematics: Kinematics | None = None,
-) -> float:
-    """`path_self_contact`'s clearance [m] alone."""
-    return path_self_contact(checker, spheres, path, resolution, deadline, kinematics)[0]
 
 
 def path_self_contact(
