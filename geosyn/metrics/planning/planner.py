@@ -40,9 +40,9 @@ One query, within a stated time budget:
    (`geosyn.metrics.planning.self_collision.path_self_contact`, same resolution): a
    self-colliding path is refused (the sampled plans avoid it: their validity includes
    the self pairs' sphere distances, a pair's floor raised for the rest of the query
-   where the exact check found its links touching), never returned. Every plan keeps the joint
-   limits at every sample (the box is convex, so between them too): the collocation has
-   them as bounds, the relaxations of the sampled plans take projected steps
+   where the exact check found its links touching), never returned. Every plan keeps
+   the joint limits at every sample (the box is convex, so between them too): the
+   collocation has them as bounds, the relaxations of the sampled plans take projected steps
    (`geosyn.metrics.planning.relax.metric_relax`'s ``bounds``), and the verification
    refuses a path that leaves them (`geosyn.metrics.planning.verify.outside_limits`).
 
@@ -236,8 +236,8 @@ class Planner:
         """Obstacle slots of the NLPs a query with ``count`` obstacles solves
         (`geosyn.metrics.planning.nlp_slots`), built with the planner (``prebuild``) or
         on its first query that `collocates` with a budget over `query.MIN_COLLOCATION`
-        (`Plan.nlp_build_time`, or `prepare`; a smaller budget never collocates: building
-        them took a first free Panda query of 0.1 s 0.2 s more, measured)."""
+        (`Plan.nlp_build_time`, or `prepare`; a smaller budget never collocates: a first
+        free Panda query of 0.1 s took 0.2 s more building them, measured)."""
         return self.nlps.slots(count)
 
     def prepare(self, count: int) -> float:
