@@ -210,7 +210,6 @@ class Planner:
         self.hessian = hessian
         self.tol = check_positive(tol, "tol")
         self.softmin = softmin
-        self._full_term = self.term
         self.nlps = NlpSlots(self.metric, robot, self.term, spheres, distance,
                              margin=self.margin, compile=compile, hessian=hessian,
                              tol=self.tol, softmin=softmin)  # fmt: skip
@@ -247,7 +246,7 @@ class Planner:
         try:
             return self._use_slots(count)
         finally:
-            self.term = self._full_term
+            self.term = self.nlps.full
 
     def collocates(self, count: int) -> bool:
         """Whether a query among ``count`` obstacles solves collocations when its budget
@@ -443,8 +442,8 @@ class Planner:
             plan = Query(self, q0, q1, budget, seed, t0 + built).run()
         finally:  # ``term`` holds the last query's obstacles, on every slot
             self.sampling.finish()
-            if self.term is not self._full_term:
-                self._full_term.set_obstacles(obstacles)
-            self.term = self._full_term
+            if self.term is not self.nlps.full:
+                self.nlps.full.set_obstacles(obstacles)
+            self.term = self.nlps.full
         plan = plan._replace(nlp_build_time=built)
         return certified_plan(self, plan, obstacles, budget) if certify else plan

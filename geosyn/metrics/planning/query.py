@@ -131,6 +131,7 @@ class Query:
         self.exact_failed = False  # the last sampled plan crossed the exact geometry
         self.floor = math.nan  # the given spheres' clearance allowed (`decide`)
         self.contact: SelfContact | None = None  # where the last sampled plan self-collided
+        self.self_collided = False  # one did: the retries go on (the NLP has no term for it)
         self.learning = True  # `retry` may raise self floors
         self.connected = False  # the last sampled plan's RRT-Connect found a path
 
@@ -243,15 +244,15 @@ class Query:
         return plan
 
     def retry(self, index: int) -> Plan | None:
-        """`sampled` from RRT-Connect seed ``seed + index``, after one that failed its
-        checks; if it self-collided on the exact geometry, its pair's floor raised first
-        (`Sampling.learn_floor`), or, when a raised floor left no connection, the
-        calibrated floors back for the rest of the query (the links are apart elsewhere
-        at that overlap). Said in the attempts."""
+        """`sampled` from RRT-Connect seed ``seed + index`` after one that failed its checks:
+        first, where it self-collided, its pair's floor raised (`Sampling.learn_floor`);
+        if a raised floor left no connection, the calibrated floors back for the rest of
+        the query (the links are apart elsewhere at that overlap). Said in the attempts."""
         raised = None
         if self.contact is not None and self.learning:
             raised, line = self.p.sampling.learn_floor(self.contact)
             self.attempts.append(line)
+            self.contact = None  # learned from once
         quick = self.sampled(index)
         if raised is not None and not self.connected:
             self.p.sampling.forget_floors()
@@ -302,6 +303,7 @@ class Query:
         self.exact_failed = bool(exact.clearance < 0.0)  # not NaN: decided, and crossed
         own, self.contact = (p.self_contact(path, self.t0 + ANYTIME_SLACK * self.budget)
                              if ok else (math.nan, None))  # fmt: skip
+        self.self_collided |= self.contact is not None
         self.check_time = time.perf_counter() - t
         if not ok or not p.self_ok(own):
             self.attempts.append(f"sampled plan: {how} fails the checks (exact clearance "
@@ -413,7 +415,7 @@ class Query:
             if (  # time, or after a self-collision (the NLP has no term for it)
                 quick is not None
                 or self.left() <= took
-                or (self.collocates() and self.left() > MIN_COLLOCATION and self.contact is None)
+                or (self.collocates() and self.left() > MIN_COLLOCATION and not self.self_collided)
             ):
                 break
             quick = self.retry(index)
