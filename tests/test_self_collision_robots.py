@@ -97,21 +97,70 @@ def _pair_sphere_distance(robot: object, fitted: object, pair: tuple[str, str],
                for ca, ra in placed[pair[0]] for cb, rb in placed[pair[1]])  # fmt: skip
 
 
+def test_raised_self_floors_hold_only_within_their_radius() -> None:
+    """UR5's sampling check (in C; and the numpy one), no obstacles, no ends: with two
+    local raises (`Raises`) of one self pair's floor, 1 and 0.5 rad round two seeded
+    configurations, to 2 and 3 cm above its sphere distance at the first, a configuration
+    is valid exactly when every pair's sphere distance (Pinocchio's forward kinematics on
+    the fitted spheres, the referee) is at least its floor in force: the calibrated one
+    (``min(0, -self_slack)``), the larger raise whose ball holds it. At 60 seeded
+    configurations within 1.5 rad of the first (both kinds of verdict occur, and
+    configurations inside and outside the balls). `Raises.none` drops them."""
+    from geosyn.metrics.planning.sphere_check import Raises, SphereCheck
+    from geosyn.robots.collision_spheres import file_spheres
+
+    robot = load_robot("ur5")
+    planner = Planner(KineticEnergyMetric(robot))
+    native = planner.sampling.check
+    fitted = file_spheres(robot)
+    plain = SphereCheck(robot, fitted.spheres)
+    plain.set_self_pairs(fitted.spheres, fitted.links, fitted.self_pairs)
+    plain.self_slack = native.self_slack.copy()
+    base = np.minimum(-native.self_slack, 0.0)
+    rng = np.random.default_rng(7)
+    at = np.array([robot.random_q(rng), robot.random_q(rng)])
+    k = int(np.argmax(native.self_slack))  # the pair with the lowest calibrated floor
+    pair = native.self_pairs[k]
+    d0 = _pair_sphere_distance(robot, fitted, pair, at[0])
+    raises = Raises(np.array([k, k]), at, np.array([1.0, 0.5]), np.array([d0 + 0.02, d0 + 0.03]))
+    Q = np.clip(at[0] + rng.uniform(-1.5, 1.5, (60, robot.nq)) / math.sqrt(robot.nq),
+                robot.q_min, robot.q_max)  # fmt: skip
+    verdicts, inside = [], 0
+    for check in (native, plain):
+        check.set_ends([], [], 0.0)
+        check.set_raises(raises)
+        got = check.valid(Q, -1.0)  # margin -1 m: no obstacle, only the self pairs decide
+        for q, valid in zip(Q, got, strict=True):
+            floors = base.copy()
+            for r in range(2):
+                if np.linalg.norm(q - at[r]) < raises.radius[r]:
+                    floors[k] = max(floors[k], raises.floor[r])
+                    inside += 1
+            dist = [_pair_sphere_distance(robot, fitted, ab, q) for ab in native.self_pairs]
+            assert min(abs(a - b) for a, b in zip(dist, floors, strict=True)) > 1e-9
+            assert bool(valid) == all(a >= b for a, b in zip(dist, floors, strict=True))
+            verdicts.append(bool(valid))
+        check.set_raises(Raises.none(robot.nq))
+        assert np.array_equal(check.self_floors(Q), np.tile(base, (len(Q), 1)))
+    assert 0 < sum(verdicts) < len(verdicts) and 0 < inside < 2 * len(verdicts)
+
+
 def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -> None:
     """UR5, `UR5_START` -> `UR5_GOAL`, no obstacles, the default budget (5 s):
     Pinocchio's collision model of the URDF finds the straight line's links intersecting,
     where the sampling check (the calibrated floors) passes it. The exact self check's
     contact is a configuration Pinocchio finds colliding; `Sampling.learn_floor` raises
     that pair's floor to its sphere distance there (Pinocchio's forward kinematics on the
-    fitted spheres, 1e-9 m) plus `SELF_LEARN_STEP`, after which the check refuses it; the
-    query's end (`finish`) restores the calibrated floors. The query is planned (its first
+    fitted spheres, 1e-9 m) plus `SELF_LEARN_STEP`, after which the check refuses it,
+    within `SELF_LEARN_RADIUS` of it only (the floor in force beyond it is unchanged); the
+    query's end (`finish`) drops the raise. The query is planned (its first
     plan after 0.6-0.85 s, measured with the other core busy; the sampled plans are tried
     again after a self-collision even when collocation has time: its NLP has no term for
     it, and its geodesic crosses the links), no configuration of its path at the exact
     resolution colliding for Pinocchio; without the raised floors (2 s) every retry is the
     same straight line and the query is refused."""
     from geosyn.metrics.planning.query import Query
-    from geosyn.metrics.planning.sampling import SELF_LEARN_STEP
+    from geosyn.metrics.planning.sampling import SELF_LEARN_RADIUS, SELF_LEARN_STEP
     from geosyn.robots.collision_spheres import file_spheres
 
     robot = load_robot("ur5")
@@ -129,16 +178,22 @@ def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -
         assert sampling.valid(contact.q[None])[0]
         pair = planner.sphere_check.self_pairs[contact.pair]
         d = _pair_sphere_distance(robot, file_spheres(robot), pair, contact.q)
+        u = np.random.default_rng(0).standard_normal(robot.nq)
+        far = contact.q + (SELF_LEARN_RADIUS + 0.1) * u / np.linalg.norm(u)
+        before = sampling.check.self_floors(np.array([contact.q, far]))[:, contact.pair]
         floor, _ = sampling.learn_floor(contact)
         assert floor is not None and abs(floor - (d + SELF_LEARN_STEP)) < 1e-9
         assert not sampling.valid(contact.q[None])[0]
+        after = sampling.check.self_floors(np.array([contact.q, far]))[:, contact.pair]
+        assert after[0] == floor > before[0] and after[1] == before[1]
     finally:
         sampling.finish()
+    assert len(sampling.check.raises.pair) == 0
     np.testing.assert_array_equal(sampling.check.self_slack, calibrated)
     plan = planner.plan(UR5_START, UR5_GOAL, seed=0)  # the default 5 s: time to collocate
     Q = checked_configurations(plan.q, plan.exact_resolution)
     assert not any(referee.collides(q) for q in Q)
-    np.testing.assert_array_equal(sampling.check.self_slack, calibrated)
+    assert len(sampling.check.raises.pair) == 0
     monkeypatch.setattr(Query, "retry", Query.sampled)  # no floor raised
     with pytest.raises(NoPathFound):
         planner.plan(UR5_START, UR5_GOAL, budget=2.0, seed=0)

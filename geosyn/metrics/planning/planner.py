@@ -40,7 +40,7 @@ One query, within a stated time budget:
    (`geosyn.metrics.planning.self_collision.path_self_contact`, same resolution): a
    self-colliding path is refused (the sampled plans avoid it: their validity includes
    the self pairs' sphere distances, a pair's floor raised for the rest of the query
-   where the exact check found its links touching), never returned. Every plan keeps
+   near where the exact check found its links touching), never returned. Every plan keeps
    the joint limits at every sample (the box is convex, so between them too): the
    collocation has them as bounds, the relaxations of the sampled plans take projected steps
    (`geosyn.metrics.planning.relax.metric_relax`'s ``bounds``), and the verification

@@ -5,7 +5,7 @@ the planner's spheres (in C, within `SAMPLED_SEARCH`; the straight line when it 
 on them), pulled taut in the metric (`geosyn.metrics.planning.sampled.pull_taut`, within
 `SAMPLED_RELAX` of the budget) and verified like every plan (the exact check decides,
 self-collision included; one that fails is made again from other RRT-Connect seeds,
-`SAMPLED_RETRIES`; after a self-collision with that pair's floor raised, `Query.retry`,
+`SAMPLED_RETRIES`; after a self-collision with that pair's floor raised near it, `Query.retry`,
 and even when collocation has time: its NLP has no self-collision term).
 The collocation stages then get the time left: none when less than `MIN_COLLOCATION` is
 left, nor among obstacles when the paths can be moved on the exact geometry
@@ -245,9 +245,9 @@ class Query:
 
     def retry(self, index: int) -> Plan | None:
         """`sampled` from RRT-Connect seed ``seed + index`` after one that failed its checks:
-        first, where it self-collided, its pair's floor raised (`Sampling.learn_floor`);
-        if a raised floor left no connection, the calibrated floors back for the rest of
-        the query (the links are apart elsewhere at that overlap). Said in the attempts."""
+        first, where it self-collided, its pair's floor raised near there
+        (`Sampling.learn_floor`); if a raised floor left no connection, the calibrated
+        floors back for the rest of the query. Said in the attempts."""
         raised = None
         if self.contact is not None and self.learning:
             raised, line = self.p.sampling.learn_floor(self.contact)

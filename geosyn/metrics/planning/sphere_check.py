@@ -54,6 +54,22 @@ class _Ends(NamedTuple):
         return cls(np.zeros((0, nq)), np.zeros(0), 0.0, np.zeros((0, pairs)), 0.0)
 
 
+class Raises(NamedTuple):
+    """Local raises of self floors (`SphereCheck.set_raises`): within ``radius[r]`` [rad]
+    (joint-space 2-norm) of ``at[r]`` (n,) [rad], self pair ``pair[r]``'s floor is at least
+    ``floor[r]`` [m]; R raises."""
+
+    pair: np.ndarray
+    at: np.ndarray
+    radius: np.ndarray
+    floor: np.ndarray
+
+    @classmethod
+    def none(cls, nq: int) -> Raises:
+        """No raises (a robot of ``nq`` coordinates)."""
+        return cls(np.zeros(0, dtype=int), np.zeros((0, nq)), np.zeros(0), np.zeros(0))
+
+
 class SphereCheck:
     """Smallest clearance [m] of a robot's collision spheres to obstacles.
 
@@ -78,13 +94,14 @@ class SphereCheck:
         self.self_slack = np.zeros(0)
         self._self_floor = np.zeros(0)
         self._ends = _Ends.none(robot.model.nq, 0)
+        self.raises = Raises.none(robot.model.nq)
 
     def set_self_pairs(self, spheres: Sequence[CollisionSphere], links: Sequence[str],
                        pairs: Sequence[tuple[str, str]]) -> None:  # fmt: skip
         """Check the link ``pairs`` for self-collision on ``spheres`` (each covering the
         link of the same index of ``links``; pairs without spheres are left out).
         Allocates; the floors of `self_valid` are reset to 0, and a query's ends
-        (`set_ends`) dropped."""
+        (`set_ends`) and raises (`set_raises`) dropped."""
         ids = [self.robot.joint_id(s.joint) if s.joint != "universe" else 0 for s in spheres]
         self._joints = sorted(set(self._ids) | set(ids))  # one kinematics for both
         self._slot = np.array([self._joints.index(j) for j in self._ids], dtype=int)
@@ -109,6 +126,7 @@ class SphereCheck:
         self._start = np.array(start, dtype=int)
         self._self_floor = np.zeros(len(kept))
         self._ends = _Ends.none(self.robot.model.nq, len(kept))
+        self.raises = Raises.none(self.robot.model.nq)
 
     def frames(self, Q: np.ndarray) -> Frames:
         """((K, J, 3, 3), (K, J, 3)) world rotations and positions of the joints carrying
@@ -166,11 +184,32 @@ class SphereCheck:
         self._self_floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
         self._ends = _Ends(E, c, float(slope), self.self_clearances(E), float(floor_slope))
 
+    def set_raises(self, raises: Raises) -> None:
+        """Local raises of the self floors (`Raises`; they replace earlier ones), applied
+        before the ends' lowering (`self_floors`): an end stays valid.
+
+        Raises:
+            InvalidArgument: a pair index outside the self pairs, or other shapes.
+        """
+        n, P, R = self.robot.model.nq, len(self.self_pairs), len(raises.pair)
+        pair = np.asarray(raises.pair, dtype=int).reshape(-1)
+        shapes = (np.shape(raises.at), np.shape(raises.radius), np.shape(raises.floor))
+        if shapes != ((R, n), (R,), (R,)) or np.any((pair < 0) | (pair >= P)):
+            raise InvalidArgument(
+                f"set_raises: pair (R,) in [0, {P}), at (R, {n}), radius (R,), floor (R,); "
+                f"got pairs {pair.tolist()} and shapes {shapes}"
+            )
+        self.raises = Raises(pair, *(np.array(a, dtype=float) for a in raises[1:]))
+
     def self_floors(self, Q: np.ndarray) -> np.ndarray:
         """(K, P) the floor of each self pair in force at each configuration of ``Q``
-        (K, n) [rad] (`set_ends`)."""
+        (K, n) [rad]: raised where `set_raises` says, then lowered near the ends
+        (`set_ends`)."""
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
-        out = np.broadcast_to(self._self_floor, (len(Q), len(self._self_floor)))
+        out = np.tile(self._self_floor, (len(Q), 1))
+        for k, at, radius, floor in zip(*self.raises, strict=True):
+            inside = np.linalg.norm(Q - at, axis=1) < radius
+            out[inside, k] = np.maximum(out[inside, k], floor)
         ends = self._ends
         for e, d in zip(ends.E, ends.D, strict=True):
             away = np.linalg.norm(Q - e, axis=1)[:, None]

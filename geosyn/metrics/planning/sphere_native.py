@@ -31,7 +31,7 @@ import numpy as np
 from geosyn.core.codegen import CodegenError, compile_shared
 from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.planning.rrt import DYNAMIC_DOMAIN, RRT_STEP, Near, check_domain, check_near
-from geosyn.metrics.planning.sphere_check import Frames, SphereCheck
+from geosyn.metrics.planning.sphere_check import Frames, Raises, SphereCheck
 from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.shapes import Box, Capsule, Cylinder, HalfSpace, Shape, Sphere
 
@@ -65,6 +65,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_group_distances": (None, [_P, _P, _I, _P, _I, _P]),
         "geosyn_spheres_frames": (None, [_P, _P, _I, _P, _P]),
         "geosyn_spheres_set_ends": (_I, [_P, _I, _P, _P, _D, _P, _P, _D]),
+        "geosyn_spheres_set_raises": (_I, [_P, _I, _P, _P, _P, _P]),
         "geosyn_spheres_valid": (_I, [_P, _P, _I, _D, _I, _I, _P]),
         "geosyn_spheres_segment_valid": (_I, [_P, _P, _P, _D, _D, _I]),
         "geosyn_spheres_path_valid": (_I, [_P, _P, _I, _D, _D, _I]),
@@ -221,6 +222,15 @@ class NativeSphereCheck(SphereCheck):
                                              float(slope), _address(floor), _address(D),
                                              float(floor_slope)):  # fmt: skip
             raise InvalidArgument(f"set_ends: at most 2 ends and {NATIVE_MAX_NQ} coordinates")
+
+    def set_raises(self, raises: Raises) -> None:
+        """As `SphereCheck.set_raises`; also hands them to C."""
+        super().set_raises(raises)
+        pair = np.ascontiguousarray(self.raises.pair, dtype=np.intc)
+        at, radius, floor = (np.ascontiguousarray(a) for a in self.raises[1:])
+        if self._lib.geosyn_spheres_set_raises(self._handle, len(pair), _address(pair),
+                                               _address(at), _address(radius), _address(floor)):  # fmt: skip
+            raise MemoryError("geosyn_spheres_set_raises: out of memory")
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """As `SphereCheck.set_obstacles` (the same obstacles again: nothing to do)."""

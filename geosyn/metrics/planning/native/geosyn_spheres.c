@@ -49,6 +49,10 @@ typedef struct {
      * + floor_slope |q - ends[e]|) over the ends */
     int n_ends;
     double ends[2 * 64], end_clear[2], slope, *end_floor, floor_slope;
+    /* local raises: within |q - raise_at[r]| < raise_radius[r], pair raise_pair[r]'s floor
+     * is at least raise_floor[r] (before the ends' lowering); raised: (n_pairs,) work */
+    int n_raises, *raise_pair;
+    double *raise_at, *raise_radius, *raise_floor, *raised;
 } gs_model;
 
 static void *copy(const void *src, size_t bytes) {
@@ -92,6 +96,8 @@ GS_API void geosyn_spheres_free(void *handle) {
     free_spheres(&m->own);
     free(m->first); free(m->second); free(m->start); free(m->floor); free(m->end_floor);
     free(m->okind); free(m->opar);
+    free(m->raise_pair); free(m->raise_at); free(m->raise_radius); free(m->raise_floor);
+    free(m->raised);
     free(m);
 }
 
@@ -163,7 +169,10 @@ GS_API int geosyn_spheres_set_pairs(void *handle, int n_sphere_pairs, const int 
     m->floor = copy(floor, sizeof(double) * n_pairs);
     m->end_floor = calloc(2 * (size_t)n_pairs + 1, sizeof(double));
     m->n_ends = 0; /* the ends' pair distances are the old pairs' */
-    return (m->first && m->second && m->start && m->floor && m->end_floor) ? 0 : -1;
+    m->n_raises = 0; /* and so are the raises' pairs */
+    free(m->raised);
+    m->raised = malloc(sizeof(double) * (n_pairs ? n_pairs : 1));
+    return (m->first && m->second && m->start && m->floor && m->end_floor && m->raised) ? 0 : -1;
 }
 
 /* Obstacles, GS_OBSTACLE numbers each, by kind:
@@ -200,6 +209,24 @@ GS_API int geosyn_spheres_set_ends(void *handle, int n_ends, const double *ends,
     }
     m->floor_slope = floor_slope;
     return 0;
+}
+
+/* n local raises (see gs_model): pair (n,), at (n, nq) [rad], radius (n,) [rad], floor
+ * (n,) [m]. Replaces the earlier ones; needs the pairs set (set_pairs clears them). */
+GS_API int geosyn_spheres_set_raises(void *handle, int n, const int *pair, const double *at,
+                                     const double *radius, const double *floor) {
+    gs_model *m = handle;
+    if (n < 0 || !m->raised) return -1;
+    for (int r = 0; r < n; ++r)
+        if (pair[r] < 0 || pair[r] >= m->n_pairs) return -1;
+    free(m->raise_pair); free(m->raise_at); free(m->raise_radius); free(m->raise_floor);
+    m->raise_pair = copy(pair, sizeof(int) * n);
+    m->raise_at = copy(at, sizeof(double) * m->nq * n);
+    m->raise_radius = copy(radius, sizeof(double) * n);
+    m->raise_floor = copy(floor, sizeof(double) * n);
+    int ok = m->raise_pair && m->raise_at && m->raise_radius && m->raise_floor;
+    m->n_raises = ok ? n : 0;
+    return ok ? 0 : -1;
 }
 
 static void kinematics(gs_model *m, const double *q) {
@@ -332,9 +359,10 @@ static double pair_distance(const gs_model *m, int pair) {
 /* Whether pair `pair` keeps its floor (lowered near the ends: `away` (n_ends,)
  * the joint-space distances from them): its joints' balls first (a lower bound of
  * every sphere distance), then its spheres, squared distances. Needs both placed. */
-static int pair_ok(const gs_model *m, int pair, const double *away) {
+static int pair_ok(const gs_model *m, int pair, const double *away, const double *raised) {
     const gs_spheres *s = &m->own;
     double floor = m->floor[pair];
+    if (raised && raised[pair] > floor) floor = raised[pair];
     for (int e = 0; e < m->n_ends; ++e) {
         double v = m->end_floor[(size_t)m->n_pairs * e + pair] + m->floor_slope * away[e];
         if (v < floor) floor = v;
@@ -449,8 +477,20 @@ static int config_valid(gs_model *m, const double *q, double margin, int self) {
     if (self && m->n_pairs) {
         place_spheres(m, &m->own);
         place_bounds(m, &m->own);
+        const double *raised = NULL;
+        if (m->n_raises) { /* the local raises in force at q */
+            for (int i = 0; i < m->n_pairs; ++i) m->raised[i] = -INFINITY;
+            for (int r = 0; r < m->n_raises; ++r) {
+                const double *x = m->raise_at + (size_t)m->nq * r;
+                double d2 = 0.0, R = m->raise_radius[r];
+                for (int i = 0; i < m->nq; ++i) d2 += (q[i] - x[i]) * (q[i] - x[i]);
+                int k = m->raise_pair[r];
+                if (d2 < R * R && m->raise_floor[r] > m->raised[k]) m->raised[k] = m->raise_floor[r];
+            }
+            raised = m->raised;
+        }
         for (int i = 0; i < m->n_pairs; ++i)
-            if (!pair_ok(m, i, away)) return 0;
+            if (!pair_ok(m, i, away, raised)) return 0;
     }
     return 1;
 }
