@@ -7,6 +7,11 @@ the file's meshes decides; a refused end is drawn again and not counted). Prints
 were planned, the wall time of the planner's creation (warm sphere cache unless
 ``GEOSYN_CACHE_DIR`` points to an empty folder) and the median plan time.
 
+``--learn-radius R1 R2 ...``: variants of the radius within which a query raises a self
+pair's floor near a contact (`geosyn.metrics.planning.sampling.SELF_LEARN_RADIUS`; ``inf``:
+everywhere), each query planned with each in turn, alternating the order per query, in
+one process; one line per variant.
+
 Run: ``.venv/bin/python benchmarks/planning_random.py [--robots ur5 ur10_robot]
 [--queries 8] [--budget 2] [--seed 0]``
 """
@@ -14,6 +19,7 @@ Run: ``.venv/bin/python benchmarks/planning_random.py [--robots ur5 ur10_robot]
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import time
 import warnings
@@ -23,6 +29,7 @@ import numpy as np
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning import Planner
 from geosyn.metrics.planning.errors import InCollision, NoPathFound
+from geosyn.metrics.planning.sampling import SELF_LEARN_RADIUS, Sampling
 from geosyn.robots import load_robot
 
 ROBOTS = ("ur10_robot", "ur3_robot", "ur5", "ur5_gripper", "kinova", "xarm7", "panda")
@@ -34,6 +41,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--queries", type=int, default=8)
     p.add_argument("--budget", type=float, default=2.0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--learn-radius", type=float, nargs="+", default=[SELF_LEARN_RADIUS],
+                   help="radii [rad] of the learned self floors (module docstring)")  # fmt: skip
     args = p.parse_args(argv)
     print(f"load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores); seed {args.seed}, "
           f"{args.queries} queries of {args.budget} s per robot")  # fmt: skip
@@ -45,21 +54,29 @@ def main(argv: list[str] | None = None) -> None:
             planner = Planner(KineticEnergyMetric(robot))
         created = time.perf_counter() - t0
         rng = np.random.default_rng(args.seed)
-        tried, planned, times = 0, 0, []
+        radii = args.learn_radius
+        tried, planned, times = 0, dict.fromkeys(radii, 0), {r: [] for r in radii}
         while tried < args.queries:
             q0, q1 = robot.random_q(rng), robot.random_q(rng)
-            t = time.perf_counter()
             try:
-                planner.plan(q0, q1, budget=args.budget, seed=0)
-                planned += 1
-            except InCollision:
+                for r in radii if tried % 2 == 0 else radii[::-1]:
+                    planner.sampling.learn_floor = functools.partial(  # type: ignore[method-assign]
+                        Sampling.learn_floor, planner.sampling, radius=r
+                    )
+                    t = time.perf_counter()
+                    try:
+                        planner.plan(q0, q1, budget=args.budget, seed=0)
+                        planned[r] += 1
+                    except NoPathFound:
+                        pass
+                    times[r].append(time.perf_counter() - t)
+            except InCollision:  # an end (the first variant's check): drawn again
                 continue
-            except NoPathFound:
-                pass
             tried += 1
-            times.append(time.perf_counter() - t)
-        print(f"{name:12s} planned {planned}/{tried}, Planner() {created:5.2f} s, "
-              f"median query {np.median(times):5.2f} s")  # fmt: skip
+        for r in radii:
+            print(f"{name:12s} planned {planned[r]}/{tried}, Planner() {created:5.2f} s, "
+                  f"median query {np.median(times[r]):5.2f} s"
+                  + (f" (learned floors within {r:g} rad)" if len(radii) > 1 else ""))  # fmt: skip
 
 
 if __name__ == "__main__":
