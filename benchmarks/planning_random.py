@@ -55,7 +55,8 @@ def main(argv: list[str] | None = None) -> None:
         created = time.perf_counter() - t0
         rng = np.random.default_rng(args.seed)
         radii = args.learn_radius
-        tried, planned, times = 0, dict.fromkeys(radii, 0), {r: [] for r in radii}
+        tried, planned = 0, dict.fromkeys(radii, 0)
+        times: dict[float, list[float]] = {r: [] for r in radii}
         while tried < args.queries:
             q0, q1 = robot.random_q(rng), robot.random_q(rng)
             try:
