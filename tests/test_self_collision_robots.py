@@ -13,6 +13,7 @@ import pinocchio as pin
 import pytest
 from self_collision_referee import SelfCollisionReferee
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.exact_path import checked_configurations
@@ -181,6 +182,8 @@ def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -
         u = np.random.default_rng(0).standard_normal(robot.nq)
         far = contact.q + (SELF_LEARN_RADIUS + 0.1) * u / np.linalg.norm(u)
         before = sampling.check.self_floors(np.array([contact.q, far]))[:, contact.pair]
+        with pytest.raises(InvalidArgument, match="radius"):
+            sampling.learn_floor(contact, radius=-1.0)
         floor, _ = sampling.learn_floor(contact)
         assert floor is not None and abs(floor - (d + SELF_LEARN_STEP)) < 1e-9
         assert not sampling.valid(contact.q[None])[0]

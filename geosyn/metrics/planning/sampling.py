@@ -309,7 +309,8 @@ class Sampling:
         """
         if self._ends is None:
             raise InvalidArgument("learn_floor: only within a query (after start)")
-        radius = check_float(radius, "radius", low=0.0)
+        if radius != math.inf:  # inf: everywhere
+            radius = check_float(radius, "radius", low=0.0, unit="rad")
         k = int(contact.pair)
         a, b = self.check.self_pairs[k]
         d = float(self.check.self_clearances(contact.q)[0, k])
