@@ -268,7 +268,6 @@ class Sampling:
         self._object_link = np.zeros(0, dtype=int)  # each file collision object's link
         self._covered = np.zeros(0, dtype=int)  # the objects whose link has fitted spheres
         self.aids = PathAids()
-        self._ends: tuple[np.ndarray, np.ndarray] | None = None  # the query's (`start`)
         if exact is None:
             return
         from geosyn.robots.collision_spheres import file_spheres  # cached on disk
@@ -289,7 +288,7 @@ class Sampling:
         """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
         sphere distances near them, the sampling margin ramped down to theirs (module
         docstring)."""
-        self._obstacles, self._ends = tuple(obstacles), (q0, q1)
+        self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
         ends = self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK
         self.check.set_ends([q0, q1], np.minimum(ends, self.margin), SAMPLING_RAMP,
@@ -307,7 +306,8 @@ class Sampling:
         ``radius`` (the floors ramp up from there, `SELF_FLOOR_RAMP`: the end would be
         shut in). Returns the new floor [m] (or None) and a sentence saying what was done.
         """
-        if self._ends is None:
+        ends = self.check.ends  # the query's, with their pair distances (`start`)
+        if not len(ends.E):
             raise InvalidArgument("learn_floor: only within a query (after start)")
         if radius != math.inf:  # inf: everywhere
             radius = check_float(radius, "radius", low=0.0, unit="rad")
@@ -315,13 +315,12 @@ class Sampling:
         a, b = self.check.self_pairs[k]
         d = float(self.check.self_clearances(contact.q)[0, k])
         floor = d + SELF_LEARN_STEP
-        near = np.linalg.norm(np.array(self._ends) - contact.q, axis=1) < radius
-        ends = self.check.self_clearances(np.array(self._ends))[near, k]
-        if floor <= float(self.check.self_floors(contact.q)[0, k]) or floor > float(
-            ends.min(initial=math.inf)
-        ):
-            return None, (f"self pair {a}/{b}: floor not raised (already as high where the "
-                          "links intersect, or it would shut an end in)")  # fmt: skip
+        near = np.linalg.norm(ends.E - contact.q, axis=1) < radius
+        if floor <= float(self.check.self_floors(contact.q)[0, k]):
+            return None, f"self pair {a}/{b}: floor not raised (already as high there)"
+        if floor > float(ends.D[near, k].min(initial=math.inf)):
+            return None, (f"self pair {a}/{b}: floor not raised (above the pair's sphere "
+                          "distance at an end: it would shut that end in)")  # fmt: skip
         r = self.check.raises
         self.check.set_raises(Raises(np.append(r.pair, k), np.vstack([r.at, contact.q]),
                                      np.append(r.radius, radius), np.append(r.floor, floor)))  # fmt: skip
@@ -338,7 +337,6 @@ class Sampling:
     def finish(self) -> None:
         """End of a query: no ends (the sampling margin and the self floors away from any
         ends, everywhere), the calibrated floors back (`learn_floor`)."""
-        self._ends = None
         self.forget_floors()
         self.check.set_ends([], [], 0.0)
 

@@ -31,13 +31,13 @@ from geosyn.robots.robot import CollisionSphere, Robot
 from geosyn.world.distance import signed_distance
 from geosyn.world.shapes import Box, Shape
 
-__all__ = ["Frames", "SphereCheck"]
+__all__ = ["Ends", "Frames", "Raises", "SphereCheck"]
 
 Frames = tuple[np.ndarray, np.ndarray]
 """((K, J, 3, 3), (K, J, 3)): world rotations and positions of the sphere joints."""
 
 
-class _Ends(NamedTuple):
+class Ends(NamedTuple):
     """A query's ends as `SphereCheck.set_ends` keeps them: the ends E (k, n) [rad], their
     clearances (k,) [m] and the margin's slope [m/rad], the self pairs' sphere distances
     there D (k, P) [m] and the floors' slope [m/rad]."""
@@ -49,7 +49,7 @@ class _Ends(NamedTuple):
     floor_slope: float
 
     @classmethod
-    def none(cls, nq: int, pairs: int) -> _Ends:
+    def none(cls, nq: int, pairs: int) -> Ends:
         """No ends (a robot of ``nq`` coordinates, ``pairs`` self pairs)."""
         return cls(np.zeros((0, nq)), np.zeros(0), 0.0, np.zeros((0, pairs)), 0.0)
 
@@ -78,6 +78,11 @@ class SphereCheck:
         spheres: the spheres, each on a joint of ``robot`` (``"universe"``: the world).
 
     Allocates its Pinocchio data once; `clearances` allocates only its result arrays.
+
+    Attributes:
+        ends: the query's ends as `set_ends` last set them (`Ends`; read it, set them
+            with `set_ends`).
+        raises: the local raises of the self floors (`Raises`; set with `set_raises`).
     """
 
     def __init__(self, robot: Robot, spheres: Sequence[CollisionSphere]) -> None:
@@ -93,7 +98,7 @@ class SphereCheck:
         self.self_pairs: tuple[tuple[str, str], ...] = ()
         self.self_slack = np.zeros(0)
         self._self_floor = np.zeros(0)
-        self._ends = _Ends.none(robot.model.nq, 0)
+        self.ends = Ends.none(robot.model.nq, 0)
         self.raises = Raises.none(robot.model.nq)
 
     def set_self_pairs(self, spheres: Sequence[CollisionSphere], links: Sequence[str],
@@ -125,7 +130,7 @@ class SphereCheck:
         self._I, self._J = np.array(first, dtype=int), np.array(second, dtype=int)
         self._start = np.array(start, dtype=int)
         self._self_floor = np.zeros(len(kept))
-        self._ends = _Ends.none(self.robot.model.nq, len(kept))
+        self.ends = Ends.none(self.robot.model.nq, len(kept))
         self.raises = Raises.none(self.robot.model.nq)
 
     def frames(self, Q: np.ndarray) -> Frames:
@@ -182,7 +187,7 @@ class SphereCheck:
                 f"{len(E)} end(s) and {len(c)} clearance(s)"
             )
         self._self_floor = np.minimum(-np.asarray(self.self_slack, dtype=float), 0.0)
-        self._ends = _Ends(E, c, float(slope), self.self_clearances(E), float(floor_slope))
+        self.ends = Ends(E, c, float(slope), self.self_clearances(E), float(floor_slope))
 
     def set_raises(self, raises: Raises) -> None:
         """Local raises of the self floors (`Raises`; they replace earlier ones), applied
@@ -210,7 +215,7 @@ class SphereCheck:
         for k, at, radius, floor in zip(*self.raises, strict=True):
             inside = np.linalg.norm(Q - at, axis=1) < radius
             out[inside, k] = np.maximum(out[inside, k], floor)
-        ends = self._ends
+        ends = self.ends
         for e, d in zip(ends.E, ends.D, strict=True):
             away = np.linalg.norm(Q - e, axis=1)[:, None]
             out = np.minimum(out, d[None, :] + ends.floor_slope * away)
@@ -226,7 +231,7 @@ class SphereCheck:
     def margins(self, Q: np.ndarray, margin: float) -> np.ndarray:
         """(K,) the margin in force [m] at each configuration of ``Q`` (K, n) [rad]
         (`set_ends`)."""
-        ends = self._ends
+        ends = self.ends
         Q = np.asarray(Q, dtype=float).reshape(-1, self.robot.model.nq)
         out = np.full(len(Q), float(margin))
         for e, ce in zip(ends.E, ends.clear, strict=True):

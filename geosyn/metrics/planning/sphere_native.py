@@ -216,7 +216,7 @@ class NativeSphereCheck(SphereCheck):
                  slope: float, floor_slope: float = 0.0) -> None:  # fmt: skip
         """As `SphereCheck.set_ends`; also hands the ends, margins and floors to C."""
         super().set_ends(ends, clearances, slope, floor_slope)
-        E, c, D = (np.ascontiguousarray(a) for a in (self._ends.E, self._ends.clear, self._ends.D))
+        E, c, D = (np.ascontiguousarray(a) for a in (self.ends.E, self.ends.clear, self.ends.D))
         floor = np.ascontiguousarray(self._self_floor, dtype=float)
         if self._lib.geosyn_spheres_set_ends(self._handle, len(E), _address(E), _address(c),
                                              float(slope), _address(floor), _address(D),
