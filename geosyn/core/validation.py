@@ -114,6 +114,47 @@ def check_vector(x: object, n: int, name: str) -> Vector:
     return arr
 
 
+def check_rows(x: object, n: int, name: str) -> np.ndarray:
+    """Return ``x`` as a finite float64 (K, n) array (K >= 0 rows of length n), or raise
+    `InvalidArgument`.
+
+    A C-contiguous float64 (K, n) ndarray with a finite sum of squares is returned as is
+    (no copy, one O(K n) reduction); anything else is converted and checked as in
+    `check_vector`, the whole array at once (entries below about 1e154).
+
+    Args:
+        x: candidate (K, n) array, e.g. K configurations of an n-joint robot.
+        n: expected row length.
+        name: argument name for the error message.
+    """
+    if (
+        type(x) is np.ndarray
+        and x.ndim == 2
+        and x.shape[1] == n
+        and x.dtype == np.float64
+        and x.flags.c_contiguous
+        and math.isfinite(float(np.vdot(x, x)))
+    ):
+        return x
+    if _is_complex(x) or _is_bool(x):
+        raise InvalidArgument(
+            f"{name} must be a real float array of shape (K, {n}), got {_describe(x)}"
+        )
+    arr = np.ascontiguousarray(check_real_array(x, name))
+    if arr.ndim != 2 or arr.shape[1] != n:
+        raise InvalidArgument(f"{name} must have shape (K, {n}), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidArgument(f"{name} must be finite, got {_describe(arr)}")
+    with np.errstate(over="ignore"):
+        squared = float(np.vdot(arr, arr))
+    if not math.isfinite(squared):
+        raise InvalidArgument(
+            f"{name} is too large to compute with: max |{name}| = {np.abs(arr).max():.3g};"
+            f" allowed: a sum of squares within float64 (entries below about 1e154)"
+        )
+    return arr
+
+
 def check_scalar_or_vector(x: object, n: int, name: str, *, low: float = -math.inf) -> Vector:
     """Return a scalar (broadcast) or (n,) ``x`` as a new finite float64 (n,) array >= low.
 

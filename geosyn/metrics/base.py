@@ -25,7 +25,7 @@ import numpy as np
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
-from geosyn.core.validation import check_vector
+from geosyn.core.validation import check_rows, check_vector
 from geosyn.metrics.derived import (
     christoffel_from_dG,
     sx_cholesky_solve,
@@ -166,6 +166,45 @@ class Metric(ABC):
         """
         d = self._check(d, "d")
         return np.einsum("i,ijk,j->k", d, self.dG(q), d)
+
+    def G_many(self, Q: np.ndarray) -> np.ndarray:
+        """`G` at each of K configurations, their input checked once.
+
+        Args:
+            Q: (K, n) joint positions [rad], one configuration per row.
+
+        Returns:
+            (K, n, n) ``[k] = G(Q[k])``.
+        """
+        Q = check_rows(Q, self.n, "Q")
+        out = np.empty((len(Q), self.n, self.n))
+        for k, q in enumerate(Q):
+            out[k] = self.G(q)
+        return out
+
+    def quadratic_gradients(self, Q: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """`quadratic_gradient` at K pairs (configuration, tangent vector), their input
+        checked once.
+
+        Args:
+            Q: (K, n) joint positions [rad], one configuration per row.
+            D: (K, n) tangent vectors [rad], ``D[k]`` at ``Q[k]``.
+
+        Returns:
+            (K, n) ``[k] = quadratic_gradient(Q[k], D[k])``.
+        """
+        Q, D = self._pairs(Q, D)
+        out = np.empty_like(D)
+        for k, (q, d) in enumerate(zip(Q, D, strict=True)):
+            out[k] = self.quadratic_gradient(q, d)
+        return out
+
+    def _pairs(self, Q: object, D: object) -> tuple[np.ndarray, np.ndarray]:
+        """``Q`` and ``D`` as finite float64 (K, n) arrays of one K, else raise."""
+        Q, D = check_rows(Q, self.n, "Q"), check_rows(D, self.n, "D")
+        if len(Q) != len(D):
+            raise InvalidArgument(f"D must have as many rows as Q ({len(Q)}), got shape {D.shape}")
+        return Q, D
 
     def christoffel(self, q: Vector) -> np.ndarray:
         """Christoffel symbols of the first kind.

@@ -10,6 +10,7 @@ import pinocchio as pin
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.types import Matrix, Vector
+from geosyn.core.validation import check_rows
 from geosyn.metrics.base import Metric
 from geosyn.metrics.errors import FloatingBaseUnsupported, NonFiniteResult
 from geosyn.robots.robot import Robot
@@ -148,6 +149,44 @@ class KineticEnergyMetric(Metric):
         g = 2.0 * (C.T @ d)
         if not math.isfinite(g.dot(g)):
             _raise_non_finite("quadratic_gradient", g, d)
+        return g
+
+    def G_many(self, Q: np.ndarray) -> np.ndarray:
+        """Mass matrices at K configurations (``pin.crba`` on each row, the input checked
+        once).
+
+        Args:
+            Q: (K, n) joint positions [rad].
+
+        Returns:
+            (K, n, n) mass matrices [kg m^2].
+        """
+        Q = check_rows(Q, self.n, "Q")
+        out = np.empty((len(Q), self.n, self.n))
+        model, data = self._model, self._data
+        for k in range(len(Q)):
+            out[k] = pin.crba(model, data, Q[k])
+        return out
+
+    def quadratic_gradients(self, Q: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """`quadratic_gradient` at K pairs: ``2 C(Q[k], D[k])^T D[k]`` with Pinocchio's
+        Coriolis matrix, the input checked once.
+
+        Args:
+            Q: (K, n) joint positions [rad].
+            D: (K, n) tangent vectors [rad].
+
+        Returns:
+            (K, n) gradients [kg m^2].
+        """
+        Q, D = self._pairs(Q, D)
+        C = np.empty((len(Q), self.n, self.n))
+        model, data = self._model, self._data
+        for k in range(len(Q)):
+            C[k] = pin.computeCoriolisMatrix(model, data, Q[k], D[k])
+        g = 2.0 * np.einsum("kij,ki->kj", C, D)
+        if not math.isfinite(float(np.vdot(g, g))):
+            _raise_non_finite("quadratic_gradients", g, D)
         return g
 
     def geodesic_acceleration(self, q: Vector, v: Vector) -> Vector:

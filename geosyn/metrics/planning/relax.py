@@ -11,11 +11,13 @@ discrete energy plus a clearance penalty on the samples,
 
 with ``c`` the smallest sphere-obstacle clearance (the planner's `SphereCheck`) and
 ``delta`` [m] the clearance below which the penalty acts. Its gradient is exact in the
-energy (`geosyn.metrics.base.Metric.quadratic_gradient`) and by central differences in
-the clearance; the Gauss-Newton Hessian is block tridiagonal (``2 N G(m_i)`` per
-segment, plus ``2 w g g^T`` per penalised sample, ``g`` the clearance gradient), solved
-as one banded Cholesky system. A step is halved until the cost falls (trial iterates
-cost their energy and clearances only; the gradients are taken once one is accepted). Every accepted iterate whose
+energy (`geosyn.metrics.base.Metric.quadratic_gradients`, the midpoint metrics by
+`~geosyn.metrics.base.Metric.G_many`) and by central differences in the clearance; the
+Gauss-Newton Hessian is block tridiagonal (``2 N G(m_i)`` per segment, plus
+``2 w g g^T`` per penalised sample, ``g`` the clearance gradient), solved as one banded
+Cholesky system. A step is tried at twice the fraction the last one took and halved
+until the cost falls (`SMALLEST_STEP`; trial iterates cost their energy and clearances
+only; the gradients are taken once one is accepted). Every accepted iterate whose
 segments all pass the segment check and whose energy is the lowest so far becomes the
 returned path, so the result is valid wherever the input was checked and never of
 higher energy than the input.
@@ -56,8 +58,14 @@ Clearances = Callable[[np.ndarray], np.ndarray]
 """``clearances(Q (K, n)) -> (K,)`` smallest sphere-obstacle signed distance [m]
 (`geosyn.metrics.planning.sphere_check.SphereCheck.clearances`)."""
 
-HALVINGS = 8
-"""Most halvings of a Gauss-Newton step before the relaxation stops."""
+SMALLEST_STEP = 0.5**7
+"""Smallest fraction of a Gauss-Newton step tried before the relaxation stops. Each step
+is tried first at twice the fraction the last accepted one took (at most the whole
+step), then halved; a fraction below one that lowers the cost by less than ``tol`` has
+the next step tried whole before the relaxation stops. On the 14 Panda benchmark scenes'
+paths the clearance penalty's hinge had most steps accepted at 1/8-1/128 of the whole:
+halving from the whole step each time spent 4.4 trial iterates per step, and this
+memory took 21 % less CPU to the same or a lower energy (`benchmarks/RESULTS.md`)."""
 
 BOUND_TOL = 1e-12
 """Distance [rad] to a bound within which a sample counts as at it (`metric_relax`'s
@@ -69,21 +77,21 @@ OUTSIDE_TOL = 1e-9
 the ends are kept as given)."""
 
 
-def _energy_value(metric: Metric, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
-    """(discrete energy, the N metrics at the midpoints) of the samples ``x`` (T, n)."""
+def _energy_value(metric: Metric, x: np.ndarray) -> tuple[float, np.ndarray]:
+    """(discrete energy, (N, n, n) the metrics at the midpoints) of the samples ``x`` (T, n)."""
     N = len(x) - 1
     d, m = np.diff(x, axis=0), 0.5 * (x[1:] + x[:-1])
-    Gs = [metric.G(mi) for mi in m]
-    return N * float(np.einsum("ia,iab,ib->", d, np.array(Gs), d)), Gs
+    Gs = metric.G_many(m)
+    return N * float(np.einsum("ia,iab,ib->", d, Gs, d)), Gs
 
 
-def _energy_gradient(metric: Metric, x: np.ndarray, Gs: list[np.ndarray]) -> np.ndarray:
+def _energy_gradient(metric: Metric, x: np.ndarray, Gs: np.ndarray) -> np.ndarray:
     """(T, n) gradient of the discrete energy at ``x`` (T, n), its midpoint metrics
     ``Gs`` given (`_energy_value`)."""
     N = len(x) - 1
     d, m = np.diff(x, axis=0), 0.5 * (x[1:] + x[:-1])
-    Gd = np.einsum("iab,ib->ia", np.array(Gs), d)
-    half = 0.5 * np.array([metric.quadratic_gradient(mi, di) for mi, di in zip(m, d, strict=True)])
+    Gd = np.einsum("iab,ib->ia", Gs, d)
+    half = 0.5 * metric.quadratic_gradients(m, d)
     grad = np.zeros_like(x)
     grad[1:] += N * (2.0 * Gd + half)
     grad[:-1] += N * (-2.0 * Gd + half)
@@ -273,6 +281,7 @@ def metric_relax(
     cost, best, N = energy + pen, x.copy(), T - 1
     lowest = energy if seed_valid else math.inf  # the energy to beat by a valid iterate
     last = 0.0  # the previous step's time: one that would end past the budget is not begun
+    scale = 1.0  # of the Gauss-Newton step tried first: twice the last accepted one's
     for _ in range(max_iter):
         begun = time.perf_counter()
         if begun + last > t_end:
@@ -285,16 +294,19 @@ def metric_relax(
         rhs = -(g_e + g_p)[1:-1]
         _hold_active(diag, off, rhs, x[1:-1], lo, hi)
         step = _block_tridiagonal_solve(diag, off, rhs)
-        for _ in range(HALVINGS):  # the Gauss-Newton step, halved until the cost falls
+        while True:  # the Gauss-Newton step, halved until the cost falls
             trial = x.copy()
-            trial[1:-1] = np.clip(x[1:-1] + step, lo, hi)
+            trial[1:-1] = np.clip(x[1:-1] + scale * step, lo, hi)
             t_energy, t_Gs = _energy_value(metric, trial)  # the gradients once accepted
             t_pen, t_c = _penalty_value(clearances, trial, delta, weight)
             if t_energy + t_pen < cost and (not stay_valid or valid(trial)):
                 break
-            step *= 0.5
-        else:
+            scale *= 0.5
+            if scale < SMALLEST_STEP:
+                break
+        if scale < SMALLEST_STEP:
             break  # no descent along it: a local minimum of the sampled problem
+        taken, scale = scale, min(1.0, 2.0 * scale)
         fall = (cost - t_energy - t_pen) / max(cost, 1e-12)
         x, cost, Gs = trial, t_energy + t_pen, t_Gs
         g_e = _energy_gradient(metric, x, Gs)
@@ -304,6 +316,8 @@ def metric_relax(
             if first_valid:
                 break
         if fall < tol:
-            break
+            if taken == 1.0:
+                break
+            scale = 1.0  # a small step fell little: the whole one decides
         last = time.perf_counter() - begun
     return best

@@ -13,7 +13,6 @@ samples towards the metric's minimum-energy path, still without an NLP.
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -46,22 +45,26 @@ def metric_length(metric: Metric, path: np.ndarray) -> float:
     """Metric length of the piecewise-linear ``path`` (T, n) [rad]: the sum over segments
     of ``sqrt(dq^T G(q_mid) dq)`` (midpoint rule, one piece per segment)."""
     path = np.asarray(path, dtype=float)
+    if len(path) < 2:
+        return 0.0
     dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
-    return float(
-        sum(math.sqrt(max(d @ metric.G(m) @ d, 0.0)) for d, m in zip(dq, mid, strict=True))
-    )
+    sq = np.einsum("ka,kab,kb->k", dq, metric.G_many(mid), dq)
+    return float(np.sqrt(np.maximum(sq, 0.0)).sum())
 
 
 def segment_lengths(metric: Metric, path: np.ndarray, pieces: int = PIECES) -> np.ndarray:
     """(T - 1,) metric length of each straight segment of ``path`` (T, n) [rad], by the
     midpoint rule on ``pieces`` pieces per segment."""
     path = np.asarray(path, dtype=float)
-    out = np.zeros(max(len(path) - 1, 0))
-    for i, (a, b) in enumerate(zip(path[:-1], path[1:], strict=True)):
-        d = (b - a) / pieces
-        mids = a + ((np.arange(pieces) + 0.5) / pieces)[:, None] * (b - a)
-        out[i] = sum(math.sqrt(max(float(d @ metric.G(m) @ d), 0.0)) for m in mids)
-    return out
+    if len(path) < 2:
+        return np.zeros(0)
+    step = np.diff(path, axis=0)  # (T - 1, n)
+    s = (np.arange(pieces) + 0.5) / pieces
+    mids = path[:-1, None] + s[None, :, None] * step[:, None]  # (T - 1, pieces, n)
+    d = np.repeat(step / pieces, pieces, axis=0)  # each piece's step, (K, n)
+    G = metric.G_many(mids.reshape(-1, path.shape[1]))
+    sq = np.einsum("ka,kab,kb->k", d, G, d)
+    return np.sqrt(np.maximum(sq, 0.0)).reshape(-1, pieces).sum(axis=1)
 
 
 def _point(path: np.ndarray, cum: np.ndarray, s: float) -> tuple[np.ndarray, int]:
