@@ -200,3 +200,48 @@ def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -
     monkeypatch.setattr(Query, "retry", Query.sampled)  # no floor raised
     with pytest.raises(NoPathFound):
         planner.plan(UR5_START, UR5_GOAL, budget=2.0, seed=0)
+
+
+def test_a_learned_floor_is_capped_at_an_ends_pair_distance() -> None:
+    """UR5, the straight line's contact of `UR5_START` -> `UR5_GOAL`: with a query start
+    within `SELF_LEARN_RADIUS` of it whose pair sphere distance D lies between the
+    contact's d and d + `SELF_LEARN_STEP` (Pinocchio's forward kinematics on the fitted
+    spheres, found along seeded directions), `Sampling.learn_floor` raises the floor to D
+    exactly (1e-9 m), not above: the contact is refused, the start stays valid. With the
+    contact itself as the start (D = d) nothing can be raised, and it says why."""
+    from geosyn.metrics.planning.sampling import SELF_LEARN_RADIUS, SELF_LEARN_STEP
+    from geosyn.robots.collision_spheres import file_spheres
+
+    robot = load_robot("ur5")
+    planner, fitted = Planner(KineticEnergyMetric(robot)), file_spheres(robot)
+    _, contact = planner.self_contact(np.array([UR5_START, UR5_GOAL]))
+    assert contact is not None
+    pair = planner.sphere_check.self_pairs[contact.pair]
+    d = _pair_sphere_distance(robot, fitted, pair, contact.q)
+    rng, start = np.random.default_rng(3), None
+    for _ in range(20):  # a start 0.02-3 rad away whose pair distance is in (d, d + step)
+        u = rng.standard_normal(robot.nq)
+        for t in np.linspace(0.02, 3.0, 150):
+            q = contact.q + t * u / np.linalg.norm(u)
+            D = _pair_sphere_distance(robot, fitted, pair, q)
+            if d + 0.2 * SELF_LEARN_STEP < D < d + 0.8 * SELF_LEARN_STEP:
+                start = q
+                break
+        if start is not None:
+            break
+    assert start is not None and np.linalg.norm(start - contact.q) < SELF_LEARN_RADIUS
+    sampling = planner.sampling
+    sampling.start((), start, UR5_GOAL)
+    try:
+        floor, line = sampling.learn_floor(contact)
+        assert floor is not None and abs(floor - D) < 1e-9, line
+        assert not sampling.valid(contact.q[None])[0] and sampling.valid(start[None])[0]
+    finally:
+        sampling.finish()
+    sampling.start((), contact.q, UR5_GOAL)
+    try:
+        floor, line = sampling.learn_floor(contact)
+        assert floor is None and f"an end within {SELF_LEARN_RADIUS:g} rad" in line
+        assert len(sampling.check.raises.pair) == 0
+    finally:
+        sampling.finish()

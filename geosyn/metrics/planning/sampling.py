@@ -300,11 +300,13 @@ class Sampling:
         ``contact`` (where the exact check found its links intersecting on a path the
         spheres passed) within ``radius`` [rad] of it (joint-space 2-norm; inf:
         everywhere) to `SELF_LEARN_STEP` above the pair's sphere distance there, so that
-        the search no longer passes that configuration (module docstring). Not when the
+        the search no longer passes that configuration (module docstring). Never above
+        the pair's sphere distance at an end within ``radius`` (the floors ramp up from
+        there, `SELF_FLOOR_RAMP`: the end would be shut in): capped there, and not raised
+        when the cap is not above the pair's distance at the contact. Not either when the
         floor in force there is already as high (the path passed between the checked
-        samples, or near an end), nor above the pair's sphere distance at an end within
-        ``radius`` (the floors ramp up from there, `SELF_FLOOR_RAMP`: the end would be
-        shut in). Returns the new floor [m] (or None) and a sentence saying what was done.
+        samples, or near an end). Returns the new floor [m] (or None) and a sentence
+        saying what was done.
         """
         ends = self.check.ends  # the query's, with their pair distances (`start`)
         if not len(ends.E):
@@ -314,13 +316,14 @@ class Sampling:
         k = int(contact.pair)
         a, b = self.check.self_pairs[k]
         d = float(self.check.self_clearances(contact.q)[0, k])
-        floor = d + SELF_LEARN_STEP
         near = np.linalg.norm(ends.E - contact.q, axis=1) < radius
+        cap = float(ends.D[near, k].min(initial=math.inf))  # an end within the radius
+        floor = min(d + SELF_LEARN_STEP, cap)
+        if floor <= d:
+            return None, (f"self pair {a}/{b}: floor not raised (an end within {radius:g} "
+                          "rad is as near on the spheres: it would shut that end in)")  # fmt: skip
         if floor <= float(self.check.self_floors(contact.q)[0, k]):
             return None, f"self pair {a}/{b}: floor not raised (already as high there)"
-        if floor > float(ends.D[near, k].min(initial=math.inf)):
-            return None, (f"self pair {a}/{b}: floor not raised (above the pair's sphere "
-                          "distance at an end: it would shut that end in)")  # fmt: skip
         r = self.check.raises
         self.check.set_raises(Raises(np.append(r.pair, k), np.vstack([r.at, contact.q]),
                                      np.append(r.radius, radius), np.append(r.floor, floor)))  # fmt: skip
