@@ -245,3 +245,42 @@ def test_a_learned_floor_is_capped_at_an_ends_pair_distance() -> None:
         assert len(sampling.check.raises.pair) == 0
     finally:
         sampling.finish()
+
+
+UR5_GRIPPER_SHUT_START = np.array([1.807845188718367, 0.7651541503587347, -1.649305871226725,
+                                   0.03702803123664067, -2.692858726904864, 1.2571857110253295])  # fmt: skip
+UR5_GRIPPER_GOAL = np.array([0.16792099206172262, 1.2858404535258985, -2.587608141595996,
+                             0.9098996256255947, -0.8147036729623105, -0.004344407984882004])  # fmt: skip
+"""A seeded random query of the UR5 with its gripper (`benchmarks/planning_random.py`,
+seed 4, query 2) whose start sits with its forearm and tool0 spheres 13.5 mm into each
+other, the links apart: at `SELF_FLOOR_RAMP` no segment of `RRT_STEP` leaves it."""
+
+
+def test_an_end_shut_in_by_the_self_floors_ramp_has_them_eased(monkeypatch) -> None:
+    """`UR5_GRIPPER_SHUT_START` -> `UR5_GRIPPER_GOAL`, no obstacles: `Sampling.start`
+    finds the start shut in at `SELF_FLOOR_RAMP` and halves the ramp for the query (said
+    in the plan's attempts); the query is then planned (5 s allowed; 0.9 s measured) and
+    Pinocchio's collision model of the URDF finds no self-collision at every 5th
+    configuration of the exact resolution and at the goal. Without the easing
+    (`shut_in` always False) RRT-Connect grows 3 nodes and the query is refused in 2 s."""
+    from geosyn.metrics.planning.sampling import SELF_FLOOR_RAMP, Sampling
+
+    robot = load_robot("ur5_gripper")
+    planner = Planner(KineticEnergyMetric(robot))
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    q0, q1 = UR5_GRIPPER_SHUT_START, UR5_GRIPPER_GOAL
+    assert not referee.collides(q0) and not referee.collides(q1)
+    sampling = planner.sampling
+    sampling.start((), q0, q1)
+    try:
+        assert sampling.ramp < SELF_FLOOR_RAMP and sampling.ramp_line
+        assert not sampling.shut_in(q0)  # the eased ramp lets it out
+    finally:
+        sampling.finish()
+    plan = planner.plan(q0, q1, seed=0)
+    assert sampling.ramp_line in plan.attempts
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+    monkeypatch.setattr(Sampling, "shut_in", lambda self, q: False)
+    with pytest.raises(NoPathFound):
+        planner.plan(q0, q1, budget=2.0, seed=0)

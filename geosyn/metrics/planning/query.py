@@ -121,7 +121,7 @@ class Query:
                  seed: int, t0: float) -> None:  # fmt: skip
         self.p, self.q0, self.q1 = planner, q0, q1
         self.budget, self.seed, self.t0 = budget, seed, t0
-        self.attempts: list[str] = []
+        self.attempts = [x for x in [planner.sampling.ramp_line] if x]  # `Sampling.start`'s
         self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         self.first = math.nan  # when the first plan passed every check [s]
         self.sampled_path: np.ndarray | None = None  # the sampled plan's path

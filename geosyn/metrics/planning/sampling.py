@@ -10,7 +10,9 @@ in numpy (`geosyn.metrics.planning.sphere_check`, said once).
 A query sets its obstacles and ends (`start`): near each end the self pairs' floors
 ramp down to the end's own sphere distances (`SELF_FLOOR_RAMP`) and the sampling margin
 to the end's own clearance (`SAMPLING_RAMP`): the spheres reach beyond the links, so an end
-clear of the exact geometry may sit nearer on the spheres. A self pair whose spheres
+clear of the exact geometry may sit nearer on the spheres; where an end has no way out
+of those ramps (`Sampling.shut_in`), the self floors' ramp is halved for the query
+(`SELF_RAMP_HALVINGS`). A self pair whose spheres
 overlap on much of the joint box (`SELF_CALIBRATE`) has its floor calibrated on the
 file's own geometry (`calibrated_slack`): lowered to just above the least overlap of its
 spheres at which coal found the links touching at seeded configurations; on most of it
@@ -37,6 +39,7 @@ give the exact check its aids (`aids`: joint placements in C and lower bounds of
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 from collections.abc import Sequence
@@ -48,7 +51,7 @@ from geosyn.core.cache_folder import read_json, store_json
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_float
 from geosyn.metrics.planning.exact_path import PathAids
-from geosyn.metrics.planning.rrt import Near, rrt_connect
+from geosyn.metrics.planning.rrt import RRT_STEP, Near, rrt_connect
 from geosyn.metrics.planning.self_collision import SelfCollision, SelfContact
 from geosyn.metrics.planning.sphere_check import Raises, SphereCheck
 from geosyn.metrics.planning.sphere_native import NativeSphereCheck, sphere_check
@@ -68,9 +71,12 @@ __all__ = [
     "SELF_FLOOR_RAMP",
     "SELF_LEARN_RADIUS",
     "SELF_LEARN_STEP",
+    "SELF_RAMP_HALVINGS",
     "SELF_SAMPLES",
     "SELF_UNINFORMATIVE",
     "CALIBRATION_VERSION",
+    "ESCAPE_PROBES",
+    "ESCAPE_RESOLUTION",
     "NEAR_REACH",
     "NEAR_SHARE",
     "Sampling",
@@ -108,6 +114,21 @@ distance (when below the pair's floor) back up to that floor within ``(floor - d
 slope`` rad. Lowered everywhere (as before the sixteenth round), the goal's 69 mm overlap
 of a Panda's hand and base spheres let a path touch them 3.1 rad away (seeded random
 query 5 of `benchmarks/planning_random.py`)."""
+
+SELF_RAMP_HALVINGS = 2
+"""Most halvings of `SELF_FLOOR_RAMP` for a query one of whose ends has no way out on
+the self floors: no segment of `RRT_STEP` from it valid for the self pairs in any of
+`ESCAPE_PROBES` seeded directions (`Sampling.start`, said in the attempts). A UR5 with
+its gripper had such an end (forearm / tool0 spheres 13.5 mm into each other, the links
+apart): valid in 13.7 % of directions for 0.1 rad and none for 0.2 rad, so RRT-Connect
+grew 3 nodes in 1.6 s; at 0.025 m/rad it found a path, 6.9 mm clear of itself on the
+meshes (measured). The exact check decides the path either way."""
+
+ESCAPE_PROBES = 64
+"""Seeded directions in which `Sampling.start` looks for a way out of each end."""
+
+ESCAPE_RESOLUTION = 0.05
+"""Check step [rad] of those segments (RRT-Connect's edge resolution)."""
 
 SELF_CALIBRATE = 0.2
 """Share of seeded configurations in the joint box (`SELF_SAMPLES` of them) at which a
@@ -222,6 +243,13 @@ def cached_slack(check: SphereCheck, fitted: SphereModel) -> np.ndarray:
     return slack
 
 
+@functools.cache
+def _directions(n: int) -> np.ndarray:
+    """(`ESCAPE_PROBES`, n) seeded unit vectors (`Sampling.shut_in`)."""
+    u = np.random.default_rng(0).standard_normal((ESCAPE_PROBES, n))
+    return u / np.linalg.norm(u, axis=1)[:, None]
+
+
 def near_box(lo: np.ndarray, hi: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> Near:
     """(lo (n,), hi (n,), `NEAR_SHARE`): the box [rad] spanned by ``q0`` and ``q1`` (n,)
     widened by `NEAR_REACH` per joint, within the sampling box ``[lo, hi]`` (n,) [rad]
@@ -262,6 +290,7 @@ class Sampling:
         self.check: SphereCheck
         self.check, self.note = sphere_check(robot, spheres)
         self.margin = margin
+        self.ramp, self.ramp_line = SELF_FLOOR_RAMP, ""  # a query's (`start`)
         self._obstacles: tuple[Shape, ...] = ()
         self._cover: NativeSphereCheck | None = None
         self._cover_group = np.zeros(0, dtype=np.int32)  # each fitted sphere's link
@@ -290,9 +319,27 @@ class Sampling:
         docstring)."""
         self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
-        ends = self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK
-        self.check.set_ends([q0, q1], np.minimum(ends, self.margin), SAMPLING_RAMP,
-                            SELF_FLOOR_RAMP)  # fmt: skip
+        ends = np.minimum(self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK,
+                          self.margin)  # fmt: skip
+        self.ramp, self.ramp_line = SELF_FLOOR_RAMP, ""
+        self.check.set_ends([q0, q1], ends, SAMPLING_RAMP, self.ramp)
+        if not self.check.self_pairs:
+            return
+        for _ in range(SELF_RAMP_HALVINGS):
+            if not self.shut_in(q0) and not self.shut_in(q1):
+                break
+            self.ramp *= 0.5
+            self.check.set_ends([q0, q1], ends, SAMPLING_RAMP, self.ramp)
+        if self.ramp < SELF_FLOOR_RAMP:
+            self.ramp_line = (f"self floors ramp up at {self.ramp:g} m/rad near the ends, "
+                              f"not {SELF_FLOOR_RAMP:g}: an end had no way out of them")  # fmt: skip
+
+    def shut_in(self, q: np.ndarray) -> bool:
+        """Whether no segment of `RRT_STEP` [rad] from ``q`` (n,) [rad] is valid for the
+        self pairs (the obstacles left out) in any of `ESCAPE_PROBES` seeded directions,
+        clipped to the joint limits."""
+        ends = np.clip(q + RRT_STEP * _directions(len(q)), self.robot.q_min, self.robot.q_max)
+        return not any(self.check.segment_valid(q, e, ESCAPE_RESOLUTION, -math.inf) for e in ends)
 
     def learn_floor(self, contact: SelfContact,
                     radius: float = SELF_LEARN_RADIUS) -> tuple[float | None, str]:  # fmt: skip
