@@ -316,7 +316,8 @@ class Sampling:
     def start(self, obstacles: Sequence[Shape], q0: np.ndarray, q1: np.ndarray) -> None:
         """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
         sphere distances near them, the sampling margin ramped down to theirs (module
-        docstring)."""
+        docstring); the self floors' ramp (``ramp`` [m/rad]) halved while an end is
+        `shut_in`, at most `SELF_RAMP_HALVINGS` times (``ramp_line`` says so)."""
         self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
         ends = np.minimum(self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK,
@@ -389,6 +390,7 @@ class Sampling:
         ends, everywhere), the calibrated floors back (`learn_floor`)."""
         self.forget_floors()
         self.check.set_ends([], [], 0.0)
+        self.ramp, self.ramp_line = SELF_FLOOR_RAMP, ""
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """The obstacles the checks use (`start` sets them for a query)."""
