@@ -37,11 +37,3 @@ def panda() -> Robot:
 @pytest.fixture(scope="session")
 def talos_arm() -> Robot:
     return get_robot("talos_arm")
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The slow-marked tests first (otherwise in collection order): the 2 workers of
-    `make test` then end on short tests instead of one of them on a long one collected
-    late. Whole suite, 2 workers, empty geosyn cache, alternating: 489 / 476 s against
-    538 / 512 s in collection order (`benchmarks/RESULTS.md`, issue 22)."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
