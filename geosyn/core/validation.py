@@ -102,14 +102,21 @@ def check_vector(x: object, n: int, name: str) -> Vector:
         ) from err
     if arr.shape != (n,):
         raise InvalidArgument(f"{name} must have shape ({n},), got shape {arr.shape}")
+    return _finite_within_float64(arr, name)
+
+
+def _finite_within_float64(arr: np.ndarray, name: str) -> np.ndarray:
+    """``arr`` if every entry is finite and its sum of squares is within float64 (entries
+    below about 1e154: their products would overflow downstream), else raise
+    `InvalidArgument` naming ``name``."""
     if not np.all(np.isfinite(arr)):
         raise InvalidArgument(f"{name} must be finite, got {_describe(arr)}")
     with np.errstate(over="ignore"):
-        squared = float(arr @ arr)
+        squared = float(np.vdot(arr, arr))
     if not math.isfinite(squared):
         raise InvalidArgument(
             f"{name} is too large to compute with: max |{name}_i| = {np.abs(arr).max():.3g};"
-            f" allowed: a squared norm within float64 (entries below about 1e154)"
+            f" allowed: a sum of squares within float64 (entries below about 1e154)"
         )
     return arr
 
@@ -143,16 +150,7 @@ def check_rows(x: object, n: int, name: str) -> np.ndarray:
     arr = np.ascontiguousarray(check_real_array(x, name))
     if arr.ndim != 2 or arr.shape[1] != n:
         raise InvalidArgument(f"{name} must have shape (K, {n}), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise InvalidArgument(f"{name} must be finite, got {_describe(arr)}")
-    with np.errstate(over="ignore"):
-        squared = float(np.vdot(arr, arr))
-    if not math.isfinite(squared):
-        raise InvalidArgument(
-            f"{name} is too large to compute with: max |{name}| = {np.abs(arr).max():.3g};"
-            f" allowed: a sum of squares within float64 (entries below about 1e154)"
-        )
-    return arr
+    return _finite_within_float64(arr, name)
 
 
 def check_scalar_or_vector(x: object, n: int, name: str, *, low: float = -math.inf) -> Vector:

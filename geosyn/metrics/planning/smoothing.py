@@ -44,12 +44,7 @@ def densify(path: np.ndarray, factor: int) -> np.ndarray:
 def metric_length(metric: Metric, path: np.ndarray) -> float:
     """Metric length of the piecewise-linear ``path`` (T, n) [rad]: the sum over segments
     of ``sqrt(dq^T G(q_mid) dq)`` (midpoint rule, one piece per segment)."""
-    path = np.asarray(path, dtype=float)
-    if len(path) < 2:
-        return 0.0
-    dq, mid = np.diff(path, axis=0), 0.5 * (path[1:] + path[:-1])
-    sq = np.einsum("ka,kab,kb->k", dq, metric.G_many(mid), dq)
-    return float(np.sqrt(np.maximum(sq, 0.0)).sum())
+    return float(segment_lengths(metric, path, pieces=1).sum())
 
 
 def segment_lengths(metric: Metric, path: np.ndarray, pieces: int = PIECES) -> np.ndarray:
