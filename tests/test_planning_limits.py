@@ -187,3 +187,28 @@ def test_plans_keep_the_urdf_limits_and_a_planted_excursion_is_named(panda: Plan
     finally:
         panda.sampling.finish()
     assert "leaves the joint limits" in query.attempts[-1]
+
+
+def test_collocations_resting_on_a_joint_limit_end_within_it(panda: Planner) -> None:
+    """Six seeded Panda collocations (16 nodes, no obstacles) whose ends both sit on a
+    joint's limit: every node within the URDF's limits as Pinocchio reads them, to 0 rad,
+    and `outside_limits` finds nothing; at least 3 of them rest on the limit
+    (``constrained``). IPOPT relaxes its bounds by 1e-8 (relative): before the solution
+    was projected onto them (``honor_original_bounds``), 3 of these six came back
+    6e-10-3.3e-8 rad beyond, more than `LIMIT_TOL`, and the planner refused such paths
+    (a UR3 query's constrained path 5.3e-9 rad past its elbow's limit, measured)."""
+    from geosyn.metrics.geodesic.collocation import Collocation
+
+    lo, hi = _urdf_limits(panda)
+    col = Collocation(panda.metric, nodes=16)
+    rng = np.random.default_rng(3)
+    resting = 0
+    for k in range(6):
+        q0, q1 = panda.robot.random_q(rng), panda.robot.random_q(rng)
+        j = k % len(lo)
+        q0[j] = q1[j] = hi[j] if k % 2 else lo[j]
+        res = col.solve(q0, q1)
+        assert np.all(res.nodes >= lo) and np.all(res.nodes <= hi), (k, res.kind)
+        assert outside_limits(panda.robot, res.nodes) == ""
+        resting += res.kind == "constrained"
+    assert resting >= 3

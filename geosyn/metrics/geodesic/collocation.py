@@ -191,6 +191,10 @@ class Collocation:
             # a faster monotone barrier decrease than IPOPT's 0.2: fewer iterations on
             # benchmarks/planning.py, the worst scene's most of all (RESULTS.md)
             "ipopt.mu_linear_decrease_factor": 0.05,
+            # the solution projected onto the original bounds (the joint limits): IPOPT
+            # relaxes them by 1e-8 relative, and a path at a limit came back 5e-9 rad
+            # beyond it and was refused (`geosyn.metrics.planning.verify.LIMIT_TOL`)
+            "ipopt.honor_original_bounds": "yes",
         }
         opts.update({f"ipopt.{k}": v for k, v in (ipopt_options or {}).items()})
         if m:
