@@ -285,3 +285,72 @@ def test_an_end_shut_in_by_the_self_floors_ramp_has_them_eased(monkeypatch) -> N
     monkeypatch.setattr(Sampling, "shut_in", lambda self, q: False)
     with pytest.raises(NoPathFound):
         planner.plan(q0, q1, budget=2.0, seed=0)
+
+
+UR5_MANY_CONTACTS_START = np.array([3.8480153374847603, -2.306531095167333, -2.2051556153290433,
+                                    2.494575241734138, -0.6466139001402773, 3.756584434710863])  # fmt: skip
+UR5_MANY_CONTACTS_GOAL = np.array([-3.323598218889556, -2.2646528242314163, 1.884198632032585,
+                                   0.08882085326511824, 0.08023629423667611, -3.315082352821848])  # fmt: skip
+"""A seeded random UR5 query (`benchmarks/planning_random.py`, seed 5, query 3) whose
+sampled paths touched the forearm / wrist 2 and base / upper arm meshes 9 times before one
+passed: with at most `SAMPLED_RETRIES` retries it was refused after 2.1-2.9 s of the
+default 5 s budget."""
+
+
+def test_retries_after_self_contacts_go_on_while_time_is_left() -> None:
+    """`UR5_MANY_CONTACTS_START` -> `UR5_MANY_CONTACTS_GOAL`, no obstacles, 8 s allowed
+    (3.7 s measured at 5 s): planned after more than `SAMPLED_RETRIES` learned floors
+    (the retries after a self-contact are not capped, only timed), and Pinocchio's
+    collision model of the URDF finds no self-collision at every 5th configuration of the
+    exact resolution and at the goal."""
+    from geosyn.metrics.planning.sampled import SAMPLED_RETRIES
+
+    robot = load_robot("ur5")
+    planner = Planner(KineticEnergyMetric(robot))
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    q0, q1 = UR5_MANY_CONTACTS_START, UR5_MANY_CONTACTS_GOAL
+    assert not referee.collides(q0) and not referee.collides(q1)
+    plan = planner.plan(q0, q1, budget=8.0, seed=0)
+    assert sum("floor raised" in line for line in plan.attempts) > SAMPLED_RETRIES
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+
+
+UR3_SHUT_START = np.array([-5.227417362430961, 4.1801296421104865, 1.803891867329141,
+                           -3.275180172777645, 4.731040374829556, -5.547197675663192])  # fmt: skip
+UR3_SHUT_GOAL = np.array([-2.059413754553953, -4.3947178304510075, -0.31202696181445333,
+                          3.723720602459924, -3.3848498296498946, -5.6294663581634286])  # fmt: skip
+"""A seeded random UR3 query (`benchmarks/planning_random.py`, seed 0, query 0) whose goal
+is still shut in by the self floors' ramp after two halvings."""
+
+
+def test_an_end_still_shut_in_after_two_halvings_is_eased_further(monkeypatch) -> None:
+    """`UR3_SHUT_START` -> `UR3_SHUT_GOAL`: with at most two halvings an end is left shut
+    in; with `SELF_RAMP_HALVINGS` the ramp is halved three times and neither end is; the
+    query is planned (8 s allowed; 3.0-3.2 s measured at 5 s, where two halvings were
+    refused) and Pinocchio's collision model of the URDF finds no self-collision at every
+    5th configuration of the exact resolution and at the goal."""
+    from geosyn.metrics.planning import sampling as sampling_module
+
+    robot = load_robot("ur3_robot")
+    planner = Planner(KineticEnergyMetric(robot))
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    q0, q1 = UR3_SHUT_START, UR3_SHUT_GOAL
+    assert not referee.collides(q0) and not referee.collides(q1)
+    sampling = planner.sampling
+    with monkeypatch.context() as patch:
+        patch.setattr(sampling_module, "SELF_RAMP_HALVINGS", 2)
+        sampling.start((), q0, q1)
+        try:
+            assert sampling.shut_in(q0) or sampling.shut_in(q1)
+        finally:
+            sampling.finish()
+    sampling.start((), q0, q1)
+    try:
+        assert sampling.ramp == sampling_module.SELF_FLOOR_RAMP / 8
+        assert not sampling.shut_in(q0) and not sampling.shut_in(q1)
+    finally:
+        sampling.finish()
+    plan = planner.plan(q0, q1, budget=8.0, seed=0)
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))

@@ -6,7 +6,8 @@ on them), pulled taut in the metric (`geosyn.metrics.planning.sampled.pull_taut`
 `SAMPLED_RELAX` of the budget) and verified like every plan (the exact check decides,
 self-collision included; one that fails is made again from other RRT-Connect seeds,
 `SAMPLED_RETRIES`; after a self-collision with that pair's floor raised near it, `Query.retry`,
-and even when collocation has time: its NLP has no self-collision term).
+and then until the time is spent, even when collocation has time: its NLP has no
+self-collision term).
 The collocation stages then get the time left: none when less than `MIN_COLLOCATION` is
 left, nor among obstacles when the paths can be moved on the exact geometry
 (`Query.collocates`): the sampled plan is then polished (`Query.polish`: other seeds
@@ -410,14 +411,14 @@ class Query:
 
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
-        quick, took = self.sampled(), time.perf_counter() - self.t0
-        for index in range(1, SAMPLED_RETRIES + 1):  # while no collocation would use the
-            if (  # time, or after a self-collision (the NLP has no term for it)
-                quick is not None
-                or self.left() <= took
-                or (self.collocates() and self.left() > MIN_COLLOCATION and not self.self_collided)
-            ):
-                break
+        quick, took, index = self.sampled(), time.perf_counter() - self.t0, 0
+        while (  # while no collocation would use the time, or after a self-collision
+            quick is None  # (the NLP has no term for it: then until the time is spent)
+            and self.left() > took
+            and (index < SAMPLED_RETRIES or self.self_collided)
+            and not (self.collocates() and self.left() > MIN_COLLOCATION and not self.self_collided)
+        ):
+            index += 1
             quick = self.retry(index)
         others: list[Plan] = [quick] if quick is not None else []
         meshes = quick is not None and not self.collocates()  # else: as a fallback
