@@ -3,7 +3,8 @@
 For each robot, the default ``Planner(KineticEnergyMetric(load_robot(name)))`` plans
 between seeded random configurations (``--seed``, ``--budget`` s each) until ``--queries``
 pairs were tried whose ends are free of self-collision (the planner's own end check on
-the file's meshes decides; a refused end is drawn again and not counted). Prints how many
+the file's meshes decides; a refused end is drawn again and not counted); ``--budget``
+defaults to `Planner.plan`'s own (what a user gets without asking). Prints how many
 were planned, the wall time of the planner's creation (warm sphere cache unless
 ``GEOSYN_CACHE_DIR`` points to an empty folder) and the median plan time.
 
@@ -13,13 +14,14 @@ everywhere), each query planned with each in turn, alternating the order per que
 one process; one line per variant.
 
 Run: ``.venv/bin/python benchmarks/planning_random.py [--robots ur5 ur10_robot]
-[--queries 8] [--budget 2] [--seed 0]``
+[--queries 8] [--budget 5] [--seed 0]``
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import inspect
 import os
 import time
 import warnings
@@ -39,7 +41,9 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description="seeded random queries, no obstacles")
     p.add_argument("--robots", nargs="+", default=list(ROBOTS))
     p.add_argument("--queries", type=int, default=8)
-    p.add_argument("--budget", type=float, default=2.0)
+    default = inspect.signature(Planner.plan).parameters["budget"].default
+    p.add_argument("--budget", type=float, default=default,
+                   help=f"seconds per query (default: the planner's own, {default:g})")  # fmt: skip
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--learn-radius", type=float, nargs="+", default=[SELF_LEARN_RADIUS],
                    help="radii [rad] of the learned self floors (module docstring)")  # fmt: skip
