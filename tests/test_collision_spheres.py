@@ -199,3 +199,35 @@ def test_reach_is_the_farthest_outside_point_not_an_inside_one() -> None:
     X = np.array([[0.53, 0.0, 0.0], [0.0, -0.57, 0.0], [0.0, 0.0, 0.61], [0.0, 0.0, 0.0]])
     assert abs(_reach(solid, tree, X) - 0.11) < 1e-12
     assert _reach(solid, tree, np.array([[0.0, 0.0, 0.0], [0.1, 0.2, -0.3]])) == 0.0
+
+
+def test_objects_of_a_link_named_like_a_joint_sit_where_pinocchio_places_them() -> None:
+    """The Unitree Z1's URDF has a link and a joint both named ``gripperStator`` (two
+    frames of that name in Pinocchio's model; before, reading its collision geometry
+    raised Pinocchio's ValueError and no planner could be made). Each collision object
+    (`collision_objects`), carried by its joint (``oMi``), sits where Pinocchio's own
+    collision model places it (``updateGeometryPlacements`` on the full URDF model) to
+    1e-12 m, at 2 seeded configurations; the gripperStator link's objects included."""
+    from geosyn.robots.collision_geometry import collision_objects
+
+    robot = load_robot("z1")
+    objects = collision_objects(robot)
+    assert any(o.link == "gripperStator" for o in objects)
+    share = str(example_robot_data_dir().parents[1])
+    full = pin.buildModelFromUrdf(robot.source_file)
+    gm = pin.buildGeomFromUrdf(full, robot.source_file, pin.GeometryType.COLLISION,
+                               package_dirs=[share])  # fmt: skip
+    assert [o.name for o in objects] == [go.name for go in gm.geometryObjects]
+    fdata, gdata, data = full.createData(), pin.GeometryData(gm), robot.model.createData()
+    rng = np.random.default_rng(5)
+    for _ in range(2):
+        q = robot.random_q(rng)
+        qf = pin.neutral(full)
+        for i, name in enumerate(robot.joint_names):
+            qf[full.joints[full.getJointId(name)].idx_q] = q[i]
+        pin.updateGeometryPlacements(full, fdata, gm, gdata, qf)
+        pin.forwardKinematics(robot.model, data, q)
+        for k, o in enumerate(objects):
+            oMi = data.oMi[robot.joint_id(o.joint)] if o.joint != "universe" else pin.SE3.Identity()
+            ours = oMi.homogeneous @ o.placement
+            assert np.abs(ours - gdata.oMg[k].homogeneous).max() < 1e-12, o.name

@@ -257,3 +257,23 @@ def test_bad_scene_input():
         build_scene(robot, obstacles=["a cube"])
     with pytest.raises(InvalidArgument, match="timestep"):
         build_scene(robot, timestep=0.0)
+
+
+def test_a_payload_on_a_link_named_like_a_joint_rides_on_the_link() -> None:
+    """The Unitree Z1's ``gripperStator`` names a link and a joint (two Pinocchio frames;
+    before, `link_placement` raised Pinocchio's ValueError): the payload frame is the
+    link's, its world pose equal to Pinocchio's ``oMf`` of the body frame (1e-12 m) at a
+    seeded configuration."""
+    from geosyn.robots import load_robot
+    from geosyn.sim.scene import link_placement
+
+    robot = load_robot("z1")
+    model = robot.model
+    joint, jMf = link_placement(robot, "gripperStator")
+    body = model.getFrameId("gripperStator", pin.FrameType.BODY)
+    q = robot.random_q(np.random.default_rng(2))
+    data = model.createData()
+    pin.forwardKinematics(model, data, q)
+    pin.updateFramePlacements(model, data)
+    ours = (data.oMi[joint] * jMf).homogeneous
+    assert np.abs(ours - data.oMf[body].homogeneous).max() < 1e-12

@@ -69,14 +69,15 @@ class CollisionObject:
 
 
 def _frame_pose(robot: Robot, link: str, source: str) -> tuple[str, pin.SE3]:
-    """(joint name, joint-from-link pose) of ``link``'s frame in ``robot.model``."""
+    """(joint name, joint-from-link pose) of ``link``'s body frame in ``robot.model`` (a
+    joint of the same name has a frame too: the Unitree Z1's ``gripperStator``)."""
     model = robot.model
-    if not model.existFrame(link):
+    if not model.existFrame(link, pin.FrameType.BODY):
         raise RobotFileError(
             f"collision geometry of {source}: link {link!r} is not a frame of robot "
             f"{robot.name!r}", source,
         )  # fmt: skip
-    frame = model.frames[model.getFrameId(link)]
+    frame = model.frames[model.getFrameId(link, pin.FrameType.BODY)]
     return str(model.names[frame.parentJoint]), frame.placement
 
 

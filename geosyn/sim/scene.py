@@ -54,7 +54,7 @@ def link_placement(robot: Robot, name: str) -> tuple[int, pin.SE3]:
     """
     model = robot.model
     if isinstance(name, str) and model.existFrame(name):
-        frame = model.frames[model.getFrameId(name)]
+        frame = model.frames[robot.frame_id(name)]  # a joint's frame of the same name too
         return int(frame.parentJoint), pin.SE3(frame.placement)
     if isinstance(name, str) and model.existJointName(name):
         return int(model.getJointId(name)), pin.SE3.Identity()
