@@ -354,3 +354,39 @@ def test_an_end_still_shut_in_after_two_halvings_is_eased_further(monkeypatch) -
     plan = planner.plan(q0, q1, budget=8.0, seed=0)
     Q = checked_configurations(plan.q, plan.exact_resolution)
     assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+
+
+UR10_LIMITED_START = np.array([-0.5997184776307374, -1.8942984090458777, -2.571374450774097,
+                               0.5047432673232928, -1.2648295005506598, 1.0806756900856147])  # fmt: skip
+UR10_LIMITED_GOAL = np.array([-1.8880001474934276, 2.7778786000460745, -0.8475378089720755,
+                              -2.4787462630174875, 0.81121044079147, 2.683891211731064])  # fmt: skip
+"""A seeded random query of the UR10 with +-pi limits (`benchmarks/planning_random.py
+--robots ur10_joint_limited_robot`, seed 0, query 2): its straight line is 11 mm clear of
+itself on the meshes, but 29 % of it lies below the self floors of the spheres."""
+
+
+def test_a_straight_line_the_spheres_block_is_planned_on_the_meshes() -> None:
+    """`UR10_LIMITED_START` -> `UR10_LIMITED_GOAL`, no obstacles, 3 s: the straight line is
+    invalid on the sampling spheres and RRT-Connect finds no connection on them (before,
+    the query was refused after 3.4 s of 5 s, and a 30 s RRT-Connect grew 30,003 nodes
+    without one); the plan is the straight line checked on the exact geometry, said in its
+    attempts, and Pinocchio's collision model of the URDF finds no self-collision at every
+    5th configuration of the exact resolution and at the goal."""
+    robot = load_robot("ur10_joint_limited_robot")
+    planner = Planner(KineticEnergyMetric(robot))
+    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    q0, q1 = UR10_LIMITED_START, UR10_LIMITED_GOAL
+    planner.sampling.start((), q0, q1)
+    try:
+        assert not planner.sampling.segment_valid(q0, q1, 0.05)
+    finally:
+        planner.sampling.finish()
+    plan = planner.plan(q0, q1, budget=3.0, seed=0)
+    assert any("RRT-Connect found no connection" in line for line in plan.attempts)
+    said = "the straight line (no connection on the spheres) checked on the exact geometry"
+    assert plan.seed == "sampled" and said in plan.result.message, plan.result.message
+    direction = (q1 - q0) / np.linalg.norm(q1 - q0)
+    off = [np.linalg.norm((q - q0) - ((q - q0) @ direction) * direction) for q in plan.q]
+    assert max(off) < 1e-9  # on the straight line
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))

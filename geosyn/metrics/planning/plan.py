@@ -21,7 +21,9 @@ class Plan(NamedTuple):
             or through a coarse collocation: ``attempts`` says which) or
             ``"rrt-connect"`` (``"rrt-connect #i"`` for the i-th alternative seed),
             ``"sampled"``: RRT-Connect's path on the spheres (or the straight line when
-            free on them) shortened in the metric, no NLP (``result`` of kind
+            free on them, or when they gave no connection but the exact geometry passes
+            it: `geosyn.metrics.planning.sampled.exact_line`) shortened in the metric,
+            no NLP (``result`` of kind
             ``"feasible"``; `geosyn.metrics.planning.query`), or
             ``"anytime"``: the budget ended before any solve converged, and this is the
             lowest-energy interrupted iterate or seed that passed every check (``result``

@@ -53,6 +53,7 @@ from geosyn.metrics.planning.sampled import (
     SAMPLED_RETRIES,
     SAMPLED_SEARCH,
     SAMPLED_SMALL,
+    exact_line,
     pull_taut,
 )
 from geosyn.metrics.planning.sampling import sampling_box
@@ -214,8 +215,10 @@ class Query:
         return p.sampling.connect(q0, q1, lo, hi, budget, self.seed + index)
 
     def sampled(self, index: int = 0) -> Plan | None:
-        """The first plan without an NLP (module docstring), or None; its path (when
-        RRT-Connect found one round the obstacles) is kept as the seed of
+        """The first plan without an NLP (module docstring; where RRT-Connect finds no
+        connection on the spheres, the straight line if the exact geometry passes it,
+        `exact_line`), or None; its path (when RRT-Connect found one round the
+        obstacles) is kept as the seed of
         `from_rrt` (0). ``index`` > 0: again, from RRT-Connect seed ``seed + index``
         searched for at most half the time left, after plans that failed their checks
         (`run`)."""
@@ -231,7 +234,7 @@ class Query:
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
-            return None
+            return None if index else exact_line(self)
         how = "the straight line" if len(path) == 2 else f"RRT-Connect's path ({grown} nodes)"
         left = max(self.left(), 0.0)  # the exact check needs its share of it
         budget = SAMPLED_CHECK_SHARE * left if small else min(
