@@ -31,6 +31,24 @@ def _world_spheres(
     return np.array(C), np.array([s.radius for s in model.spheres])
 
 
+def _pinocchio_collision_model(robot: Robot) -> tuple[pin.Model, pin.GeometryModel]:
+    """Pinocchio's own model and collision model of ``robot``'s URDF (all its joints)."""
+    share = str(example_robot_data_dir().parents[1])
+    full = pin.buildModelFromUrdf(robot.source_file)
+    gm = pin.buildGeomFromUrdf(full, robot.source_file, pin.GeometryType.COLLISION,
+                               package_dirs=[share])  # fmt: skip
+    return full, gm
+
+
+def _full_q(robot: Robot, full: pin.Model, q: np.ndarray) -> np.ndarray:
+    """``q`` (n,) [rad] of ``robot`` as a configuration of the full model (the rest
+    neutral), by joint name."""
+    qf = pin.neutral(full)
+    for i, name in enumerate(robot.joint_names):
+        qf[full.joints[full.getJointId(name)].idx_q] = q[i]
+    return qf
+
+
 def _depth_inside(points: np.ndarray, C: np.ndarray, R: np.ndarray) -> np.ndarray:
     """(P,) how deep each point lies inside its deepest sphere [m] (negative: outside)."""
     d = np.linalg.norm(points[:, None, :] - C[None], axis=2)
@@ -47,20 +65,14 @@ def test_panda_spheres_cover_every_urdf_mesh_point(
 ) -> None:
     """Every vertex of every URDF collision mesh (and 2,000 seeded surface samples per
     object, boxes included) lies >= margin inside a sphere, at 3 seeded configurations."""
-    share = str(example_robot_data_dir().parents[1])
-    full = pin.buildModelFromUrdf(panda.source_file)
-    gm = pin.buildGeomFromUrdf(full, panda.source_file, pin.GeometryType.COLLISION,
-                               package_dirs=[share])  # fmt: skip
+    full, gm = _pinocchio_collision_model(panda)
     fdata, gdata = full.createData(), pin.GeometryData(gm)
     rng = np.random.default_rng(3)
     margin = panda_spheres.margin
     assert len(panda_spheres.spheres) >= 11  # at least one per link with geometry
     for _ in range(3):
         q = panda.random_q(rng)
-        qf = pin.neutral(full)
-        for i, name in enumerate(panda.joint_names):
-            qf[full.joints[full.getJointId(name)].idx_q] = q[i]
-        pin.updateGeometryPlacements(full, fdata, gm, gdata, qf)
+        pin.updateGeometryPlacements(full, fdata, gm, gdata, _full_q(panda, full, q))
         C, R = _world_spheres(panda, panda_spheres, q)
         for k, go in enumerate(gm.geometryObjects):
             g = go.geometry
@@ -213,19 +225,13 @@ def test_objects_of_a_link_named_like_a_joint_sit_where_pinocchio_places_them() 
     robot = load_robot("z1")
     objects = collision_objects(robot)
     assert any(o.link == "gripperStator" for o in objects)
-    share = str(example_robot_data_dir().parents[1])
-    full = pin.buildModelFromUrdf(robot.source_file)
-    gm = pin.buildGeomFromUrdf(full, robot.source_file, pin.GeometryType.COLLISION,
-                               package_dirs=[share])  # fmt: skip
+    full, gm = _pinocchio_collision_model(robot)
     assert [o.name for o in objects] == [go.name for go in gm.geometryObjects]
     fdata, gdata, data = full.createData(), pin.GeometryData(gm), robot.model.createData()
     rng = np.random.default_rng(5)
     for _ in range(2):
         q = robot.random_q(rng)
-        qf = pin.neutral(full)
-        for i, name in enumerate(robot.joint_names):
-            qf[full.joints[full.getJointId(name)].idx_q] = q[i]
-        pin.updateGeometryPlacements(full, fdata, gm, gdata, qf)
+        pin.updateGeometryPlacements(full, fdata, gm, gdata, _full_q(robot, full, q))
         pin.forwardKinematics(robot.model, data, q)
         for k, o in enumerate(objects):
             oMi = data.oMi[robot.joint_id(o.joint)] if o.joint != "universe" else pin.SE3.Identity()

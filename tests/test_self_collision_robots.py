@@ -17,9 +17,24 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning.errors import NoPathFound
 from geosyn.metrics.planning.exact_path import checked_configurations
+from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.planner import Planner
 from geosyn.metrics.planning.self_collision import INTERSECTING, SelfCollision
 from geosyn.robots import load_robot
+
+
+def _planner_and_referee(name: str) -> tuple[Planner, SelfCollisionReferee]:
+    """The default planner of catalogue robot ``name`` and Pinocchio's collision model of
+    its URDF on the planner's self pairs (the referee)."""
+    planner = Planner(KineticEnergyMetric(load_robot(name)))
+    return planner, SelfCollisionReferee(planner.robot, planner.sphere_check.self_pairs)
+
+
+def _self_clear(referee: SelfCollisionReferee, plan: Plan) -> bool:
+    """Whether the referee finds no self-collision at every 5th configuration of the plan's
+    exact resolution and at its goal."""
+    Q = checked_configurations(plan.q, plan.exact_resolution)
+    return not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
 
 
 def test_pairs_of_several_fine_meshes_match_pinocchio() -> None:
@@ -55,9 +70,8 @@ def test_random_ur10_queries_are_planned_past_the_spheres_excess() -> None:
     spheres' excess blocked 47 % of the joint box where the links are apart. Pinocchio's
     collision model of the URDF (the referee) finds no self-collision on any returned
     path, at every 5th configuration of its exact resolution and at its ends."""
-    robot = load_robot("ur10_robot")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    planner, referee = _planner_and_referee("ur10_robot")
+    robot = planner.robot
     rng, plans, tried = np.random.default_rng(0), [], 0
     while tried < 8:
         q0, q1 = robot.random_q(rng), robot.random_q(rng)
@@ -70,8 +84,7 @@ def test_random_ur10_queries_are_planned_past_the_spheres_excess() -> None:
             pass
     assert len(plans) >= 5, len(plans)
     for plan in plans:
-        Q = checked_configurations(plan.q, plan.exact_resolution)
-        assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+        assert _self_clear(referee, plan)
         assert plan.self_clearance >= 0.0
 
 
@@ -164,9 +177,8 @@ def test_a_self_contact_raises_its_pairs_floor_for_the_query_only(monkeypatch) -
     from geosyn.metrics.planning.sampling import SELF_LEARN_RADIUS, SELF_LEARN_STEP
     from geosyn.robots.collision_spheres import file_spheres
 
-    robot = load_robot("ur5")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    planner, referee = _planner_and_referee("ur5")
+    robot = planner.robot
     line = checked_configurations(np.array([UR5_START, UR5_GOAL]), planner.exact_resolution)
     assert any(referee.collides(q) for q in line)
     calibrated = planner.sampling.check.self_slack.copy()
@@ -265,9 +277,7 @@ def test_an_end_shut_in_by_the_self_floors_ramp_has_them_eased(monkeypatch) -> N
     (`shut_in` always False) RRT-Connect grows 3 nodes and the query is refused in 2 s."""
     from geosyn.metrics.planning.sampling import SELF_FLOOR_RAMP, Sampling
 
-    robot = load_robot("ur5_gripper")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    planner, referee = _planner_and_referee("ur5_gripper")
     q0, q1 = UR5_GRIPPER_SHUT_START, UR5_GRIPPER_GOAL
     assert not referee.collides(q0) and not referee.collides(q1)
     sampling = planner.sampling
@@ -280,8 +290,7 @@ def test_an_end_shut_in_by_the_self_floors_ramp_has_them_eased(monkeypatch) -> N
         sampling.finish()
     plan = planner.plan(q0, q1, seed=0)
     assert line in plan.attempts and sampling.ramp_line == ""  # said, and reset by `finish`
-    Q = checked_configurations(plan.q, plan.exact_resolution)
-    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+    assert _self_clear(referee, plan)
     monkeypatch.setattr(Sampling, "shut_in", lambda self, q: False)
     with pytest.raises(NoPathFound):
         planner.plan(q0, q1, budget=2.0, seed=0)
@@ -305,15 +314,12 @@ def test_retries_after_self_contacts_go_on_while_time_is_left() -> None:
     exact resolution and at the goal."""
     from geosyn.metrics.planning.sampled import SAMPLED_RETRIES
 
-    robot = load_robot("ur5")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    planner, referee = _planner_and_referee("ur5")
     q0, q1 = UR5_MANY_CONTACTS_START, UR5_MANY_CONTACTS_GOAL
     assert not referee.collides(q0) and not referee.collides(q1)
     plan = planner.plan(q0, q1, budget=8.0, seed=0)
     assert sum("floor raised" in line for line in plan.attempts) > SAMPLED_RETRIES
-    Q = checked_configurations(plan.q, plan.exact_resolution)
-    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+    assert _self_clear(referee, plan)
 
 
 UR3_SHUT_START = np.array([-5.227417362430961, 4.1801296421104865, 1.803891867329141,
@@ -332,9 +338,7 @@ def test_an_end_still_shut_in_after_two_halvings_is_eased_further(monkeypatch) -
     5th configuration of the exact resolution and at the goal."""
     from geosyn.metrics.planning import sampling as sampling_module
 
-    robot = load_robot("ur3_robot")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    planner, referee = _planner_and_referee("ur3_robot")
     q0, q1 = UR3_SHUT_START, UR3_SHUT_GOAL
     assert not referee.collides(q0) and not referee.collides(q1)
     sampling = planner.sampling
@@ -352,8 +356,7 @@ def test_an_end_still_shut_in_after_two_halvings_is_eased_further(monkeypatch) -
     finally:
         sampling.finish()
     plan = planner.plan(q0, q1, budget=8.0, seed=0)
-    Q = checked_configurations(plan.q, plan.exact_resolution)
-    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+    assert _self_clear(referee, plan)
 
 
 UR10_LIMITED_START = np.array([-0.5997184776307374, -1.8942984090458777, -2.571374450774097,
@@ -372,9 +375,7 @@ def test_a_straight_line_the_spheres_block_is_planned_on_the_meshes() -> None:
     without one); the plan is the straight line checked on the exact geometry, said in its
     attempts, and Pinocchio's collision model of the URDF finds no self-collision at every
     5th configuration of the exact resolution and at the goal."""
-    robot = load_robot("ur10_joint_limited_robot")
-    planner = Planner(KineticEnergyMetric(robot))
-    referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
+    planner, referee = _planner_and_referee("ur10_joint_limited_robot")
     q0, q1 = UR10_LIMITED_START, UR10_LIMITED_GOAL
     planner.sampling.start((), q0, q1)
     try:
@@ -388,5 +389,4 @@ def test_a_straight_line_the_spheres_block_is_planned_on_the_meshes() -> None:
     direction = (q1 - q0) / np.linalg.norm(q1 - q0)
     off = [np.linalg.norm((q - q0) - ((q - q0) @ direction) * direction) for q in plan.q]
     assert max(off) < 1e-9  # on the straight line
-    Q = checked_configurations(plan.q, plan.exact_resolution)
-    assert not any(referee.collides(q) for q in (*Q[::5], Q[-1]))
+    assert _self_clear(referee, plan)
