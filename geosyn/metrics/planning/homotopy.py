@@ -1,7 +1,7 @@
 """The homotopy rule of a query: which of its verified plans is kept (`kept_plan`).
 
 After a constrained plan from the straight line, other seeds (RRT-Connect paths: other
-ways round the obstacles; `geosyn.metrics.planning.query.Query.alternatives`) are solved
+ways round the obstacles; `alternative_plans`) are solved
 too. A plan from another seed replaces the straight line's only when its energy is lower
 and its metric length (midpoint rule on its nodes) is not longer, so the returned path is
 never longer than the straight-line seed's solution. A sampled plan (no NLP: a path
@@ -19,8 +19,9 @@ from geosyn.metrics.planning.smoothing import metric_length
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
     from geosyn.metrics.planning.plan import Plan
+    from geosyn.metrics.planning.query import Query
 
-__all__ = ["SAME", "SAME_SAMPLED", "kept_plan"]
+__all__ = ["SAME", "SAME_SAMPLED", "alternative_plans", "kept_plan"]
 
 SAME = 1e-6
 """Relative difference of energy or length below which two plans count as the same path
@@ -33,6 +34,24 @@ than a collocation's (its own quadrature) to be kept instead: below it the two a
 same path within their discretisations (a sampled path tightened to the margin reaches
 the collocation's optimum to 6e-5 on planar2 round a ball, measured), and the solved
 one is kept."""
+
+
+def alternative_plans(query: Query, line: Plan) -> list[Plan]:
+    """Plans of ``query`` from RRT-Connect seeds after its constrained ``line`` plan
+    (`geosyn.metrics.planning.query`'s homotopy rule: each tried while the time left is
+    at least the time ``line`` took, its sampling bounded by that time and its
+    collocation by twice), in the order they were found."""
+    plans: list[Plan] = []
+    for index in range(query.p.alternatives):
+        if query.left() < line.wall_time:
+            query.attempts.append(
+                f"alternative seeds stopped after {index}: {max(query.left(), 0.0):.2f} s "
+                f"left, less than the first plan took ({line.wall_time:.2f} s)"
+            )
+            break
+        if (plan := query.from_rrt(index, cap=line.wall_time)) is not None:
+            plans.append(plan)
+    return plans
 
 
 def kept_plan(metric: Metric, line: Plan | None, others: list[Plan], attempts: list[str]) -> Plan:

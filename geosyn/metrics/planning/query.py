@@ -42,7 +42,7 @@ from geosyn.metrics.geodesic.collocation import CollocationResult
 from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.coarse import coarse_to_fine
 from geosyn.metrics.planning.errors import NoPathFound
-from geosyn.metrics.planning.homotopy import kept_plan
+from geosyn.metrics.planning.homotopy import alternative_plans, kept_plan
 from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.polish import sphere_polish
 from geosyn.metrics.planning.rrt import shortcut
@@ -381,22 +381,6 @@ class Query:
             return None
         return self.finish(res, None, "straight line", 0.75)
 
-    def alternatives(self, line: Plan) -> list[Plan]:
-        """Plans from RRT-Connect seeds after the constrained ``line`` plan (the
-        module's homotopy rule: each tried while the time left is at least the time
-        ``line`` took, its sampling bounded by that time and its collocation by twice)."""
-        plans: list[Plan] = []
-        for index in range(self.p.alternatives):
-            if self.left() < line.wall_time:
-                self.attempts.append(
-                    f"alternative seeds stopped after {index}: {max(self.left(), 0.0):.2f} s "
-                    f"left, less than the first plan took ({line.wall_time:.2f} s)"
-                )
-                break
-            if (plan := self.from_rrt(index, cap=line.wall_time)) is not None:
-                plans.append(plan)
-        return plans
-
     def keep(self, line: Plan | None, others: list[Plan]) -> Plan:
         """`geosyn.metrics.planning.homotopy.kept_plan` of ``line`` (the straight line's,
         if any) and ``others``, with this query's wall time, attempts and first time."""
@@ -443,7 +427,7 @@ class Query:
             elif (plan := self.from_rrt(0)) is not None:
                 others.append(plan)
         elif line.result.kind == "constrained":
-            others += self.alternatives(line)
+            others += alternative_plans(self, line)
         if line is None and not others and self.unfinished:  # anytime: the lowest-energy
             end = self.t0 + ANYTIME_SLACK * self.budget  # path that passes the checks
             plan = anytime_plan(self.p, self.unfinished, self.t0, self.attempts, end, self.decide)
