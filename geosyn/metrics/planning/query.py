@@ -123,7 +123,8 @@ class Query:
                  seed: int, t0: float) -> None:  # fmt: skip
         self.p, self.q0, self.q1 = planner, q0, q1
         self.budget, self.seed, self.t0 = budget, seed, t0
-        self.attempts = [x for x in [planner.sampling.ramp_line] if x]  # `Sampling.start`'s
+        eased = planner.sampling.ramp_line  # `Sampling.start`'s
+        self.attempts: list[str] = [eased] if eased else []
         self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         self.first = math.nan  # when the first plan passed every check [s]
         self.sampled_path: np.ndarray | None = None  # the sampled plan's path
@@ -399,11 +400,16 @@ class Query:
     def run(self) -> Plan:
         """The plan (see the module docstring), or `NoPathFound` once the budget is spent."""
         quick, took, index = self.sampled(), time.perf_counter() - self.t0, 0
-        while (  # while no collocation would use the time, or after a self-collision
-            quick is None  # (the NLP has no term for it: then until the time is spent)
+        while (  # after a self-collision until the time is spent (the NLP has no term for
+            quick is None  # it), else at most SAMPLED_RETRIES while no collocation would run
             and self.left() > took
-            and (index < SAMPLED_RETRIES or self.self_collided)
-            and not (self.collocates() and self.left() > MIN_COLLOCATION and not self.self_collided)
+            and (
+                self.self_collided
+                or (
+                    index < SAMPLED_RETRIES
+                    and not (self.collocates() and self.left() > MIN_COLLOCATION)
+                )
+            )
         ):
             index += 1
             quick = self.retry(index)

@@ -294,7 +294,7 @@ class Sampling:
         self.check: SphereCheck
         self.check, self.note = sphere_check(robot, spheres)
         self.margin = margin
-        self.ramp, self.ramp_line = SELF_FLOOR_RAMP, ""  # a query's (`start`)
+        self.ramp = SELF_FLOOR_RAMP  # a query's (`start`)
         self._obstacles: tuple[Shape, ...] = ()
         self._cover: NativeSphereCheck | None = None
         self._cover_group = np.zeros(0, dtype=np.int32)  # each fitted sphere's link
@@ -321,23 +321,33 @@ class Sampling:
         """A query's obstacles and ends (n,) [rad]: self floors lowered to the ends'
         sphere distances near them, the sampling margin ramped down to theirs (module
         docstring); the self floors' ramp (``ramp`` [m/rad]) halved while an end is
-        `shut_in`, at most `SELF_RAMP_HALVINGS` times (``ramp_line`` says so)."""
+        `shut_in`, at most `SELF_RAMP_HALVINGS` times (``ramp_line`` says so). A halving
+        lowers the floors near the ends, so an end with a way out keeps it: only the ends
+        still shut in are probed again."""
         self._obstacles = tuple(obstacles)
         self.check.set_obstacles(self._obstacles)
         ends = np.minimum(self.check.clearances(np.array([q0, q1])) - SAMPLING_SLACK,
                           self.margin)  # fmt: skip
-        self.ramp, self.ramp_line = SELF_FLOOR_RAMP, ""
+        self.ramp = SELF_FLOOR_RAMP
         self.check.set_ends([q0, q1], ends, SAMPLING_RAMP, self.ramp)
         if not self.check.self_pairs:
             return
-        for _ in range(SELF_RAMP_HALVINGS):
-            if not self.shut_in(q0) and not self.shut_in(q1):
-                break
+        shut = [q for q in (q0, q1) if self.shut_in(q)]
+        for _ in range(SELF_RAMP_HALVINGS if shut else 0):
             self.ramp *= 0.5
             self.check.set_ends([q0, q1], ends, SAMPLING_RAMP, self.ramp)
-        if self.ramp < SELF_FLOOR_RAMP:
-            self.ramp_line = (f"self floors ramp up at {self.ramp:g} m/rad near the ends, "
-                              f"not {SELF_FLOOR_RAMP:g}: an end had no way out of them")  # fmt: skip
+            if not (shut := [q for q in shut if self.shut_in(q)]):
+                break
+
+    @property
+    def ramp_line(self) -> str:
+        """What the query's eased self ramp is, for its attempts ("" when not eased)."""
+        if self.ramp >= SELF_FLOOR_RAMP:
+            return ""
+        return (
+            f"self floors ramp up at {self.ramp:g} m/rad near the ends, not "
+            f"{SELF_FLOOR_RAMP:g}: an end had no way out of them"
+        )
 
     def shut_in(self, q: np.ndarray) -> bool:
         """Whether no segment of `RRT_STEP` [rad] from ``q`` (n,) [rad] is valid for the
@@ -394,7 +404,7 @@ class Sampling:
         ends, everywhere), the calibrated floors back (`learn_floor`)."""
         self.forget_floors()
         self.check.set_ends([], [], 0.0)
-        self.ramp, self.ramp_line = SELF_FLOOR_RAMP, ""
+        self.ramp = SELF_FLOOR_RAMP
 
     def set_obstacles(self, obstacles: Sequence[Shape]) -> None:
         """The obstacles the checks use (`start` sets them for a query)."""
