@@ -28,7 +28,6 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.core.interpolation import hermite_cubic_coefficients, hermite_quintic_coefficients
@@ -373,6 +372,8 @@ class JointTrajectoryReference(_SampledReference):
         if a is not None and v is None:
             raise InvalidArgument("a (accelerations) given without v (velocities); pass both")
         if v is None:
+            from scipy.interpolate import CubicSpline  # heavy: imported where used
+
             spline = CubicSpline(t_arr, q_arr, axis=0)
             coef = spline.c[::-1].transpose(1, 0, 2)  # (K, 4, n), lowest power first
         else:

@@ -11,14 +11,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-from matplotlib.patches import Ellipse
-from mpl_toolkits.mplot3d.axes3d import Axes3D
 
 from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.base import Metric
@@ -32,6 +27,11 @@ from geosyn.synergies.synergy import (
     checked_log,
     combine,
 )
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d.axes3d import Axes3D
 
 PAPER_WEIGHTS = ((1.2, 0.7), (1.2, -0.5), (-0.5, 1.0), (-0.5, -0.5))
 """Weights of the combinations in the paper's Figure 2 (c)-(f)."""
@@ -75,6 +75,17 @@ class SynergyCombinationFigure(NamedTuple):
     hand_paths: list[Matrix]
     trajectories: list[Geodesic]
     labels: list[str]
+
+
+def _agg_figure(figsize: tuple[float, float], dpi: int) -> Figure:
+    """A new figure on its own Agg canvas; matplotlib (~0.5 s to import) is imported by
+    the first figure, not by every process that imports the synergies."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(fig)
+    return fig
 
 
 def _check_path(path: object) -> Path:
@@ -171,8 +182,9 @@ def figure_configuration_space(
     e_geo = float(path_energy(metric, geo.t, geo.q))
     e_line = float(path_energy(metric, line.t, line.q))
 
-    fig = Figure(figsize=(13.0, 4.6), dpi=dpi)
-    FigureCanvasAgg(fig)
+    from matplotlib.patches import Ellipse
+
+    fig = _agg_figure((13.0, 4.6), dpi)
     gs = fig.add_gridspec(1, 3, width_ratios=[1.3, 1, 1], wspace=0.45)
     ax = fig.add_subplot(gs[0])
     lo, hi = limits
@@ -338,8 +350,7 @@ def figure_synergy_combinations(
 
     ncols = 3
     nrows = int(np.ceil(len(trajs) / ncols))
-    fig = Figure(figsize=(4.2 * ncols, 4.0 * nrows), dpi=dpi)
-    FigureCanvasAgg(fig)
+    fig = _agg_figure((4.2 * ncols, 4.0 * nrows), dpi)
     for k, (hp, sk, lab, col) in enumerate(zip(hand_paths, skeletons, labels, colors, strict=True)):
         ax = fig.add_subplot(nrows, ncols, k + 1, projection="3d")
         for j, other in enumerate(hand_paths):

@@ -13,7 +13,6 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 
 from geosyn.core.types import Matrix, Vector
 from geosyn.metrics.base import Metric
@@ -216,7 +215,9 @@ def _geodesic_projection_sq(
         warm["v"] = w
         return L_x.T @ w
 
-    sol = scipy.optimize.least_squares(residual, c0, method="lm", xtol=1e-8, ftol=1e-10)
+    from scipy.optimize import least_squares  # heavy (~0.2 s): imported where used
+
+    sol = least_squares(residual, c0, method="lm", xtol=1e-8, ftol=1e-10)
     return float(sol.fun @ sol.fun), sol.x
 
 
@@ -269,7 +270,9 @@ def _exact_refine(
         return V_full[:, :k], before, before
     # Initial simplex: steps of 0.05 in the chart, i.e. tilts of about 3 degrees.
     simplex = np.vstack([b0, b0 + 0.05 * np.eye(b0.size)])
-    sol = scipy.optimize.minimize(
+    from scipy.optimize import minimize  # heavy (~0.2 s): imported where used
+
+    sol = minimize(
         cost,
         b0,
         method="Nelder-Mead",

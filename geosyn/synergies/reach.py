@@ -7,7 +7,6 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
-import scipy.optimize
 
 from geosyn.core.types import Vector
 from geosyn.core.validation import check_float, check_int, check_positive
@@ -196,9 +195,11 @@ def reach(
 
     rng = np.random.default_rng(seed)
     best_w, best_err, best_feasible, starts = np.zeros(m), np.inf, False, 0
+    from scipy.optimize import least_squares  # heavy (~0.2 s): imported where used
+
     for attempt in range(restarts + 1):
         w0 = np.zeros(m) if attempt == 0 else weight_scale * rng.standard_normal(m)
-        sol = scipy.optimize.least_squares(
+        sol = least_squares(
             residual,
             w0,
             method="lm",

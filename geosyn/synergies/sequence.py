@@ -29,7 +29,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import simpson
 
 from geosyn.core.interpolation import hermite_quintic_coefficients
 from geosyn.core.types import Matrix, Vector
@@ -215,6 +214,8 @@ class SynergySequence:
                 is carried).
             dt: sample period of Simpson's rule on each segment [s].
         """
+        from scipy.integrate import simpson  # heavy (with scipy.optimize): imported where used
+
         dt = check_positive(dt, "dt", "s")
         ms = _metrics(metric, len(self.segments))
         total = 0.0
@@ -236,6 +237,8 @@ class SynergySequence:
         Args:
             metric: the metric, or one per segment.
         """
+        from scipy.integrate import simpson  # heavy (with scipy.optimize): imported where used
+
         ms = _metrics(metric, len(self.segments))
         total = 0.0
         for seg, m in zip(self.segments, ms, strict=True):

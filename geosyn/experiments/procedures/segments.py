@@ -24,7 +24,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-from scipy.interpolate import CubicSpline
 
 from geosyn.core.types import Matrix, Vector
 from geosyn.experiments.errors import ProcedureFailed
@@ -228,6 +227,8 @@ def planned_segment(
         return geodesic_segment(metric, q0, np.asarray(res.v0), t0, duration, steps)
     nodes = np.asarray(res.nodes, dtype=np.float64)
     u = np.linspace(0.0, 1.0, len(nodes))
+    from scipy.interpolate import CubicSpline  # heavy: imported where used
+
     spline = CubicSpline(u, nodes, axis=0, bc_type="natural")
     s = np.linspace(0.0, 1.0, steps + 1)
     q = spline(s)

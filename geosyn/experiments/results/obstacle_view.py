@@ -19,7 +19,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from matplotlib.patches import Circle, Polygon
 from scipy.spatial import ConvexHull, QhullError
 
 from geosyn.core.errors import InvalidArgument
@@ -89,6 +88,8 @@ def draw_obstacles(ax: Any, shapes: Sequence[Shape], axes: tuple[int, int] = (1,
     """Draw every shape of ``shapes`` on the matplotlib ``ax`` as its `silhouette` in the
     plane of the world ``axes`` (grey); returns how many were left out (half-spaces whose
     normal leaves the plane: they fill the view)."""
+    from matplotlib.patches import Circle, Polygon  # matplotlib: imported where drawn
+
     left_out = 0
     for s in shapes:
         if isinstance(s, Sphere):

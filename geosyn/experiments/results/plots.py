@@ -14,14 +14,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from geosyn.sim import blocks
 from geosyn.sim.blocks import row_blocks
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 COLORS = ("#1f5fbf", "#d9541e", "#2a9d3a", "#8e44ad", "#c0392b", "#7f8c8d")
 
@@ -43,6 +44,11 @@ def figure(
     Returns:
         (the figure, one `Axes` or an array of them as `Figure.subplots` returns).
     """
+    # matplotlib (~0.5 s to import) is imported by the first figure, not by a process
+    # that imports the procedures and draws nothing (`geosyn validate`, a sweep's runs)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
     return fig, fig.subplots(nrows, ncols, **kw)

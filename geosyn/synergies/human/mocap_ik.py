@@ -29,8 +29,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-import scipy.optimize
-import scipy.signal
 from scipy.spatial.transform import Rotation
 
 from geosyn.robots import Robot
@@ -235,8 +233,10 @@ class _Solver:
 
     def solve(self, target: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """(nz,) or (nz + 3,) solution (z, then d when the root is free)."""
+        from scipy.optimize import least_squares  # heavy (~0.2 s): imported where used
+
         x0 = np.clip(x0, self.lo, self.hi)
-        sol = scipy.optimize.least_squares(
+        sol = least_squares(
             self.residual, x0, jac=self.jacobian, bounds=(self.lo, self.hi), args=(target,),
             method="trf", xtol=1e-10, ftol=1e-12, max_nfev=100,
         )  # fmt: skip
@@ -387,8 +387,10 @@ def fit_sequence(
     targets = local_keypoints(seq.positions) @ calib.R.T + calib.t
     x0 = _solve_all(solver, targets[:1], solver.start())[0]
     x_raw = _solve_all(solver, targets, x0)
-    b, a = scipy.signal.butter(2, cutoff / (seq.fps / 2))
-    x = np.clip(scipy.signal.filtfilt(b, a, x_raw, axis=0), solver.lo, solver.hi)
+    from scipy.signal import butter, filtfilt  # heavy (scipy.stats): imported where used
+
+    b, a = butter(2, cutoff / (seq.fps / 2))
+    x = np.clip(filtfilt(b, a, x_raw, axis=0), solver.lo, solver.hi)
 
     def dist(X: np.ndarray) -> np.ndarray:
         P = np.array(

@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import scipy.signal
 
 from geosyn.core.errors import GeosynError
 from geosyn.metrics.base import Metric
@@ -67,7 +66,9 @@ def split(
     """
     if speed.ndim != 1 or len(speed) != len(hand):
         raise InvalidSynergyInput(f"speed must be (T,) like hand, got {speed.shape}", "speed")
-    minima, _ = scipy.signal.find_peaks(-speed, distance=max(1, int(min_duration * fps / 2)))
+    from scipy.signal import find_peaks  # heavy (scipy.stats): imported where used
+
+    minima, _ = find_peaks(-speed, distance=max(1, int(min_duration * fps / 2)))
     cuts = [0, *minima.tolist(), len(speed) - 1]
     out = []
     for a, b in zip(cuts[:-1], cuts[1:], strict=True):

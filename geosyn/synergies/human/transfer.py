@@ -35,7 +35,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-import scipy.optimize
 
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic import exp, log
@@ -244,8 +243,10 @@ def kinematic_retarget(
 
     out, err = np.empty((len(targets), n)), np.empty(len(targets))
     q = np.clip(q_home, lo + 1e-6, hi - 1e-6)
+    from scipy.optimize import least_squares  # heavy (~0.2 s): imported where used
+
     for i, p in enumerate(targets):
-        sol = scipy.optimize.least_squares(
+        sol = least_squares(
             res, q, jac=jac, bounds=(lo, hi), args=(p, q.copy()), xtol=1e-12, ftol=1e-12
         )
         q = sol.x
