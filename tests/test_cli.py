@@ -347,8 +347,15 @@ import geosyn.experiments.sweep
 print("LOADED=" + ",".join(sorted(m for m in sys.modules if m in sys.argv[1:])))
 """
 # imported where they are used: a figure (matplotlib), the human study (scipy.signal), a
-# spline or an optimiser (scipy.interpolate / scipy.optimize, also scipy.stats under them)
-_DEFERRED = ("matplotlib", "scipy.signal", "scipy.stats", "scipy.interpolate", "scipy.optimize")
+# spline, an optimiser or a hull (scipy.interpolate / optimize / spatial; scipy.stats under them)
+_DEFERRED = (
+    "matplotlib",
+    "scipy.signal",
+    "scipy.stats",
+    "scipy.interpolate",
+    "scipy.optimize",
+    "scipy.spatial",
+)
 
 
 def test_a_run_or_sweep_process_starts_without_the_libraries_it_may_not_use():

@@ -19,7 +19,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 from geosyn.core.errors import InvalidArgument
 from geosyn.world import Box, Capsule, Cylinder, HalfSpace, Sphere
@@ -42,6 +41,8 @@ def _circle(n: int = RIM_POINTS) -> np.ndarray:
 def _hull(points: np.ndarray) -> np.ndarray:
     """(K, 2) the convex hull's vertices of ``points`` (N, 2), counter-clockwise; for points
     on one line (a flat box seen edge-on) the segment's two ends, (2, 2)."""
+    from scipy.spatial import ConvexHull, QhullError  # ~0.13 s: imported where drawn
+
     try:
         return points[ConvexHull(points).vertices]
     except QhullError:  # no area: a segment (or a point)

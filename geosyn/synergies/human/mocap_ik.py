@@ -29,7 +29,6 @@ from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
-from scipy.spatial.transform import Rotation
 
 from geosyn.robots import Robot
 from geosyn.robots.couplings import Coupling
@@ -418,8 +417,3 @@ def scale_factors(sequences: Sequence[MocapSequence], robot: Robot) -> dict[str,
     captured = segment_lengths(np.concatenate([s.positions for s in sequences]))
     model = model_segment_lengths(robot)
     return {s: captured[s] / model[s] for s in SEGMENTS}
-
-
-def rotation_angle(R: np.ndarray) -> float:
-    """Angle of a rotation matrix [rad] (for reports)."""
-    return float(np.linalg.norm(Rotation.from_matrix(R).as_rotvec()))
