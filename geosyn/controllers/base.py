@@ -247,7 +247,7 @@ class Controller(ABC):
                 f"{type(self).__name__} produced a non-finite torque {tau_raw} at t={t}"
             )
         np.copyto(self._tau_raw, tau_raw)
-        tau = np.clip(tau_raw, self._tau_min, self._tau_max)
+        tau = np.minimum(np.maximum(tau_raw, self._tau_min), self._tau_max)  # np.clip: 3x slower
         sat = d.saturated
         if sat is None or sat.shape != (nv,):
             sat = d.saturated = np.zeros(nv, dtype=bool)

@@ -281,6 +281,7 @@ class Simulation:
         applied = self.plant == "file"
         lo, hi = self.tau_min, self.tau_max
         speed = self.divergence.speed_limit
+        speed_sq = float(np.min(speed, initial=math.inf)) ** 2  # |v|^2 below it: all |v_i| are
         diverged = self.divergence.status
         qadr, dadr = sc.qpos_adr, sc.dof_adr
         clearance = sc.clearance if len(sc.obstacles) else None
@@ -306,7 +307,8 @@ class Simulation:
             # MuJoCo resets its data (time 0) on an instability; its counters are read when
             # the clock shows it, and once after the first tick (a reset there keeps time).
             reset = abs(d.time - t) > 0.5 * h_phys or k == 1
-            if not (isfinite(float(q @ q)) and (np.abs(v) <= speed).all()) or reset:
+            within = float(v @ v) <= speed_sq or (np.abs(v) <= speed).all()
+            if not (isfinite(float(q @ q)) and within) or reset:
                 bad = diverged(t, q, v)
                 if bad is not None:
                     status = bad
@@ -346,7 +348,8 @@ class Simulation:
                 sat_log[j] = tau_a != tau_out
             else:
                 tau_c, tau_a = tau_cmd, tau_out
-            ctrl_sat = getattr(getattr(controller, "diagnostics", None), "saturated", None)
+            diag = getattr(controller, "diagnostics", None)
+            ctrl_sat = getattr(diag, "saturated", None)
             if ctrl_sat is not None and np.shape(ctrl_sat) == (nv,):
                 sat_log[j] |= ctrl_sat  # the controller clipped its own command at the limits
             tau_log[j] = tau_c
@@ -373,8 +376,9 @@ class Simulation:
                 q_r, v_r, _ = ref.sample(t)
                 qref_log[j] = q_r
                 vref_log[j] = v_r
-            mujoco.mj_mulM(m, d, mv, d.qvel)
-            ke_log[j] = 0.5 * float(d.qvel @ mv)
+            qvel = d.qvel
+            mujoco.mj_mulM(m, d, mv, qvel)
+            ke_log[j] = 0.5 * float(qvel @ mv)
             if clearance is not None:
                 clear_log[j] = clearance(d.xpos, d.xmat, q)
             if contact_geoms and rk4:  # mj_forward solved this tick's contact forces
@@ -382,7 +386,6 @@ class Simulation:
             if n_pay:
                 pay_log[j] = m.body_mass[pay_ids]
             ctime_log[j] = c1 - c0
-            diag = getattr(controller, "diagnostics", None)
             if diag is not None:
                 it = getattr(diag, "iterations", None)
                 if it is not None:
