@@ -44,8 +44,8 @@ def figure(
     Returns:
         (the figure, one `Axes` or an array of them as `Figure.subplots` returns).
     """
-    # matplotlib (~0.5 s to import) is imported by the first figure, not by a process
-    # that imports the procedures and draws nothing (`geosyn validate`, a sweep's runs)
+    # matplotlib (~0.5 s to import) is imported by the first figure, not by every
+    # process that imports the procedures (`geosyn schema`, a run with no figure)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
