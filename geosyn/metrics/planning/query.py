@@ -123,8 +123,7 @@ class Query:
                  seed: int, t0: float) -> None:  # fmt: skip
         self.p, self.q0, self.q1 = planner, q0, q1
         self.budget, self.seed, self.t0 = budget, seed, t0
-        eased = planner.sampling.ramp_line  # `Sampling.start`'s
-        self.attempts: list[str] = [eased] if eased else []
+        self.attempts = list(filter(None, [planner.sampling.ramp_line]))  # `Sampling.start`'s
         self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         self.first = math.nan  # when the first plan passed every check [s]
         self.sampled_path: np.ndarray | None = None  # the sampled plan's path
@@ -235,7 +234,10 @@ class Query:
         if path is None:
             self.attempts.append(f"sampled plan: RRT-Connect found no connection after "
                                  f"{grown} nodes in {search:.3f} s")  # fmt: skip
-            return None if index else exact_line(self)
+            if index or (plan := exact_line(self)) is None:
+                return None
+            self.sampled_path = self.first_path = np.array([self.q0, self.q1])  # polish seed
+            return plan
         how = "the straight line" if len(path) == 2 else f"RRT-Connect's path ({grown} nodes)"
         left = max(self.left(), 0.0)  # the exact check needs its share of it
         budget = SAMPLED_CHECK_SHARE * left if small else min(
