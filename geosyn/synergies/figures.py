@@ -77,9 +77,16 @@ class SynergyCombinationFigure(NamedTuple):
     labels: list[str]
 
 
-def _agg_figure(figsize: tuple[float, float], dpi: int) -> Figure:
-    """A new figure on its own Agg canvas; matplotlib (~0.5 s to import) is imported by
-    the first figure, not by every process that imports the synergies."""
+def agg_figure(figsize: tuple[float, float], dpi: float | None = None) -> Figure:
+    """A new figure on its own Agg canvas (no pyplot, nothing global changed).
+
+    matplotlib (~0.5 s to import) is imported by the first figure, not by every process
+    that imports the synergies or the experiments' procedures.
+
+    Args:
+        figsize: (width, height) [inch].
+        dpi: its resolution [dots per inch]; None: matplotlib's default.
+    """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -184,7 +191,7 @@ def figure_configuration_space(
 
     from matplotlib.patches import Ellipse
 
-    fig = _agg_figure((13.0, 4.6), dpi)
+    fig = agg_figure((13.0, 4.6), dpi)
     gs = fig.add_gridspec(1, 3, width_ratios=[1.3, 1, 1], wspace=0.45)
     ax = fig.add_subplot(gs[0])
     lo, hi = limits
@@ -350,7 +357,7 @@ def figure_synergy_combinations(
 
     ncols = 3
     nrows = int(np.ceil(len(trajs) / ncols))
-    fig = _agg_figure((4.2 * ncols, 4.0 * nrows), dpi)
+    fig = agg_figure((4.2 * ncols, 4.0 * nrows), dpi)
     for k, (hp, sk, lab, col) in enumerate(zip(hand_paths, skeletons, labels, colors, strict=True)):
         ax = fig.add_subplot(nrows, ncols, k + 1, projection="3d")
         for j, other in enumerate(hand_paths):

@@ -20,6 +20,7 @@ import numpy as np
 
 from geosyn.sim import blocks
 from geosyn.sim.blocks import row_blocks
+from geosyn.synergies.figures import agg_figure
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -44,13 +45,7 @@ def figure(
     Returns:
         (the figure, one `Axes` or an array of them as `Figure.subplots` returns).
     """
-    # matplotlib (~0.5 s to import) is imported by the first figure, not by every
-    # process that imports the procedures (`geosyn schema`, a run with no figure)
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize)
-    FigureCanvasAgg(fig)
+    fig = agg_figure(figsize)
     return fig, fig.subplots(nrows, ncols, **kw)
 
 

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from geosyn.synergies.figures import agg_figure
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -24,17 +26,6 @@ _LABELS = {
     "RightHandMiddle1": "middle MCP",
     "RightHandPinky1": "little MCP",
 }
-
-
-def _figure(figsize: tuple[float, float]) -> Figure:
-    """A new figure on its own Agg canvas; matplotlib (~0.5 s to import) is imported by
-    the first figure, not by every process that imports the study."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize)
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -51,7 +42,7 @@ def ik_residuals(residuals: np.ndarray, names: Sequence[str], path: Path) -> Pat
         names: (K,) keypoint names.
         path: PNG file.
     """
-    fig = _figure((6.4, 3.4))
+    fig = agg_figure((6.4, 3.4))
     ax = fig.add_subplot(1, 1, 1)
     ax.boxplot([100 * residuals[:, k] for k in range(residuals.shape[1])], showfliers=False)
     ax.set_xticks(range(1, len(names) + 1), [_LABELS.get(n, n) for n in names], fontsize=8)
@@ -72,7 +63,7 @@ def segment_fit(geodesic: np.ndarray, line: np.ndarray, path: Path, unit: str = 
         path: PNG file.
         unit: axis unit.
     """
-    fig = _figure((4.4, 4.2))
+    fig = agg_figure((4.4, 4.2))
     ax = fig.add_subplot(1, 1, 1)
     ax.loglog(line, geodesic, ".", alpha=0.7)
     lim = [min(line.min(), geodesic.min()) * 0.8, max(line.max(), geodesic.max()) * 1.2]
@@ -87,7 +78,7 @@ def segment_fit(geodesic: np.ndarray, line: np.ndarray, path: Path, unit: str = 
 def pga_vs_pca(rows: Sequence[Mapping[str, float]], path: Path) -> Path:
     """Reconstruction error of PGA and PCA against k, under the metric and in joints."""
     k = [int(r["k"]) for r in rows]
-    fig = _figure((8.0, 3.2))
+    fig = agg_figure((8.0, 3.2))
     for i, (key, label) in enumerate(
         (("metric", "under the arm's metric"), ("plain", "plain joint coordinates [rad]"))
     ):
@@ -111,7 +102,7 @@ def hand_paths(
         path: PNG file.
         title: figure title.
     """
-    fig = _figure((8.0, 3.4))
+    fig = agg_figure((8.0, 3.4))
     for i, (a, b) in enumerate(((0, 1), (0, 2))):
         ax = fig.add_subplot(1, 2, i + 1)
         ax.plot(target[:, a], target[:, b], "k-", lw=2, label="human wrist (scaled)")
