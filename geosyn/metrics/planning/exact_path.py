@@ -235,6 +235,8 @@ def path_clearance(
             if m % 16 == 15 and time.perf_counter() > deadline:  # 16 pairs: 0.3-2 ms
                 return best._replace(clearance=math.nan)
             geom, tf = others[o[m]]
+            # a new DistanceResult per pair: one reused across pairs returned penetration
+            # depths off by up to 21 mm (coal 3.0.3: 80 of 387 Panda path minima, measured)
             d = float(coal.distance(exact.geoms[k[m]], coal.Transform3s(Rg[m], tg[m]),
                                     geom, tf, request, coal.DistanceResult()))  # fmt: skip
             if d < low:
