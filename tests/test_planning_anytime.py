@@ -27,7 +27,7 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.base import Metric
 from geosyn.metrics.geodesic.energy import distance
-from geosyn.metrics.planning import Planner
+from geosyn.metrics.planning import NoPathFound, Planner
 from geosyn.metrics.planning.anytime import anytime_plan
 from geosyn.metrics.planning.exact_path import checked_configurations, path_clearance
 from geosyn.metrics.planning.planner import ANYTIME_SLACK, densify
@@ -150,6 +150,29 @@ def test_small_budget_returns_a_verified_path_no_shorter_than_the_geodesic(panda
     length = _metric_length(metric, plan.q)
     assert length >= 0.99 * distance(metric, q0, q1)
     assert length <= 1.1 * _metric_length(metric, long.q)
+
+
+@pytest.mark.parametrize("budget", [0.1, 0.3, 1.0])
+def test_the_anytime_budget_is_kept_to_ten_percent(panda: Case, budget: float) -> None:
+    """The acceptance's "the anytime budget is kept to 10 %", timed by the test's own
+    clock around ``plan``: the Panda round `BLOCK` (the straight line through it) and, the
+    other way, from its goal to its start, each returns a verified plan within 1.1 times
+    its budget; a query with no path (planar2 behind a wall it cannot pass, the goal
+    beyond it) is refused within 1.1 times its budget too (its attempts end when the
+    budget is spent)."""
+    _, planner, q0, q1 = panda
+    for a, b in ((q0, q1), (q1, q0)):
+        t = time.perf_counter()
+        plan = planner.plan(a, b, [BLOCK], budget=budget)
+        wall = time.perf_counter() - t
+        assert wall <= 1.1 * budget, (budget, wall, plan.attempts)
+        assert plan.exact_clearance >= 0.0
+    planar = Planner(KineticEnergyMetric(ROBOT), capacity=1, nodes=24, margin=0.01)
+    wall_box = Box((0.6, 0.0, 0.0), (0.3, 0.05, 0.5))  # across link 1 at q1 = 0
+    t = time.perf_counter()
+    with pytest.raises(NoPathFound):
+        planar.plan([-1.0, 0.0], [1.0, 0.0], [wall_box], budget=budget, seed=3)
+    assert time.perf_counter() - t <= 1.1 * budget
 
 
 def test_among_obstacles_a_file_geometry_planner_solves_no_nlp(panda: Case) -> None:
