@@ -294,6 +294,31 @@ def test_metric_shortcut_keeps_ends_validity_and_never_lengthens() -> None:
     assert segment_lengths(metric, short, 64).sum() < 0.95 * fine
 
 
+def test_pair_lengths_are_the_segments_metric_lengths() -> None:
+    """`pair_lengths` of 5 seeded random Panda joint segments (one batched call) against
+    scipy's adaptive quadrature of ``sqrt(d^T G(x + t d) d)`` over t in [0, 1] (``G`` one
+    configuration at a time): within the midpoint rule's error, 5e-4 relative on 4
+    pieces (1.2e-4 measured) and 2e-6 on 64 (4.7e-7: the error falls as 1 / pieces^2);
+    equal to `segment_lengths` of each 2-point path."""
+    from scipy.integrate import quad
+
+    from geosyn.metrics.planning.smoothing import pair_lengths
+
+    robot = load_robot("panda")
+    metric = KineticEnergyMetric(robot)
+    rng = np.random.default_rng(7)
+    X = np.array([robot.random_q(rng) for _ in range(5)])
+    Y = X + rng.uniform(-0.6, 0.6, size=X.shape)
+    for pieces, tol in ((4, 5e-4), (64, 2e-6)):
+        got = pair_lengths(metric, X, Y, pieces)
+        for x, y, length in zip(X, Y, got, strict=True):
+            d = y - x
+            speed = lambda t, x=x, d=d: math.sqrt(d @ metric.G(x + t * d) @ d)  # noqa: E731
+            ref = quad(speed, 0.0, 1.0, epsabs=1e-12, epsrel=1e-10)[0]
+            assert abs(length - ref) <= tol * ref, (pieces, length, ref)
+            assert length == segment_lengths(metric, np.array([x, y]), pieces)[0]
+
+
 @pytest.mark.parametrize(("M", "n"), [(1, 7), (2, 2), (29, 7)])
 def test_the_relaxation_solves_its_block_tridiagonal_system(M: int, n: int) -> None:
     """The Gauss-Newton system of `metric_relax` (M samples of n joints, seeded random

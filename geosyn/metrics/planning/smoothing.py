@@ -26,6 +26,7 @@ __all__ = [
     "even_in_metric",
     "metric_length",
     "metric_shortcut",
+    "pair_lengths",
     "segment_lengths",
 ]
 
@@ -53,11 +54,18 @@ def segment_lengths(metric: Metric, path: np.ndarray, pieces: int = PIECES) -> n
     path = np.asarray(path, dtype=float)
     if len(path) < 2:
         return np.zeros(0)
-    step = np.diff(path, axis=0)  # (T - 1, n)
+    return pair_lengths(metric, path[:-1], path[1:], pieces)
+
+
+def pair_lengths(metric: Metric, X: np.ndarray, Y: np.ndarray, pieces: int = PIECES) -> np.ndarray:
+    """(K,) metric length of each straight segment ``X[k]`` -> ``Y[k]`` ((K, n) [rad]
+    each), by the midpoint rule on ``pieces`` pieces per segment (one batched
+    ``G_many``)."""
+    step = Y - X  # (K, n)
     s = (np.arange(pieces) + 0.5) / pieces
-    mids = path[:-1, None] + s[None, :, None] * step[:, None]  # (T - 1, pieces, n)
-    d = np.repeat(step / pieces, pieces, axis=0)  # each piece's step, (K, n)
-    G = metric.G_many(mids.reshape(-1, path.shape[1]))
+    mids = X[:, None] + s[None, :, None] * step[:, None]  # (K, pieces, n)
+    d = np.repeat(step / pieces, pieces, axis=0)  # each piece's step, (K pieces, n)
+    G = metric.G_many(mids.reshape(-1, X.shape[1]))
     sq = np.einsum("ka,kab,kb->k", d, G, d)
     return np.sqrt(np.maximum(sq, 0.0)).reshape(-1, pieces).sum(axis=1)
 
@@ -101,10 +109,6 @@ def metric_shortcut(
     path = np.asarray(path, dtype=float)
     t_end = time.perf_counter() + budget
     lengths = segment_lengths(metric, path)  # of each segment, kept up to date
-
-    def length(x: np.ndarray, y: np.ndarray) -> float:
-        return float(segment_lengths(metric, np.array([x, y]))[0])
-
     for _ in range(tries):
         if len(path) <= 2 or time.perf_counter() > t_end:
             break
@@ -114,13 +118,15 @@ def metric_shortcut(
         b, j = _point(path, cum, float(v))
         if j == i:  # on one segment: already straight
             continue
-        old = length(a, path[i + 1]) + float(lengths[i + 1 : j].sum()) + length(path[j], b)
-        new = length(a, b)
+        ends = pair_lengths(metric, np.array([a, path[j], a]), np.array([path[i + 1], b, b]))
+        old = float(ends[0]) + float(lengths[i + 1 : j].sum()) + float(ends[1])
+        new = float(ends[2])
         if new >= old:
             continue
         if not _segment_ok(valid, segment, a, b, resolution):
             continue
-        pieces = [length(path[i], a), new, length(b, path[j + 1])]
+        first, last = pair_lengths(metric, np.array([path[i], b]), np.array([a, path[j + 1]]))
+        pieces = [float(first), new, float(last)]
         path = np.vstack([path[: i + 1], a, b, path[j + 1 :]])
         lengths = np.concatenate([lengths[:i], pieces, lengths[j + 1 :]])
         keep = np.concatenate([[True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12])
