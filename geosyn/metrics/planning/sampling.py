@@ -333,11 +333,12 @@ class Sampling:
         if not self.check.self_pairs:
             return
         shut = [q for q in (q0, q1) if self.shut_in(q)]
-        for _ in range(SELF_RAMP_HALVINGS if shut else 0):
+        for _ in range(SELF_RAMP_HALVINGS):
+            if not shut:
+                break
             self.ramp *= 0.5
             self.check.set_ends([q0, q1], ends, SAMPLING_RAMP, self.ramp)
-            if not (shut := [q for q in shut if self.shut_in(q)]):
-                break
+            shut = [q for q in shut if self.shut_in(q)]
 
     @property
     def ramp_line(self) -> str:
