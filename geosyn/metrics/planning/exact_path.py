@@ -30,6 +30,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from geosyn.core.errors import InvalidArgument
 from geosyn.world.distance import signed_distance
 from geosyn.world.exact_clearance import ExactClearance, PathClearance, checked_configurations
 
@@ -39,6 +40,7 @@ __all__ = [
     "PathAids",
     "checked_configurations",
     "configuration_clearances",
+    "configuration_gradients",
     "path_clearance",
 ]
 
@@ -128,20 +130,18 @@ def _coal_parts(exact: ExactClearance) -> tuple[np.ndarray, np.ndarray, list[tup
     return R_place, t_place, others
 
 
-def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
-                             aids: PathAids | None = None) -> np.ndarray:  # fmt: skip
-    """(K,) the smallest exact clearance [m] at each configuration of ``Q`` (K, n) [rad]
-    to the obstacles set on ``exact`` (``exact.near`` where no pair is nearer; inf
-    without obstacles): per configuration, coal's distance for its pairs in order of
-    their lower bounds (`path_clearance`'s), until the next bound is not below the
-    smallest found. GJK to 1e-9 (coal's default 1e-6 would dominate a finite
-    difference of 1e-4 rad)."""
+def _nearest(exact: ExactClearance, Q: np.ndarray, aids: PathAids | None,
+             witnesses: bool) -> tuple[np.ndarray, list[tuple[int, Any] | None]]:  # fmt: skip
+    """`configuration_clearances`' values (K,) and, with ``witnesses``, per configuration
+    the nearest pair's (object index, coal ``DistanceResult``) (None where no pair is
+    nearer than ``exact.near``)."""
     import coal
 
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     obstacles = exact.obstacles
+    found: list[tuple[int, Any] | None] = [None] * len(Q)
     if not obstacles:
-        return np.full(len(Q), math.inf)
+        return np.full(len(Q), math.inf), found
     aids = aids if aids is not None else PathAids()
     placed = _placements(exact, Q, aids, math.inf)
     if placed is None:  # only a deadline stops `_placements`, and none is set
@@ -163,11 +163,60 @@ def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
             Rj = R[i, slot[k]]
             tf = coal.Transform3s(Rj @ R_place[k], Rj @ t_place[k] + p[i, slot[k]])
             geom, tf_o = others[o]
-            d = float(coal.distance(exact.geoms[k], tf, geom, tf_o, request,
-                                    coal.DistanceResult()))  # fmt: skip
-            low = min(low, d)
+            result = coal.DistanceResult()
+            d = float(coal.distance(exact.geoms[k], tf, geom, tf_o, request, result))
+            if d < low:
+                low = d
+                if witnesses:
+                    found[i] = (k, result)
         out[i] = low
-    return out
+    return out, found
+
+
+def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
+                             aids: PathAids | None = None) -> np.ndarray:  # fmt: skip
+    """(K,) the smallest exact clearance [m] at each configuration of ``Q`` (K, n) [rad]
+    to the obstacles set on ``exact`` (``exact.near`` where no pair is nearer; inf
+    without obstacles): per configuration, coal's distance for its pairs in order of
+    their lower bounds (`path_clearance`'s), until the next bound is not below the
+    smallest found. GJK to 1e-9 (coal's default 1e-6 would dominate a finite
+    difference of 1e-4 rad)."""
+    return _nearest(exact, Q, aids, witnesses=False)[0]
+
+
+def configuration_gradients(exact: ExactClearance, Q: np.ndarray,
+                            aids: PathAids | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """((K,) `configuration_clearances` [m], (K, n) their gradients [m/rad]) at the
+    configurations ``Q`` (K, n) [rad] of a robot with ``nq == nv``: the gradient of the
+    nearest pair's distance, ``-normal . v(p)`` with ``p`` coal's witness point on the
+    robot's object, ``normal`` coal's unit normal from that object to the obstacle (in
+    contact too: the direction that separates them) and ``v(p) = J_lin + omega x (p -
+    o_j)`` the point's velocity per joint rate, from Pinocchio's joint Jacobian (world
+    aligned) of the object's joint at ``o_j``. Zero where no pair is nearer than
+    ``exact.near`` (the value does not change there) or the object is fixed to the
+    world. A minimum over pairs has kinks where two are equally near: there this is
+    one side's gradient. One coal pass and one Jacobian per configuration, where
+    central differences take 2 n passes."""
+    model, data = exact.robot.model, exact.data
+    if model.nq != model.nv:
+        raise InvalidArgument(
+            f"robot: exact clearance gradients need nq == nv, got nq={model.nq}, nv={model.nv}"
+        )
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    c, found = _nearest(exact, Q, aids, witnesses=True)
+    g = np.zeros((len(Q), model.nv))
+    frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    for i, hit in enumerate(found):
+        if hit is None or exact.joints[hit[0]] == 0:
+            continue
+        k, result = hit
+        j = exact.joints[k]
+        pin.computeJointJacobians(model, data, Q[i])
+        J = pin.getJointJacobian(model, data, j, frame)
+        normal = np.asarray(result.normal)
+        arm = np.asarray(result.getNearestPoint1()) - data.oMi[j].translation
+        g[i] = -(normal @ J[:3] + np.cross(arm, normal) @ J[3:])
+    return c, g
 
 
 CHUNK = 64

@@ -12,7 +12,8 @@ discrete energy plus a clearance penalty on the samples,
 with ``c`` the smallest sphere-obstacle clearance (the planner's `SphereCheck`) and
 ``delta`` [m] the clearance below which the penalty acts. Its gradient is exact in the
 energy (`geosyn.metrics.base.Metric.quadratic_gradients`, the midpoint metrics by
-`~geosyn.metrics.base.Metric.G_many`) and by central differences in the clearance; the
+`~geosyn.metrics.base.Metric.G_many`); in the clearance it is the caller's
+(``gradients``: the nearest pair's, analytic) or central differences. The
 Gauss-Newton Hessian is block tridiagonal (``2 N G(m_i)`` per segment, plus
 ``2 w g g^T`` per penalised sample, ``g`` the clearance gradient), solved as one banded
 Cholesky system. A step is tried at twice the fraction the last one took and halved
@@ -48,7 +49,7 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.metrics.base import Metric
 from geosyn.metrics.planning.rrt import SegmentValidity
 
-__all__ = ["RELAX_DELTA", "metric_relax"]
+__all__ = ["RELAX_DELTA", "Clearances", "Gradients", "metric_relax"]
 
 RELAX_DELTA = 0.03
 """Clearance [m] below which a sample is penalised (above the planner's sampling
@@ -57,6 +58,10 @@ margin: the samples keep clear of the obstacles, the segments between them too).
 Clearances = Callable[[np.ndarray], np.ndarray]
 """``clearances(Q (K, n)) -> (K,)`` smallest sphere-obstacle signed distance [m]
 (`geosyn.metrics.planning.sphere_check.SphereCheck.clearances`)."""
+
+Gradients = Callable[[np.ndarray], np.ndarray]
+"""``gradients(Q (K, n)) -> (K, n)`` the gradients [m/rad] of the `Clearances` at ``Q``
+(e.g. `geosyn.metrics.planning.exact_path.configuration_gradients`)."""
 
 SMALLEST_STEP = 0.5**7
 """Smallest fraction of a Gauss-Newton step tried before the relaxation stops. Each step
@@ -106,20 +111,24 @@ def _penalty_value(clear: Clearances, x: np.ndarray, delta: float,
 
 
 def _penalty_gradient(clear: Clearances, x: np.ndarray, c: np.ndarray, delta: float,
-                      weight: float, h: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+                      weight: float, h: float = 1e-6, gradients: Gradients | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """((T, n) the penalty's gradient, (T, n) the clearance gradients of the penalised
     interior samples, zero elsewhere) of ``x`` with its interior clearances ``c``
-    (`_penalty_value`): central differences of step ``h`` [rad]."""
+    (`_penalty_value`): ``gradients``, or central differences of step ``h`` [rad]."""
     T, n = x.shape
     grad, g_all = np.zeros_like(x), np.zeros_like(x)
     hit = np.flatnonzero(c < delta)
     if not hit.size:
         return grad, g_all
     base = x[1:-1][hit]
-    steps = h * np.eye(n)
-    probes = np.concatenate([base[:, None] + steps, base[:, None] - steps], axis=1)
-    values = clear(probes.reshape(-1, n)).reshape(len(hit), 2 * n)
-    g = (values[:, :n] - values[:, n:]) / (2.0 * h)
+    if gradients is not None:
+        g = gradients(base)
+    else:
+        steps = h * np.eye(n)
+        probes = np.concatenate([base[:, None] + steps, base[:, None] - steps], axis=1)
+        values = clear(probes.reshape(-1, n)).reshape(len(hit), 2 * n)
+        g = (values[:, :n] - values[:, n:]) / (2.0 * h)
     grad[hit + 1] = -2.0 * weight * (delta - c[hit])[:, None] * g
     g_all[hit + 1] = g
     return grad, g_all
@@ -221,6 +230,7 @@ def metric_relax(
     stay_valid: bool = False,
     path_ok: Callable[[np.ndarray], bool] | None = None,
     fd_step: float = 1e-6,
+    gradients: Gradients | None = None,
     seed_valid: bool = True,
     bounds: tuple[np.ndarray, np.ndarray] | None = None,
     first_valid: bool = False,
@@ -245,7 +255,9 @@ def metric_relax(
             ones.
         path_ok: whether a whole iterate (T, n) is valid, in place of ``segment`` on
             each of its segments (e.g. an exact check of the path).
-        fd_step: central-difference step of the clearance gradients [rad].
+        fd_step: central-difference step of the clearance gradients [rad] (without
+            ``gradients``).
+        gradients: the clearances' gradients (`Gradients`); None: central differences.
         seed_valid: whether ``path`` is valid. False (a seed through the obstacles,
             pushed out by the penalty): the first valid iterate is kept whatever its
             energy, then lower ones (never with ``stay_valid``).
@@ -275,7 +287,7 @@ def metric_relax(
     g_e = _energy_gradient(metric, x, Gs)
     weight = 100.0 * max(energy, 1e-9) / delta**2  # delta deep costs 100 times E
     pen, c = _penalty_value(clearances, x, delta, weight)
-    g_p, g_c = _penalty_gradient(clearances, x, c, delta, weight, fd_step)
+    g_p, g_c = _penalty_gradient(clearances, x, c, delta, weight, fd_step, gradients)
     if not seed_valid and stay_valid:
         raise InvalidArgument("metric_relax: stay_valid needs a valid path (seed_valid)")
     cost, best, N = energy + pen, x.copy(), T - 1
@@ -310,7 +322,7 @@ def metric_relax(
         fall = (cost - t_energy - t_pen) / max(cost, 1e-12)
         x, cost, Gs = trial, t_energy + t_pen, t_Gs
         g_e = _energy_gradient(metric, x, Gs)
-        g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight, fd_step)
+        g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight, fd_step, gradients)
         if t_energy < lowest and (stay_valid or valid(x)):  # stay_valid: checked above
             best, lowest = x.copy(), t_energy
             if first_valid:

@@ -60,6 +60,7 @@ def _library() -> ctypes.CDLL:
         "geosyn_spheres_set_pairs": (_I, [_P, _I, _P, _P, _I, _P, _P]),
         "geosyn_spheres_set_obstacles": (_I, [_P, _I, _P, _P]),
         "geosyn_spheres_clearances": (None, [_P, _P, _I, _P]),
+        "geosyn_spheres_clearance_gradients": (None, [_P, _P, _I, _P, _P]),
         "geosyn_spheres_self_clearances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_obstacle_distances": (None, [_P, _P, _I, _P]),
         "geosyn_spheres_group_distances": (None, [_P, _P, _I, _P, _I, _P]),
@@ -258,6 +259,18 @@ class NativeSphereCheck(SphereCheck):
         out = np.empty(len(Q))
         self._lib.geosyn_spheres_clearances(self._handle, _address(Q), len(Q), _address(out))
         return out
+
+    def clearance_gradients(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """((K,) `clearances` [m], (K, n) their gradients [m/rad]) at ``Q`` (K, n) [rad]:
+        the nearest sphere-obstacle pair's, its shape's distance gradient at the sphere's
+        centre times the centre's joint Jacobian (one side's at a kink of the minimum;
+        zero without obstacles or spheres). O(K (n + S O))."""
+        Q = self._configurations(Q)
+        out, grad = np.full(len(Q), math.inf), np.zeros(Q.shape)
+        if self.obstacles and self._radius.size:
+            self._lib.geosyn_spheres_clearance_gradients(self._handle, _address(Q), len(Q),
+                                                         _address(out), _address(grad))  # fmt: skip
+        return out, grad
 
     def joint_frames(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """((K, J + 1, 3, 3), (K, J + 1, 3)) world rotations and positions of every joint

@@ -6,8 +6,10 @@ The planner's spheres cover every mesh point with up to 2 cm to spare
 (`geosyn.metrics.planning.sampled.pull_taut`) keeps 1.5-3 cm of exact clearance on the
 Panda scenes where the margin asks for 1 cm. This last stage relaxes the path once more
 (`geosyn.metrics.planning.relax.metric_relax`) with the clearance of every sample taken
-exactly (coal, `geosyn.metrics.planning.exact_path.configuration_clearances`; the
-penalty acts below the planner's margin) and only steps whose whole path keeps at least
+exactly (coal, `geosyn.metrics.planning.exact_path.configuration_clearances`; their
+gradients from coal's witness points and Pinocchio's joint Jacobians,
+`~geosyn.metrics.planning.exact_path.configuration_gradients`; the penalty acts below
+the planner's margin) and only steps whose whole path keeps at least
 `EXACT_FLOOR` times the margin at every configuration of the exact check
 (`geosyn.metrics.planning.exact_path.path_clearance`, the verification's own
 resolution), within the joint limits. Self-collision is left to the verification that
@@ -22,7 +24,11 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from geosyn.metrics.planning.exact_path import configuration_clearances, path_clearance
+from geosyn.metrics.planning.exact_path import (
+    configuration_clearances,
+    configuration_gradients,
+    path_clearance,
+)
 from geosyn.metrics.planning.relax import metric_relax
 from geosyn.metrics.planning.smoothing import even_in_metric
 
@@ -74,8 +80,9 @@ PUSH_DELTA = 2.0
 out past the floor, so that the tightening then has a valid start)."""
 
 EXACT_FD_STEP = 1e-4
-"""Central-difference step [rad] of the exact clearances' gradients (coal's distances,
-GJK to 1e-9 m: 1e-5 relative error in the gradient)."""
+"""Central-difference step [rad] of the exact clearances' gradients where they are not
+taken from coal's witness points (`configuration_gradients`: a robot with ``nq != nv``;
+coal's distances, GJK to 1e-9 m: 1e-5 relative error in the gradient)."""
 
 
 class _ExactTerms(NamedTuple):
@@ -83,6 +90,7 @@ class _ExactTerms(NamedTuple):
 
     floor: float  # [m] every configuration of the exact check keeps this
     clearances: Callable[[np.ndarray], np.ndarray]  # (K, n) -> (K,) exact clearances [m]
+    gradients: Callable[[np.ndarray], np.ndarray] | None  # (K, n) -> (K, n) theirs [m/rad]
     path_ok: Callable[[np.ndarray], bool]  # a whole path (T, n) keeps the floor
 
 
@@ -106,12 +114,16 @@ def _exact_terms(planner: Planner) -> _ExactTerms | None:
     def clearances(Q: np.ndarray) -> np.ndarray:
         return configuration_clearances(exact, Q, aids)
 
+    def gradients(Q: np.ndarray) -> np.ndarray:
+        return configuration_gradients(exact, Q, aids)[1]
+
     def path_ok(x: np.ndarray) -> bool:
         return bool(
             path_clearance(exact, x, planner.exact_resolution, aids=aids).clearance >= floor
         )
 
-    return _ExactTerms(floor, clearances, path_ok)
+    model = planner.robot.model  # nq != nv: central differences (`EXACT_FD_STEP`)
+    return _ExactTerms(floor, clearances, gradients if model.nq == model.nv else None, path_ok)
 
 
 def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float,
@@ -122,7 +134,7 @@ def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float
     return metric_relax(
         None, terms.clearances, planner.metric, path, budget=budget,
         delta=delta, stay_valid=valid, seed_valid=valid, path_ok=terms.path_ok,
-        fd_step=EXACT_FD_STEP, bounds=(planner.robot.q_min, planner.robot.q_max),
+        fd_step=EXACT_FD_STEP, gradients=terms.gradients, bounds=(planner.robot.q_min, planner.robot.q_max),
         first_valid=not valid,
     )  # fmt: skip
 
@@ -133,8 +145,8 @@ def exact_tighten(planner: Planner, path: np.ndarray, budget: float) -> np.ndarr
     ``budget`` [s] (module docstring); ``path`` itself when the planner has no exact
     geometry, no margin, or no step keeps the floor.
 
-    Each step costs about 2 n T exact clearances (its gradient) plus an exact check of
-    the path per trial (3-20 ms on the Panda scenes).
+    Each step costs about 2 T exact clearances (the samples' values and gradients) plus
+    an exact check of the path per trial (3-20 ms on the Panda scenes).
     """
     terms = _exact_terms(planner)
     if terms is None or budget <= 0.0 or not terms.path_ok(path):

@@ -282,6 +282,17 @@ static void place_bounds(const gs_model *m, gs_spheres *s) {
     for (int g = 0; g < s->groups; ++g) to_world(m, s->gjoint[g], s->bound + 4 * g, s->gworld + 3 * g);
 }
 
+/* e = d (a point less the capsule's first end) less its nearest point of the segment. */
+static void capsule_offset(const double *o, const double *d, double *e) {
+    double ab[3] = {o[3] - o[0], o[4] - o[1], o[5] - o[2]};
+    double den = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2], t = 0.0;
+    if (den > 0.0) {
+        t = (d[0] * ab[0] + d[1] * ab[1] + d[2] * ab[2]) / den;
+        t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+    }
+    for (int a = 0; a < 3; ++a) e[a] = d[a] - t * ab[a];
+}
+
 static double distance(int kind, const double *o, const double *x) {
     double d[3] = {x[0] - o[0], x[1] - o[1], x[2] - o[2]};
     switch (kind) {
@@ -297,13 +308,8 @@ static double distance(int kind, const double *o, const double *x) {
         return sqrt(out) + (in < 0.0 ? in : 0.0);
     }
     case 2: {
-        double ab[3] = {o[3] - o[0], o[4] - o[1], o[5] - o[2]};
-        double den = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2], t = 0.0;
-        if (den > 0.0) {
-            t = (d[0] * ab[0] + d[1] * ab[1] + d[2] * ab[2]) / den;
-            t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
-        }
-        double e[3] = {d[0] - t * ab[0], d[1] - t * ab[1], d[2] - t * ab[2]};
+        double e[3];
+        capsule_offset(o, d, e);
         return sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) - o[15];
     }
     case 3: {
@@ -319,10 +325,11 @@ static double distance(int kind, const double *o, const double *x) {
 }
 
 /* The smallest sphere-obstacle clearance, or (stop finite) the first one found below
- * stop. A group whose ball is at least the best found (or stop) away is skipped: signed
- * distances are 1-Lipschitz, so the ball's clearance bounds its spheres'. Needs the balls
- * placed (place_bounds); computes the world centres of the spheres it visits. */
-static double clearance(gs_model *m, double stop) {
+ * stop; who (NULL: not asked) gets the (sphere, obstacle) of the smallest. A group whose
+ * ball is at least the best found (or stop) away is skipped: signed distances are
+ * 1-Lipschitz, so the ball's clearance bounds its spheres'. Needs the balls placed
+ * (place_bounds); computes the world centres of the spheres it visits. */
+static double clearance(gs_model *m, double stop, int *who) {
     double best = INFINITY;
     gs_spheres *s = &m->obs;
     for (int g = 0; g < s->groups; ++g) {
@@ -336,7 +343,10 @@ static double clearance(gs_model *m, double stop) {
                 double w[3];
                 to_world(m, s->gjoint[g], s->centre + 3 * i, w);
                 double v = distance(m->okind[k], o, w) - s->radius[i];
-                if (v < best) best = v;
+                if (v < best) {
+                    best = v;
+                    if (who) { who[0] = i; who[1] = k; }
+                }
             }
             if (best < stop) return best;
         }
@@ -394,7 +404,104 @@ GS_API void geosyn_spheres_clearances(void *handle, const double *Q, int K, doub
     for (int k = 0; k < K; ++k) {
         kinematics(m, Q + (size_t)m->nq * k);
         place_bounds(m, &m->obs);
-        out[k] = clearance(m, -INFINITY);
+        out[k] = clearance(m, -INFINITY, NULL);
+    }
+}
+
+/* g (3,): the gradient of distance(kind, o, x) in x (zero where it has none: at a
+ * sphere's or capsule's centre line, a box's or cylinder's centre). */
+static void distance_gradient(int kind, const double *o, const double *x, double *g) {
+    double d[3] = {x[0] - o[0], x[1] - o[1], x[2] - o[2]}, n;
+    g[0] = g[1] = g[2] = 0.0;
+    switch (kind) {
+    case 0:
+        n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (n > 0.0)
+            for (int a = 0; a < 3; ++a) g[a] = d[a] / n;
+        return;
+    case 1: { /* axis b of the box: (o[3 + b], o[6 + b], o[9 + b]) */
+        double l[3], sg[3], out = 0.0, in = -INFINITY, w[3] = {0.0, 0.0, 0.0};
+        int deepest = 0;
+        for (int b = 0; b < 3; ++b) {
+            double t = d[0] * o[3 + b] + d[1] * o[6 + b] + d[2] * o[9 + b];
+            sg[b] = t < 0.0 ? -1.0 : 1.0;
+            l[b] = fabs(t) - o[12 + b];
+            if (l[b] > 0.0) out += l[b] * l[b];
+            if (l[b] > in) { in = l[b]; deepest = b; }
+        }
+        if (out > 0.0) /* outside: towards the nearest point */
+            for (int b = 0; b < 3; ++b) w[b] = l[b] > 0.0 ? sg[b] * l[b] / sqrt(out) : 0.0;
+        else /* inside: out through the nearest face */
+            w[deepest] = sg[deepest];
+        for (int a = 0; a < 3; ++a) g[a] = o[3 * a + 3] * w[0] + o[3 * a + 4] * w[1] + o[3 * a + 5] * w[2];
+        return;
+    }
+    case 2: {
+        double e[3];
+        capsule_offset(o, d, e);
+        n = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+        if (n > 0.0)
+            for (int a = 0; a < 3; ++a) g[a] = e[a] / n;
+        return;
+    }
+    case 3: { /* in the cylinder's frame: radial (l0, l1), axial l2 */
+        double l[3], w[3] = {0.0, 0.0, 0.0};
+        for (int b = 0; b < 3; ++b) l[b] = d[0] * o[3 + b] + d[1] * o[6 + b] + d[2] * o[9 + b];
+        double rho = hypot(l[0], l[1]), u0 = rho - o[12], u1 = fabs(l[2]) - o[13];
+        double a0 = u0 > 0.0 ? u0 : 0.0, a1 = u1 > 0.0 ? u1 : 0.0, out = sqrt(a0 * a0 + a1 * a1);
+        double radial = 0.0, axial = 0.0, sz = l[2] < 0.0 ? -1.0 : 1.0;
+        if (out > 0.0) {
+            radial = a0 / out;
+            axial = a1 / out;
+        } else if (u0 > u1) {
+            radial = 1.0;
+        } else {
+            axial = 1.0;
+        }
+        if (rho > 0.0) { w[0] = radial * l[0] / rho; w[1] = radial * l[1] / rho; }
+        w[2] = axial * sz;
+        for (int a = 0; a < 3; ++a) g[a] = o[3 * a + 3] * w[0] + o[3 * a + 4] * w[1] + o[3 * a + 5] * w[2];
+        return;
+    }
+    default:
+        g[0] = o[0]; g[1] = o[1]; g[2] = o[2];
+        return;
+    }
+}
+
+/* out[k] as geosyn_spheres_clearances and grad (K, nq): its gradient [m/rad], that of the
+ * nearest (sphere, obstacle) pair: the distance's gradient at the sphere's centre x
+ * times dx/dq (a revolute joint's world axis w at o_j: w x (x - o_j); a prismatic
+ * one's: w), summed over the joints from the sphere's up to the root. Zero without a
+ * pair (inf) or for a sphere fixed to the world. At a kink of the minimum (two pairs
+ * equally near), one side's gradient. */
+GS_API void geosyn_spheres_clearance_gradients(void *handle, const double *Q, int K,
+                                               double *out, double *grad) {
+    gs_model *m = handle;
+    gs_spheres *s = &m->obs;
+    for (int k = 0; k < K; ++k) {
+        double *g = grad + (size_t)m->nq * k, n[3], x[3];
+        int who[2] = {-1, -1};
+        kinematics(m, Q + (size_t)m->nq * k);
+        place_bounds(m, s);
+        out[k] = clearance(m, -INFINITY, who);
+        memset(g, 0, sizeof(double) * m->nq);
+        if (who[0] < 0) continue;
+        int j = s->joint[who[0]];
+        to_world(m, j, s->centre + 3 * who[0], x);
+        distance_gradient(m->okind[who[1]], m->opar + GS_OBSTACLE * who[1], x, n);
+        for (; j >= 0; j = m->parent[j]) {
+            const double *R = m->R + 9 * j, *p = m->p + 3 * j, *u = m->axis + 3 * j;
+            double w[3];
+            for (int a = 0; a < 3; ++a) w[a] = R[3 * a] * u[0] + R[3 * a + 1] * u[1] + R[3 * a + 2] * u[2];
+            if (m->kind[j] == 0) { /* n . (w x r) = (r x n) . w */
+                double r[3] = {x[0] - p[0], x[1] - p[1], x[2] - p[2]};
+                g[m->iq[j]] += (r[1] * n[2] - r[2] * n[1]) * w[0] + (r[2] * n[0] - r[0] * n[2]) * w[1] +
+                               (r[0] * n[1] - r[1] * n[0]) * w[2];
+            } else {
+                g[m->iq[j]] += n[0] * w[0] + n[1] * w[1] + n[2] * w[2];
+            }
+        }
     }
 }
 
@@ -472,7 +579,7 @@ static int config_valid(gs_model *m, const double *q, double margin, int self) {
     kinematics(m, q);
     if (m->n_obstacles && m->obs.n) {
         place_bounds(m, &m->obs);
-        if (clearance(m, margin) < margin) return 0;
+        if (clearance(m, margin, NULL) < margin) return 0;
     }
     if (self && m->n_pairs) {
         place_spheres(m, &m->own);
