@@ -141,3 +141,35 @@ def test_a_push_out_stops_at_its_first_valid_iterate(planner: Planner) -> None:
     full = relax(False)
     assert verdicts.count(True) > 1
     assert _energy(planner, full) < _energy(planner, out)
+
+
+def test_a_floor_spares_the_path_check_and_changes_nothing(planner: Planner) -> None:
+    """``floor`` in a tightening (valid steps, penalty below 1 cm): a path check that
+    also asks every sample to keep 2 cm (on the sphere clearances the relaxation knows)
+    is never called on an iterate whose samples do not, where without the floor it is,
+    and the relaxation returns the same path as without it."""
+    planner.term.set_obstacles([POST])
+    planner.sphere_check.set_obstacles([POST])
+    floor, clear = 0.02, planner.sphere_check.clearances
+    line = bumped_line(Q0, Q1, 13, ROBOT.q_min, ROBOT.q_max, seed=0, index=1)
+    start = metric_relax(planner.segment_valid, clear, planner.metric, line, budget=30.0,
+                         seed_valid=False)  # fmt: skip
+    asked: list[float] = []
+
+    def path_ok(y: np.ndarray) -> bool:
+        asked.append(float(clear(y[1:-1]).min()))
+        return asked[-1] >= floor and all(
+            planner.segment_valid(a, b, 0.02) for a, b in zip(y[:-1], y[1:], strict=True)
+        )
+
+    def relax(with_floor: float) -> np.ndarray:
+        asked.clear()
+        return metric_relax(None, clear, planner.metric, start, budget=30.0, delta=0.01,
+                            stay_valid=True, path_ok=path_ok, floor=with_floor)  # fmt: skip
+
+    plain = relax(-np.inf)
+    below = sum(c < floor for c in asked)
+    screened = relax(floor)
+    assert below > 0 and all(c >= floor for c in asked)  # without the floor: asked about some
+    np.testing.assert_array_equal(screened, plain)
+    assert not np.array_equal(plain, start)  # it moved

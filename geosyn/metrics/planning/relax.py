@@ -231,6 +231,7 @@ def metric_relax(
     path_ok: Callable[[np.ndarray], bool] | None = None,
     fd_step: float = 1e-6,
     gradients: Gradients | None = None,
+    floor: float = -math.inf,
     seed_valid: bool = True,
     bounds: tuple[np.ndarray, np.ndarray] | None = None,
     first_valid: bool = False,
@@ -258,6 +259,9 @@ def metric_relax(
         fd_step: central-difference step of the clearance gradients [rad] (without
             ``gradients``).
         gradients: the clearances' gradients (`Gradients`); None: central differences.
+        floor: clearance [m] below which an interior sample makes an iterate invalid
+            without asking ``path_ok`` (whose checked configurations include the
+            samples, at this floor: its answer would be no).
         seed_valid: whether ``path`` is valid. False (a seed through the obstacles,
             pushed out by the penalty): the first valid iterate is kept whatever its
             energy, then lower ones (never with ``stay_valid``).
@@ -281,6 +285,9 @@ def metric_relax(
     x[1:-1] = np.clip(x[1:-1], lo, hi)  # the ends stay as given (checked by the caller)
 
     valid = _path_check(segment, path_ok, resolution)
+
+    def keeps(c: np.ndarray) -> bool:  # the interior samples' clearances keep ``floor``
+        return bool(c.min() >= floor)
 
     t_end = time.perf_counter() + budget
     energy, Gs = _energy_value(metric, x)
@@ -311,7 +318,7 @@ def metric_relax(
             trial[1:-1] = np.clip(x[1:-1] + scale * step, lo, hi)
             t_energy, t_Gs = _energy_value(metric, trial)  # the gradients once accepted
             t_pen, t_c = _penalty_value(clearances, trial, delta, weight)
-            if t_energy + t_pen < cost and (not stay_valid or valid(trial)):
+            if t_energy + t_pen < cost and (not stay_valid or (keeps(t_c) and valid(trial))):
                 break
             scale *= 0.5
             if scale < SMALLEST_STEP:
@@ -323,7 +330,7 @@ def metric_relax(
         x, cost, Gs = trial, t_energy + t_pen, t_Gs
         g_e = _energy_gradient(metric, x, Gs)
         g_p, g_c = _penalty_gradient(clearances, x, t_c, delta, weight, fd_step, gradients)
-        if t_energy < lowest and (stay_valid or valid(x)):  # stay_valid: checked above
+        if t_energy < lowest and (stay_valid or (keeps(t_c) and valid(x))):  # stay_valid: above
             best, lowest = x.copy(), t_energy
             if first_valid:
                 break

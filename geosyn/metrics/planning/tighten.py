@@ -134,8 +134,8 @@ def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float
     return metric_relax(
         None, terms.clearances, planner.metric, path, budget=budget,
         delta=delta, stay_valid=valid, seed_valid=valid, path_ok=terms.path_ok,
-        fd_step=EXACT_FD_STEP, gradients=terms.gradients, bounds=(planner.robot.q_min, planner.robot.q_max),
-        first_valid=not valid,
+        fd_step=EXACT_FD_STEP, gradients=terms.gradients, floor=terms.floor,
+        bounds=(planner.robot.q_min, planner.robot.q_max), first_valid=not valid,
     )  # fmt: skip
 
 
