@@ -137,3 +137,20 @@ def test_exact_clearance_gradients_are_coals_central_differences(
     scale = np.maximum(np.linalg.norm(fd, axis=1), 1e-3)
     assert (np.linalg.norm(g - fd, axis=1) / scale)[smooth].max() < 1e-4
     assert not g[~near].any()  # beyond ``near`` the value is ``near``: flat
+
+
+def test_capped_exact_clearances_are_coals_below_the_cap(panda_exact: ExactClearance) -> None:
+    """``cap``: the configuration-by-configuration coal check's clearance where it is below
+    the cap, the cap elsewhere (to coal's GJK tolerance, 1e-6 m); gradients only below it."""
+    exact = panda_exact
+    exact.set_obstacles([shapes.Box((0.45, 0.0, 0.45), (0.05, 0.3, 0.05)),
+                         shapes.Sphere((0.3, 0.3, 0.6), 0.08)])  # fmt: skip
+    Q = HOME + 0.4 * np.random.default_rng(11).standard_normal((120, 7))
+    cap = 0.01
+    referee = np.array([exact.clearance(q)[0] for q in Q])
+    capped = configuration_clearances(exact, Q, cap=cap)
+    assert np.sum(referee < cap) >= 20 and np.sum(referee > cap + 1e-4) >= 20
+    np.testing.assert_allclose(capped, np.minimum(referee, cap), rtol=0.0, atol=1e-6)
+    c, g = configuration_gradients(exact, Q, cap=cap)
+    np.testing.assert_array_equal(c, capped)
+    assert not g[c >= cap].any() and np.all(np.linalg.norm(g[c < cap], axis=1) > 0.0)

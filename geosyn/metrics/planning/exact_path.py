@@ -130,11 +130,11 @@ def _coal_parts(exact: ExactClearance) -> tuple[np.ndarray, np.ndarray, list[tup
     return R_place, t_place, others
 
 
-def _nearest(exact: ExactClearance, Q: np.ndarray, aids: PathAids | None,
+def _nearest(exact: ExactClearance, Q: np.ndarray, aids: PathAids | None, cap: float,
              witnesses: bool) -> tuple[np.ndarray, list[tuple[int, Any] | None]]:  # fmt: skip
     """`configuration_clearances`' values (K,) and, with ``witnesses``, per configuration
     the nearest pair's (object index, coal ``DistanceResult``) (None where no pair is
-    nearer than ``exact.near``)."""
+    nearer than the cap)."""
     import coal
 
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
@@ -153,9 +153,10 @@ def _nearest(exact: ExactClearance, Q: np.ndarray, aids: PathAids | None,
     R_place, t_place, others = _coal_parts(exact)
     request = coal.DistanceRequest()
     request.gjk_tolerance = 1e-9
-    out = np.full(len(Q), exact.near)
-    for i in np.flatnonzero(ranked[:, 0] < exact.near):
-        low = exact.near
+    top = min(cap, exact.near)
+    out = np.full(len(Q), top)
+    for i in np.flatnonzero(ranked[:, 0] < top):
+        low = top
         for index, b in zip(order[i], ranked[i], strict=True):
             if b >= low:
                 break  # every pair left is at least this far
@@ -174,26 +175,27 @@ def _nearest(exact: ExactClearance, Q: np.ndarray, aids: PathAids | None,
 
 
 def configuration_clearances(exact: ExactClearance, Q: np.ndarray,
-                             aids: PathAids | None = None) -> np.ndarray:  # fmt: skip
+                             aids: PathAids | None = None, cap: float = math.inf) -> np.ndarray:  # fmt: skip
     """(K,) the smallest exact clearance [m] at each configuration of ``Q`` (K, n) [rad]
-    to the obstacles set on ``exact`` (``exact.near`` where no pair is nearer; inf
-    without obstacles): per configuration, coal's distance for its pairs in order of
-    their lower bounds (`path_clearance`'s), until the next bound is not below the
-    smallest found. GJK to 1e-9 (coal's default 1e-6 would dominate a finite
-    difference of 1e-4 rad)."""
-    return _nearest(exact, Q, aids, witnesses=False)[0]
+    to the obstacles set on ``exact``, at most ``cap`` [m] and ``exact.near`` (that
+    value where no pair is nearer; inf without obstacles): per configuration, coal's
+    distance for its pairs in order of their lower bounds (`path_clearance`'s), until
+    the next bound is not below the smallest found (or the cap: a caller that needs
+    only the clearances below ``cap``, a penalty's, measures fewer pairs). GJK to 1e-9
+    (coal's default 1e-6 would dominate a finite difference of 1e-4 rad)."""
+    return _nearest(exact, Q, aids, cap, witnesses=False)[0]
 
 
-def configuration_gradients(exact: ExactClearance, Q: np.ndarray,
-                            aids: PathAids | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def configuration_gradients(exact: ExactClearance, Q: np.ndarray, aids: PathAids | None = None,
+                            cap: float = math.inf) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """((K,) `configuration_clearances` [m], (K, n) their gradients [m/rad]) at the
     configurations ``Q`` (K, n) [rad] of a robot with ``nq == nv``: the gradient of the
     nearest pair's distance, ``-normal . v(p)`` with ``p`` coal's witness point on the
     robot's object, ``normal`` coal's unit normal from that object to the obstacle (in
     contact too: the direction that separates them) and ``v(p) = J_lin + omega x (p -
     o_j)`` the point's velocity per joint rate, from Pinocchio's joint Jacobian (world
-    aligned) of the object's joint at ``o_j``. Zero where no pair is nearer than
-    ``exact.near`` (the value does not change there) or the object is fixed to the
+    aligned) of the object's joint at ``o_j``. Zero where no pair is nearer than the
+    cap (``cap``, ``exact.near``: the value does not change there) or the object is fixed to the
     world. A minimum over pairs has kinks where two are equally near: there this is
     one side's gradient. One coal pass and one Jacobian per configuration, where
     central differences take 2 n passes."""
@@ -203,7 +205,7 @@ def configuration_gradients(exact: ExactClearance, Q: np.ndarray,
             f"robot: exact clearance gradients need nq == nv, got nq={model.nq}, nv={model.nv}"
         )
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
-    c, found = _nearest(exact, Q, aids, witnesses=True)
+    c, found = _nearest(exact, Q, aids, cap, witnesses=True)
     g = np.zeros((len(Q), model.nv))
     frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
     for i, hit in enumerate(found):

@@ -89,8 +89,9 @@ class _ExactTerms(NamedTuple):
     """What a relaxation on the exact geometry asks, for the query set on a planner."""
 
     floor: float  # [m] every configuration of the exact check keeps this
-    clearances: Callable[[np.ndarray], np.ndarray]  # (K, n) -> (K,) exact clearances [m]
-    gradients: Callable[[np.ndarray], np.ndarray] | None  # (K, n) -> (K, n) theirs [m/rad]
+    # (K, n), cap [m] -> (K,) exact clearances [m] (at most the cap), (K, n) theirs [m/rad]
+    clearances: Callable[[np.ndarray, float], np.ndarray]
+    gradients: Callable[[np.ndarray, float], np.ndarray] | None
     path_ok: Callable[[np.ndarray], bool]  # a whole path (T, n) keeps the floor
 
 
@@ -111,11 +112,11 @@ def _exact_terms(planner: Planner) -> _ExactTerms | None:
     floor = EXACT_FLOOR * planner.margin
     exact.set_obstacles(planner.term.obstacles)
 
-    def clearances(Q: np.ndarray) -> np.ndarray:
-        return configuration_clearances(exact, Q, aids)
+    def clearances(Q: np.ndarray, cap: float) -> np.ndarray:
+        return configuration_clearances(exact, Q, aids, cap)
 
-    def gradients(Q: np.ndarray) -> np.ndarray:
-        return configuration_gradients(exact, Q, aids)[1]
+    def gradients(Q: np.ndarray, cap: float) -> np.ndarray:
+        return configuration_gradients(exact, Q, aids, cap)[1]
 
     def path_ok(x: np.ndarray) -> bool:
         return bool(
@@ -130,11 +131,14 @@ def _relax(planner: Planner, terms: _ExactTerms, path: np.ndarray, budget: float
            delta: float, valid: bool) -> np.ndarray:  # fmt: skip
     """`metric_relax` of ``path`` on the exact terms within the joint limits: tightening
     (``valid``: every step keeps the floor) or pushing out (until the first iterate that
-    keeps it)."""
+    keeps it). The clearances are capped at ``delta`` (above it the penalty is zero:
+    fewer pairs measured, the same steps)."""
+    grads = terms.gradients
     return metric_relax(
-        None, terms.clearances, planner.metric, path, budget=budget,
+        None, lambda Q: terms.clearances(Q, delta), planner.metric, path, budget=budget,
         delta=delta, stay_valid=valid, seed_valid=valid, path_ok=terms.path_ok,
-        fd_step=EXACT_FD_STEP, gradients=terms.gradients, floor=terms.floor,
+        fd_step=EXACT_FD_STEP, floor=terms.floor,
+        gradients=None if grads is None else lambda Q: grads(Q, delta),
         bounds=(planner.robot.q_min, planner.robot.q_max), first_valid=not valid,
     )  # fmt: skip
 
