@@ -194,10 +194,10 @@ def configuration_gradients(exact: ExactClearance, Q: np.ndarray, aids: PathAids
     robot's object, ``normal`` coal's unit normal from that object to the obstacle (in
     contact too: the direction that separates them) and ``v(p) = J_lin + omega x (p -
     o_j)`` the point's velocity per joint rate, from Pinocchio's joint Jacobian (world
-    aligned) of the object's joint at ``o_j``. Zero where no pair is nearer than the
-    cap (``cap``, ``exact.near``: the value does not change there) or the object is fixed to the
-    world. A minimum over pairs has kinks where two are equally near: there this is
-    one side's gradient. One coal pass and one Jacobian per configuration, where
+    aligned) of the object's joint at ``o_j``. Zero where no pair is nearer than
+    ``cap`` or ``exact.near`` (the value does not change there) or the object is fixed
+    to the world. A minimum over pairs has kinks where two are equally near: there this
+    is one side's gradient. One coal pass and one Jacobian per configuration, where
     central differences take 2 n passes."""
     model, data = exact.robot.model, exact.data
     if model.nq != model.nv:
