@@ -225,7 +225,8 @@ def test_batched_exact_check_equals_coal_at_every_configuration(panda: Case) -> 
     every (configuration, collision object, obstacle) of the path at its resolution,
     computed here by brute force (no bounding balls), on seeded random paths; with the
     planner's aids (joint placements in C, bounds from the covering spheres) the same
-    where a path is clear (1e-9 m) and negative where it is not."""
+    where a path is clear (1e-9 m) and negative where it is not; capped, the smaller of
+    it and the cap."""
     robot, planner, q0, q1 = panda
     exact = planner.exact
     assert exact is not None  # the Panda has file geometry
@@ -248,6 +249,9 @@ def test_batched_exact_check_equals_coal_at_every_configuration(panda: Case) -> 
     assert 0.0 < brute < exact.near
     aided = path_clearance(exact, clear, 0.01, aids=planner.sampling.aids)
     assert abs(aided.clearance - brute) < 1e-9
+    for cap in (0.5 * brute, 2.0 * brute):  # capped: min(brute force, cap)
+        capped = path_clearance(exact, clear, 0.01, aids=planner.sampling.aids, cap=cap)
+        assert abs(capped.clearance - min(brute, cap)) < 1e-9
 
 
 def _coal_obstacle(ob: Box | Sphere) -> tuple[object, object]:

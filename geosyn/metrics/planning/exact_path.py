@@ -231,6 +231,7 @@ def path_clearance(
     resolution: float,
     deadline: float = math.inf,
     aids: PathAids | None = None,
+    cap: float = math.inf,
 ) -> PathClearance:
     """Smallest exact clearance of the linear interpolation of ``path`` (T, n) [rad] to
     the obstacles set on ``exact``, at the configurations of `checked_configurations`.
@@ -240,7 +241,9 @@ def path_clearance(
     when ``time.perf_counter()`` passes ``deadline`` [s] first. ``aids``: the joints'
     placements computed elsewhere (e.g. in C), tighter lower bounds of the pairs'
     distances, used instead of the bounding balls wherever they give one (fewer pairs
-    to measure); the same result. O(K (n + L O)) array work plus coal's distance for
+    to measure); the same result. ``cap`` [m]: the clearance at most this (pairs whose
+    bound is not below it are not measured: a caller that asks only whether the path
+    keeps ``cap`` measures far fewer); the same value where it is below. O(K (n + L O)) array work plus coal's distance for
     the pairs whose bound is below the result, placed `CHUNK` at a time.
     """
     import coal
@@ -264,12 +267,13 @@ def path_clearance(
         b = slice(a, a + 4 * CHUNK)
         parts.append(_lower_bounds(exact, Q[b], R[b], p[b], slot, aids.bounds))
     bound = np.concatenate(parts).ravel()
-    near = np.flatnonzero(bound < exact.near)
+    top = min(cap, exact.near)
+    near = np.flatnonzero(bound < top)
     order = near[np.argsort(bound[near], kind="stable")]
     sorted_bound = bound[order]
     at, obj, obs = np.unravel_index(order, (len(Q), len(exact.geoms), len(obstacles)))
     R_place, t_place, others = _coal_parts(exact)
-    low, request = math.inf, exact.request
+    low, request = top, exact.request
     tf, geoms = coal.Transform3s(), exact.geoms  # placed anew for each pair
     hit: tuple[int, int, int] | None = None
     for start in range(0, len(order), CHUNK):
@@ -296,7 +300,7 @@ def path_clearance(
             d = coal.distance(geoms[kk], tf, geom, tf_o, request, coal.DistanceResult())
             if d < low:
                 low, hit = d, (ii, kk, oo)
-    if hit is None:  # no pair nearer than ``near`` anywhere
-        return best._replace(clearance=exact.near)
+    if hit is None:  # no pair nearer than ``near`` (or the cap) anywhere
+        return best._replace(clearance=top)
     return best._replace(clearance=low, where=hit[0] / max(len(Q) - 1, 1),
                          link=exact.objects[hit[1]].link, obstacle=hit[2])  # fmt: skip

@@ -118,10 +118,9 @@ def _exact_terms(planner: Planner) -> _ExactTerms | None:
     def gradients(Q: np.ndarray, cap: float) -> np.ndarray:
         return configuration_gradients(exact, Q, aids, cap)[1]
 
-    def path_ok(x: np.ndarray) -> bool:
-        return bool(
-            path_clearance(exact, x, planner.exact_resolution, aids=aids).clearance >= floor
-        )
+    def path_ok(x: np.ndarray) -> bool:  # capped at the floor: only the pairs below it
+        check = path_clearance(exact, x, planner.exact_resolution, aids=aids, cap=floor)
+        return bool(check.clearance >= floor)
 
     model = planner.robot.model  # nq != nv: central differences (`EXACT_FD_STEP`)
     return _ExactTerms(floor, clearances, gradients if model.nq == model.nv else None, path_ok)
