@@ -123,7 +123,8 @@ class Query:
                  seed: int, t0: float) -> None:  # fmt: skip
         self.p, self.q0, self.q1 = planner, q0, q1
         self.budget, self.seed, self.t0 = budget, seed, t0
-        self.attempts = list(filter(None, [planner.sampling.ramp_line]))  # `Sampling.start`'s
+        eased = planner.sampling.ramp_line  # `Sampling.start`'s
+        self.attempts: list[str] = [eased] if eased else []
         self.unfinished: list[tuple[np.ndarray, str]] = []  # interrupted iterates and seeds
         self.first = math.nan  # when the first plan passed every check [s]
         self.sampled_path: np.ndarray | None = None  # the sampled plan's path

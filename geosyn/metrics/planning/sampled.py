@@ -23,10 +23,9 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from geosyn.metrics.planning.relax import Gradients, metric_relax
+from geosyn.metrics.planning.relax import metric_relax
 from geosyn.metrics.planning.rrt import string_pull
 from geosyn.metrics.planning.smoothing import even_in_metric, metric_shortcut
-from geosyn.metrics.planning.sphere_native import NativeSphereCheck
 
 if TYPE_CHECKING:
     from geosyn.metrics.base import Metric
@@ -172,7 +171,7 @@ def relax_taut(planner: SphereSearch, x: np.ndarray, budget: float,
     out (no tightening)."""
     p, end = planner, time.perf_counter() + budget
     check, box = p.sampling, (p.robot.q_min, p.robot.q_max)  # every iterate within the limits
-    grads = _gradients(check.check)
+    grads = check.check.gradients  # None: central differences (the numpy check)
     taut = metric_relax(None, check.check.clearances, p.metric, x, gradients=grads,
                         budget=TIGHTEN_AFTER * budget, seed_valid=seed_valid, bounds=box,
                         path_ok=_valid(p, check.margin))  # fmt: skip
@@ -183,14 +182,6 @@ def relax_taut(planner: SphereSearch, x: np.ndarray, budget: float,
                             budget=max(end - time.perf_counter(), 0.0), delta=p.margin,
                             stay_valid=True, bounds=box, path_ok=_valid(p, p.margin))  # fmt: skip
     return taut
-
-
-def _gradients(check: object) -> Gradients | None:
-    """The C check's clearance gradients (`NativeSphereCheck.clearance_gradients`); None
-    for the numpy check (the relaxation takes central differences)."""
-    if isinstance(check, NativeSphereCheck):
-        return lambda Q: check.clearance_gradients(Q)[1]
-    return None
 
 
 def _valid(planner: SphereSearch, margin: float) -> Callable[[np.ndarray], bool]:

@@ -19,7 +19,7 @@ collision geometry, so a pair's sphere distance is a lower bound of its exact di
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -300,3 +300,10 @@ class SphereCheck:
         for ob in self._others:
             nearest = np.minimum(nearest, signed_distance(ob, flat))
         return np.asarray((nearest.reshape(len(Q), -1) - self._radius).min(axis=1))
+
+    @property
+    def gradients(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """``(K, n) -> (K, n)`` the gradients [m/rad] of `clearances`, when this check
+        computes them (the C check: `NativeSphereCheck.clearance_gradients`); None here:
+        a relaxation on these clearances takes central differences."""
+        return None

@@ -23,7 +23,7 @@ import functools
 import math
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -271,6 +271,11 @@ class NativeSphereCheck(SphereCheck):
             self._lib.geosyn_spheres_clearance_gradients(self._handle, _address(Q), len(Q),
                                                          _address(out), _address(grad))  # fmt: skip
         return out, grad
+
+    @property
+    def gradients(self) -> Callable[[np.ndarray], np.ndarray]:
+        """The gradients of `clearances` (`clearance_gradients`'s second part)."""
+        return lambda Q: self.clearance_gradients(Q)[1]
 
     def joint_frames(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """((K, J + 1, 3, 3), (K, J + 1, 3)) world rotations and positions of every joint
