@@ -390,3 +390,88 @@ def test_a_straight_line_the_spheres_block_is_planned_on_the_meshes() -> None:
     off = [np.linalg.norm((q - q0) - ((q - q0) @ direction) * direction) for q in plan.q]
     assert max(off) < 1e-9  # on the straight line
     assert _self_clear(referee, plan)
+
+
+class _FakeClock:
+    """``time.perf_counter`` of `path_self_contact` on a fake clock [s]: a hull item
+    (`SelfCollision.placed_bound`) takes ``hull`` and a triangle item
+    (`SelfCollision.placed_clearance`) ``triangles``; each item's start and end are kept."""
+
+    def __init__(self, checker: SelfCollision, hull: float, triangles: float) -> None:
+        self.now, self.items = 0.0, []
+        bound, clearance = checker.placed_bound, checker.placed_clearance
+
+        def timed(measure: object, seconds: float, kind: str) -> object:
+            def run(*args: object) -> object:
+                start, self.now = self.now, self.now + seconds
+                self.items.append((kind, start, self.now))
+                return measure(*args)  # type: ignore[operator]
+
+            return run
+
+        checker.placed_bound = timed(bound, hull, "hull")  # type: ignore[method-assign]
+        checker.placed_clearance = timed(clearance, triangles, "triangles")  # type: ignore[method-assign]
+
+    def perf_counter(self) -> float:
+        return self.now
+
+
+class _EveryItem:
+    """The sphere bounds of a check with every (configuration, pair) item at -1 m: every
+    item is measured (a stand-in for `SphereCheck`'s self part)."""
+
+    def __init__(self, pairs: tuple[tuple[str, str], ...]) -> None:
+        self.self_pairs = pairs
+
+    def self_clearances(self, Q: np.ndarray) -> np.ndarray:
+        return np.full((len(Q), len(self.self_pairs)), -1.0)
+
+
+def test_a_self_check_begins_no_item_past_its_deadline(monkeypatch: pytest.MonkeyPatch) -> None:
+    """SO-101 (its fine meshes' triangles take 0.2-7 ms an item, measured): the self check
+    reads the clock before every item and begins a triangle item only when the slowest so
+    far would end by the deadline. On a fake clock (a hull item 1 ms, a triangle item
+    10 ms), a 5-configuration path with every item measured (20 items, 5 of them
+    triangles, 65 ms): with a 40 ms deadline it stops after 17 items (35 ms), before the
+    third triangle item, every item ending by the deadline, and returns a lower bound of
+    the exact minimum. (Reading the clock every 16 items, it measured all 20; reading it
+    before every item but beginning any triangle item, it ended at 45 ms.) Without a deadline
+    its value is Pinocchio's smallest distance over the pairs and configurations
+    (1e-9 m)."""
+    from geosyn.metrics.planning import self_collision
+
+    robot = load_robot("so101")
+    pairs = (
+        ("moving_jaw_so101_v1_link", "wrist_link"),
+        ("base_link", "upper_arm_link"),
+        ("gripper_link", "lower_arm_link"),
+    )  # the nearest at random configurations
+    rng = np.random.default_rng(0)
+    path = np.array([robot.random_q(rng), robot.random_q(rng)])
+    resolution = float(np.max(np.abs(path[1] - path[0]))) / 4.0  # 5 configurations
+    Q = checked_configurations(path, resolution)
+    referee = SelfCollisionReferee(robot, pairs)
+    reference = min(min(referee.distances(q).values()) for q in Q)
+    checker = SelfCollision(robot, pairs)
+    clock = _FakeClock(checker, hull=1e-3, triangles=10e-3)
+    runs = {}
+    with monkeypatch.context() as m:
+        m.setattr(self_collision, "time", clock)
+        m.setattr(self_collision, "SELF_REFINE_TIME", math.inf)  # the deadline alone
+        for deadline in (math.inf, 0.04):
+            clock.now, clock.items = 0.0, []
+            value, _ = self_collision.path_self_contact(checker, _EveryItem(pairs), path,
+                                                        resolution, deadline)  # fmt: skip
+            runs[deadline] = (value, clock.items)
+    (full, every), (cut, items) = runs[math.inf], runs[0.04]
+    assert len(Q) == 5 and 0.0 < reference < self_collision.SELF_NEAR
+    assert abs(full - reference) < 1e-9, (full, reference)
+    triangles = [item for item in every if item[0] == "triangles"]
+    print(f"{len(every)} items, {len(triangles)} triangles, to {every[-1][2] * 1e3:.0f} ms; "
+          f"cut at {items[-1][2] * 1e3:.0f} ms after {len(items)}")  # fmt: skip
+    assert len(triangles) >= 3 and every[-1][2] > 0.05  # the set-up: past the deadline
+    within = [item for item in triangles if item[2] <= 0.04]  # those that end by it
+    assert [item for item in items if item[0] == "triangles"] == within
+    assert 2 <= len(within) < len(triangles)
+    assert max(end for _, _, end in items) <= 0.04
+    assert 0.0 <= cut <= full

@@ -54,6 +54,7 @@ from geosyn.world.exact_clearance import coal_shape
 
 __all__ = [
     "INTERSECTING",
+    "Placements",
     "SELF_NEAR",
     "SELF_REFINE_TIME",
     "SelfCollision",
@@ -159,19 +160,16 @@ class SelfCollision:
         R = np.array([M.rotation for M in self._data.oMi])  # oMi[0]: the universe
         return R, np.array([M.translation for M in self._data.oMi])
 
-    def placements(self, R: np.ndarray, p: np.ndarray) -> list[Any]:
+    def placements(self, R: np.ndarray, p: np.ndarray) -> Placements:
         """coal placement of every object with the joints at world rotations ``R``
         (J + 1, 3, 3) and positions ``p`` (J + 1, 3) by Pinocchio index (``data.oMi``;
         e.g. `NativeSphereCheck.joint_frames`): the argument of `placed_bound` and
         `placed_clearance`."""
-        import coal
-
         Rj, pj = R[self._joints], p[self._joints]
         rot = np.einsum("kab,kbc->kac", Rj, self._rotations)
-        pos = np.einsum("kab,kb->ka", Rj, self._translations) + pj
-        return [coal.Transform3s(r, t) for r, t in zip(rot, pos, strict=True)]
+        return Placements(rot, np.einsum("kab,kb->ka", Rj, self._translations) + pj)
 
-    def placed_bound(self, placed: list[Any], pair: tuple[str, str]) -> tuple[float, bool]:
+    def placed_bound(self, placed: Placements, pair: tuple[str, str]) -> tuple[float, bool]:
         """(a lower bound [m] of `placed_clearance` of ``pair`` with its objects at
         ``placed`` (`placements`), whether it is that value): the smallest coal distance
         between the pair's convex shapes (a URDF mesh: its convex hull, which contains
@@ -186,7 +184,7 @@ class SelfCollision:
             best, exact = min(best, d), exact and not (self._bvh[i] or self._bvh[j])
         return best, exact
 
-    def placed_clearance(self, placed: list[Any], pair: tuple[str, str]) -> float:
+    def placed_clearance(self, placed: Placements, pair: tuple[str, str]) -> float:
         """Smallest signed distance [m] of ``pair`` (one of the pairs) with its objects at
         ``placed`` (`placements`): `clearance` at that configuration without its forward
         kinematics (`INTERSECTING` alike). A pair of several objects measures their
@@ -218,6 +216,31 @@ class SelfCollision:
         return best
 
 
+class Placements:
+    """The coal placements of a robot's collision objects at one configuration
+    (`SelfCollision.placements`), each made when first read: a path's self check measures
+    a few objects' pairs at most of its configurations."""
+
+    __slots__ = ("_placed", "_pos", "_rot")
+
+    def __init__(self, rot: np.ndarray, pos: np.ndarray) -> None:
+        """``rot`` (L, 3, 3) and ``pos`` (L, 3): the objects' world rotations and
+        positions [m]."""
+        self._rot, self._pos = rot, pos
+        self._placed: list[Any] = [None] * len(rot)
+
+    def __len__(self) -> int:
+        return len(self._placed)
+
+    def __getitem__(self, k: int) -> Any:
+        """Object ``k``'s placement (a ``coal.Transform3s``)."""
+        if (tf := self._placed[k]) is None:
+            import coal
+
+            tf = self._placed[k] = coal.Transform3s(self._rot[k], self._pos[k])
+        return tf
+
+
 class SelfContact(NamedTuple):
     """Where a path self-collides (`path_self_contact`): at the checked configuration
     ``q`` (n,) [rad], the links of self pair ``pair`` (an index of the spheres'
@@ -245,7 +268,9 @@ def path_self_contact(
     `SELF_REFINE_TIME` or passed ``deadline`` [s]; a negative value (some exact
     penetration, not necessarily the deepest) when the path self-collides; NaN without
     ``checker`` or when ``time.perf_counter()`` passes ``deadline`` before the path is
-    decided. The contact: where that penetration was found when negative, else None.
+    decided. The clock is read before every item; a triangle item is not begun when the
+    slowest one so far would end past the deadline (or `SELF_REFINE_TIME`). The contact:
+    where that penetration was found when negative, else None.
     ``kinematics``: the joints' placements of every checked configuration at once (e.g.
     in C): the same result without one Pinocchio call per measured item.
     """
@@ -256,9 +281,9 @@ def path_self_contact(
     near = np.flatnonzero(bound.ravel() < SELF_NEAR)
     line = [(float(bound.flat[x]), False, int(x)) for x in near]  # (bound, a hull's, item)
     heapq.heapify(line)
-    low, count = SELF_NEAR, 0
+    low, slowest = SELF_NEAR, 0.0  # slowest: the longest triangle item so far [s]
     frames: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    placed: dict[int, list[Any]] = {}  # the objects' coal placements, per configuration
+    placed: dict[int, Placements] = {}  # the objects' coal placements, per configuration
     if kinematics is not None and near.size:  # the configurations with an item to measure
         at = np.unique(near // bound.shape[1])
         R, p = kinematics(Q[at])
@@ -268,8 +293,9 @@ def path_self_contact(
         if math.isinf(refine_end) and line[0][0] >= 0.0:
             refine_end = time.perf_counter() + SELF_REFINE_TIME
         value, hull, index = heapq.heappop(line)
-        count += 1
-        if count % 16 == 0 and time.perf_counter() > min(deadline, refine_end):
+        # the clock before every item (4 us for two hulls, up to 7 ms for two fine meshes'
+        # triangles on the SO-101): a triangle item only when the slowest so far still fits
+        if time.perf_counter() + (slowest if hull else 0.0) > min(deadline, refine_end):
             return (min(low, value) if value >= 0.0 else math.nan), None  # lowest first
         i, k = (int(x) for x in np.unravel_index(index, bound.shape))
         if i not in placed:
@@ -281,7 +307,9 @@ def path_self_contact(
                 heapq.heappush(line, (max(d, value), True, index))
                 continue
         else:
+            start = time.perf_counter()
             d = checker.placed_clearance(placed[i], pair)
+            slowest = max(slowest, time.perf_counter() - start)
         low = min(low, d)
         if low < 0.0:
             return low, SelfContact(Q[i].copy(), k)
