@@ -21,6 +21,7 @@ from geosyn.metrics.planning.plan import Plan
 from geosyn.metrics.planning.planner import Planner
 from geosyn.metrics.planning.self_collision import INTERSECTING, SelfCollision
 from geosyn.robots import load_robot
+from geosyn.robots.collision_spheres import file_spheres
 
 
 def _planner_and_referee(name: str) -> tuple[Planner, SelfCollisionReferee]:
@@ -418,13 +419,17 @@ class _FakeClock:
 
 class _EveryItem:
     """The sphere bounds of a check with every (configuration, pair) item at -1 m: every
-    item is measured (a stand-in for `SphereCheck`'s self part)."""
+    item is measured (a stand-in for `SphereCheck`'s self part), in the order of the
+    items, or with ``shuffle`` (a seed) in a random order (bounds -1 to -1.001 m)."""
 
-    def __init__(self, pairs: tuple[tuple[str, str], ...]) -> None:
-        self.self_pairs = pairs
+    def __init__(self, pairs: tuple[tuple[str, str], ...], shuffle: int | None = None) -> None:
+        self.self_pairs, self.shuffle = pairs, shuffle
 
     def self_clearances(self, Q: np.ndarray) -> np.ndarray:
-        return np.full((len(Q), len(self.self_pairs)), -1.0)
+        shape = (len(Q), len(self.self_pairs))
+        if self.shuffle is None:
+            return np.full(shape, -1.0)
+        return -1.0 - 1e-3 * np.random.default_rng(self.shuffle).random(shape)
 
 
 def test_a_self_check_begins_no_item_past_its_deadline(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -475,3 +480,82 @@ def test_a_self_check_begins_no_item_past_its_deadline(monkeypatch: pytest.Monke
     assert 2 <= len(within) < len(triangles)
     assert max(end for _, _, end in items) <= 0.04
     assert 0.0 <= cut <= full
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_a_self_pairs_distance_moves_no_more_than_its_weights(name: str) -> None:
+    """`SelfCollision.pair_weights`, every self pair of the file: between 20 seeded random
+    configurations and a step of up to 0.05 rad from each, Pinocchio's distance of the
+    pair (the referee) changes by at most ``sum_j w[j] |dq_j|`` (measured: up to 0.61 of
+    it on the UR5, 0.42 on the Panda), and by nothing (1e-9 m) when only joints of
+    weight 0 move (those that carry both links or neither). Pairs intersecting at either
+    end are left out (no distance)."""
+    robot = load_robot(name)
+    pairs = file_spheres(robot).self_pairs
+    checker, referee = SelfCollision(robot, pairs), SelfCollisionReferee(robot, pairs)
+    rng = np.random.default_rng(3)
+    ratios = []
+    for _ in range(20):
+        q = robot.random_q(rng)
+        dq = np.clip(q + rng.uniform(-0.05, 0.05, robot.nq), robot.q_min, robot.q_max) - q
+        before, after = referee.distances(q), referee.distances(q + dq)
+        for pair in pairs:
+            if math.isinf(before[pair]) or math.isinf(after[pair]):
+                continue
+            w = checker.pair_weights(pair)
+            assert w is not None and np.all(w >= 0.0)
+            change = abs(after[pair] - before[pair])
+            assert change <= float(w @ np.abs(dq)) + 1e-9, (pair, change, w, dq)
+            ratios.append(change / float(w @ np.abs(dq)) if np.any(w > 0.0) else 0.0)
+            if np.any(w == 0.0) and not math.isinf(
+                d := referee.distances(q + np.where(w == 0.0, dq, 0.0))[pair]
+            ):
+                assert abs(d - before[pair]) < 1e-9, (pair, d, before[pair])
+    assert len(ratios) > 100 and 0.2 < max(ratios) <= 1.0
+
+
+@pytest.mark.parametrize("seed", [2, 3])
+def test_a_self_check_advances_along_the_path(monkeypatch: pytest.MonkeyPatch, seed: int) -> None:
+    """UR5, every self pair of its file, a seeded 0.3 rad line (48-55 configurations at
+    5 mrad) with every item below its sphere bound (the -1 m stand-in, in a random order),
+    no refinement limit: every bound the advancement gives an item from its pair's
+    measured neighbours is at most Pinocchio's distance there (the referee, 1e-9 m); the
+    exact minimum, skipping the items so bounded above it, equals Pinocchio's smallest
+    distance over the pairs and configurations (1e-9 m; 6.1 and 6.5 mm), as without
+    advancement, measuring under a quarter of the items (measured: 162 of 1,155 and 147
+    of 1,022)."""
+    from geosyn.metrics.planning import self_collision
+
+    robot = load_robot("ur5")
+    pairs = file_spheres(robot).self_pairs
+    rng = np.random.default_rng(seed)
+    q0 = robot.random_q(rng)
+    q1 = np.clip(q0 + rng.uniform(-0.3, 0.3, robot.nq), robot.q_min, robot.q_max)
+    path, resolution = np.array([q0, q1]), 0.005
+    Q = checked_configurations(path, resolution)
+    referee = SelfCollisionReferee(robot, pairs)
+    truth = [referee.distances(q) for q in Q]
+    reference = min(min(d.values()) for d in truth)
+    checker = SelfCollision(robot, pairs)
+    clock = _FakeClock(checker, hull=0.0, triangles=0.0)  # counts the items
+    given, bound = [], self_collision._Advance.bound
+
+    def kept(advance: object, i: int, k: int) -> float:
+        given.append((i, k, value := bound(advance, i, k)))  # type: ignore[arg-type]
+        return value
+
+    counts = []
+    with monkeypatch.context() as m:
+        m.setattr(self_collision, "SELF_REFINE_TIME", math.inf)
+        for advance in (True, False):
+            m.setattr(self_collision._Advance, "bound", kept if advance else lambda *_: -math.inf)
+            clock.items = []
+            bounds = _EveryItem(pairs, shuffle=seed)  # the items in a random order
+            value, _ = self_collision.path_self_contact(checker, bounds, path, resolution)
+            assert abs(value - reference) < 1e-9, (advance, value, reference)
+            counts.append(len(clock.items))
+    assert 0.0 < reference < self_collision.SELF_NEAR
+    assert counts[0] < 0.25 * counts[1], counts
+    finite = [(i, k, b) for i, k, b in given if b > -math.inf]
+    assert len(finite) > 100
+    assert all(b <= truth[i][pairs[k]] + 1e-9 for i, k, b in finite)

@@ -44,6 +44,7 @@ from geosyn.world.shapes import Shape
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
+    from geosyn.robots.robot import Robot
 
 __all__ = [
     "MAX_HALVINGS",
@@ -51,6 +52,7 @@ __all__ = [
     "certified_clearance",
     "certified_plan",
     "displacement_weights",
+    "joint_weights",
     "planner_certificate",
 ]
 
@@ -87,7 +89,19 @@ def displacement_weights(exact: ExactClearance) -> np.ndarray:
         InvalidArgument: a joint other than a one-axis revolute or prismatic joint, or a
             model whose configuration is not its velocity (``nq != nv``).
     """
-    model = exact.robot.model
+    return joint_weights(exact.robot, exact.joints, exact.balls)
+
+
+def joint_weights(robot: Robot, joints: Sequence[int],
+                  balls: Sequence[tuple[np.ndarray, float]]) -> np.ndarray:  # fmt: skip
+    """`displacement_weights` of objects carried by the Pinocchio joints ``joints`` (L,)
+    (0: the world) with bounding balls ``balls`` ((3,) centre in the joint's frame [m],
+    radius [m]): (L, n) [m/rad or m/m].
+
+    Raises:
+        InvalidArgument: as `displacement_weights`.
+    """
+    model = robot.model
     if model.nq != model.nv:
         raise InvalidArgument(
             f"robot: the certificate needs nq == nv (one coordinate per joint), got "
@@ -105,8 +119,8 @@ def displacement_weights(exact: ExactClearance) -> np.ndarray:
                 f"robot: joint {model.names[j]!r} is {name}; the certificate allows one-axis "
                 "revolute and prismatic joints"
             )
-    w = np.zeros((len(exact.objects), model.nv))
-    for k, (joint, (centre, radius)) in enumerate(zip(exact.joints, exact.balls, strict=True)):
+    w = np.zeros((len(joints), model.nv))
+    for k, (joint, (centre, radius)) in enumerate(zip(joints, balls, strict=True)):
         reach = float(np.linalg.norm(centre)) + radius  # the object, from its joint's origin
         j = joint
         while j > 0:  # up the chain: reach is now a bound of |x - o_j|

@@ -21,10 +21,13 @@ bound is not below the smallest exact distance found (or that distance is negati
 plan is then refused or repaired, never returned): an item with a sphere bound gets its
 convex hulls' coal distance (`SelfCollision.placed_bound`: exact for convex shapes, a
 lower bound for a URDF mesh, which its hull contains) and goes back in line with it; a
-mesh item with a hull bound gets coal's distance between the triangles. The result is the
-same exact minimum as refining every item; the triangles are measured only where the
-hulls do not already decide (a pair the path keeps a few centimetres apart is then
-measured on its hulls, 4-9 us, instead of its triangles, 100-350 us, on the UR5).
+mesh item with a hull bound gets coal's distance between the triangles, and an item whose
+pair was measured at configurations nearby gets the bound those give, less the most the
+pair can have moved since (conservative advancement, `SelfCollision.pair_weights`), and
+goes back in line with it. The result is the same exact minimum as refining every item;
+the triangles are measured only where the hulls do not already decide (a pair the path
+keeps a few centimetres apart is then measured on its hulls, 4-9 us, instead of its
+triangles, 100-350 us, on the UR5).
 
 Lowest bound first, every item that could intersect is refined before any that cannot:
 once the next bound is not negative the path is decided (self-clear). Refining on for the
@@ -36,6 +39,7 @@ the exact minimum took 6.7 s and ran the 2 s query out of time.
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import math
 import time
@@ -44,6 +48,8 @@ from typing import Any, NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from geosyn.core.errors import InvalidArgument
+from geosyn.metrics.planning.certify import joint_weights
 from geosyn.metrics.planning.errors import InCollision
 from geosyn.metrics.planning.exact_path import Kinematics, checked_configurations
 from geosyn.metrics.planning.sphere_check import SphereCheck
@@ -128,6 +134,34 @@ class SelfCollision:
         self._of_pair = {ab: [c for c in self._checks if c[:2] == ab] for ab in self.pairs}
         self._request = coal.DistanceRequest()
         self._data = robot.model.createData()
+        self._weights = {ab: self._pair_weights(by_link, ab) for ab in self.pairs}
+
+    def pair_weights(self, pair: tuple[str, str]) -> np.ndarray | None:
+        """(n,) ``w[j]``: the most the distance between the two links of ``pair`` (one of
+        the pairs) changes [m] per unit of joint ``j`` [rad or m], at every configuration
+        (`geosyn.metrics.planning.certify.joint_weights` of its objects, the joints that
+        carry one link and not the other; those that carry both move them rigidly): along
+        a path the pair's distance changes by at most ``sum_j w[j] |dq_j|``. None for a
+        robot whose joints `joint_weights` does not bound."""
+        return self._weights[pair]
+
+    def _pair_weights(self, by_link: dict[str, list[int]],
+                      pair: tuple[str, str]) -> np.ndarray | None:  # fmt: skip
+        """`pair_weights` of ``pair`` (``by_link``: the objects' indices by link)."""
+        objects = (*by_link.get(pair[0], ()), *by_link.get(pair[1], ()))
+        balls = []  # each object's bounding ball in its joint's frame (its hull's: it holds the mesh)
+        for k in objects:
+            hull = self._hulls[k]
+            hull.computeLocalAABB()
+            centre = self._rotations[k] @ np.asarray(hull.aabb_center) + self._translations[k]
+            balls.append((centre, float(hull.aabb_radius)))
+        try:
+            w = joint_weights(self.robot, [int(self._joints[k]) for k in objects], balls)
+        except InvalidArgument:  # e.g. a spherical joint: no bound, every item measured
+            return None
+        a = len(by_link.get(pair[0], ()))
+        wa, wb = w[:a].max(axis=0, initial=0.0), w[a:].max(axis=0, initial=0.0)
+        return np.where(wb > 0.0, 0.0, wa) + np.where(wa > 0.0, 0.0, wb)
 
     @classmethod
     def for_robot(cls, robot: Robot) -> SelfCollision | None:
@@ -269,7 +303,10 @@ def path_self_contact(
     penetration, not necessarily the deepest) when the path self-collides; NaN without
     ``checker`` or when ``time.perf_counter()`` passes ``deadline`` before the path is
     decided. The clock is read before every item; a triangle item is not begun when the
-    slowest one so far would end past the deadline (or `SELF_REFINE_TIME`). The contact:
+    slowest one so far would end past the deadline (or `SELF_REFINE_TIME`). An item
+    whose pair was measured at nearby configurations goes back in line with the bound
+    those give (`SelfCollision.pair_weights`: conservative advancement); the same
+    result, fewer items measured. The contact:
     where that penetration was found when negative, else None.
     ``kinematics``: the joints' placements of every checked configuration at once (e.g.
     in C): the same result without one Pinocchio call per measured item.
@@ -280,15 +317,18 @@ def path_self_contact(
     bound = spheres.self_clearances(Q)  # (K, P)
     near = np.flatnonzero(bound.ravel() < SELF_NEAR)
     line = [(float(bound.flat[x]), False, int(x)) for x in near]  # (bound, a hull's, item)
+    if not line:  # every pair at least `SELF_NEAR` apart on the spheres
+        return SELF_NEAR, None
     heapq.heapify(line)
     low, slowest = SELF_NEAR, 0.0  # slowest: the longest triangle item so far [s]
     frames: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     placed: dict[int, Placements] = {}  # the objects' coal placements, per configuration
-    if kinematics is not None and near.size:  # the configurations with an item to measure
+    if kinematics is not None:  # the configurations with an item to measure
         at = np.unique(near // bound.shape[1])
         R, p = kinematics(Q[at])
         frames = {int(i): (R[r], p[r]) for r, i in enumerate(at)}
     refine_end = math.inf  # set once decided: every item left is apart
+    advance = _Advance(checker, spheres.self_pairs, Q)
     while line and line[0][0] < low:  # every item left is at least ``low`` apart
         if math.isinf(refine_end) and line[0][0] >= 0.0:
             refine_end = time.perf_counter() + SELF_REFINE_TIME
@@ -298,11 +338,15 @@ def path_self_contact(
         if time.perf_counter() + (slowest if hull else 0.0) > min(deadline, refine_end):
             return (min(low, value) if value >= 0.0 else math.nan), None  # lowest first
         i, k = (int(x) for x in np.unravel_index(index, bound.shape))
+        if (moved := advance.bound(i, k)) > value:  # a bound from the pair's measured items
+            heapq.heappush(line, (moved, hull, index))
+            continue
         if i not in placed:
             placed[i] = checker.placements(*(frames.get(i) or checker.joint_frames(Q[i])))
         pair = spheres.self_pairs[k]
         if not hull:
             d, exact = checker.placed_bound(placed[i], pair)
+            advance.record(i, k, max(d, value))
             if not exact:  # back in line with the tighter bound
                 heapq.heappush(line, (max(d, value), True, index))
                 continue
@@ -310,10 +354,48 @@ def path_self_contact(
             start = time.perf_counter()
             d = checker.placed_clearance(placed[i], pair)
             slowest = max(slowest, time.perf_counter() - start)
+            advance.record(i, k, d)
         low = min(low, d)
         if low < 0.0:
             return low, SelfContact(Q[i].copy(), k)
     return low, None
+
+
+class _Advance:
+    """Conservative advancement of a path's self check (`path_self_contact`), per pair: a
+    lower bound ``d`` of a pair's distance measured at checked configuration ``i`` holds
+    at any other ``m``, less the most the pair can have moved along the path between them,
+    ``|C[m] - C[i]|``, ``C`` the cumulative sum of ``sum_j w[j] |dq_j|`` over the path's
+    steps (`SelfCollision.pair_weights`; the same rule as
+    `geosyn.metrics.planning.certify`). An item whose bound from its pair's nearest
+    measured items on each side is above its own goes back in line with it: an item
+    near one measured a few milliradians away is seldom measured."""
+
+    def __init__(self, checker: SelfCollision, pairs: tuple[tuple[str, str], ...],
+                 Q: np.ndarray) -> None:  # fmt: skip
+        """``Q`` (K, n): the path's checked configurations [rad]."""
+        weights = [checker.pair_weights(pair) for pair in pairs]
+        steps = np.abs(np.diff(Q, axis=0))  # (K - 1, n)
+        W = np.array([w if w is not None else np.full(Q.shape[1], np.nan) for w in weights])
+        self.C = np.vstack([np.zeros(len(pairs)), np.cumsum(steps @ W.T, axis=0)])  # (K, P)
+        self.at: list[list[int]] = [[] for _ in pairs]  # measured configurations, sorted
+        self.low: dict[tuple[int, int], float] = {}  # their bounds [m]
+
+    def bound(self, i: int, k: int) -> float:
+        """Lower bound [m] of pair ``k``'s distance at configuration ``i`` from its nearest
+        measured configurations on either side (-inf: none, or no weights)."""
+        at, best = self.at[k], -math.inf
+        j = bisect.bisect_left(at, i)
+        for m in at[max(j - 1, 0) : j + 2]:
+            if m != i and not math.isnan(moved := abs(self.C[i, k] - self.C[m, k])):
+                best = max(best, self.low[m, k] - moved)
+        return best
+
+    def record(self, i: int, k: int, d: float) -> None:
+        """Pair ``k``'s distance at configuration ``i`` is at least ``d`` [m]."""
+        if (i, k) not in self.low:
+            bisect.insort(self.at[k], i)
+        self.low[i, k] = max(d, self.low.get((i, k), -math.inf))
 
 
 def check_self_end(
