@@ -333,14 +333,14 @@ def path_self_contact(
         if math.isinf(refine_end) and line[0][0] >= 0.0:
             refine_end = time.perf_counter() + SELF_REFINE_TIME
         value, hull, index = heapq.heappop(line)
+        i, k = (int(x) for x in np.unravel_index(index, bound.shape))
+        if (known := advance.bound(i, k)) > value:  # a bound from the pair's measured items
+            heapq.heappush(line, (known, hull, index))
+            continue
         # the clock before every item (4 us for two hulls, up to 7 ms for two fine meshes'
         # triangles on the SO-101): a triangle item only when the slowest so far still fits
         if time.perf_counter() + (slowest if hull else 0.0) > min(deadline, refine_end):
             return (min(low, value) if value >= 0.0 else math.nan), None  # lowest first
-        i, k = (int(x) for x in np.unravel_index(index, bound.shape))
-        if (moved := advance.bound(i, k)) > value:  # a bound from the pair's measured items
-            heapq.heappush(line, (moved, hull, index))
-            continue
         if i not in placed:
             placed[i] = checker.placements(*(frames.get(i) or checker.joint_frames(Q[i])))
         pair = spheres.self_pairs[k]
