@@ -34,6 +34,7 @@ __all__ = [
     "ExactClearance",
     "PathClearance",
     "PlacedObstacle",
+    "bounding_ball",
     "checked_configurations",
     "coal_shape",
 ]
@@ -125,6 +126,15 @@ def _obstacle_geometry(shape: Shape) -> tuple[Any, np.ndarray]:
 _SHAPES: weakref.WeakKeyDictionary[CollisionObject, Any] = weakref.WeakKeyDictionary()
 
 
+def bounding_ball(obj: CollisionObject) -> tuple[np.ndarray, float]:
+    """((3,) centre in the frame of the object's joint [m], radius [m]) of a ball holding
+    the object's `coal_shape` (the axis-aligned box of its own frame, placed)."""
+    shape = coal_shape(obj)
+    shape.computeLocalAABB()
+    centre = obj.placement[:3, :3] @ np.asarray(shape.aabb_center) + obj.placement[:3, 3]
+    return centre, float(shape.aabb_radius)
+
+
 def coal_shape(obj: CollisionObject) -> Any:
     """The coal geometry of a robot collision object (a mesh: its convex hull), made
     once per object."""
@@ -188,13 +198,10 @@ class ExactClearance:
             robot.joint_id(o.joint) if o.joint != "universe" else 0 for o in self.objects
         )
         self.placements = tuple(pin.SE3(o.placement) for o in self.objects)
-        balls = []  # bounding ball of each object in its joint frame (centre, radius)
-        for o, g in zip(self.objects, self.geoms, strict=True):
-            g.computeLocalAABB()
-            c_local = np.asarray(g.aabb_center)
-            c = o.placement[:3, :3] @ c_local + o.placement[:3, 3]
-            balls.append((c, float(g.aabb_radius)))
-        self.balls: tuple[tuple[np.ndarray, float], ...] = tuple(balls)
+        # bounding ball of each object in its joint frame (centre, radius)
+        self.balls: tuple[tuple[np.ndarray, float], ...] = tuple(
+            bounding_ball(o) for o in self.objects
+        )
         self.request = coal.DistanceRequest()
         self.data = robot.model.createData()
         self._obstacles: tuple[PlacedObstacle, ...] = ()

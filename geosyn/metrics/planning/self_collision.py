@@ -56,7 +56,7 @@ from geosyn.metrics.planning.sphere_check import SphereCheck
 from geosyn.robots.collision_geometry import CollisionObject, collision_objects, file_bvh
 from geosyn.robots.errors import RobotFileError
 from geosyn.robots.robot import Robot
-from geosyn.world.exact_clearance import coal_shape
+from geosyn.world.exact_clearance import bounding_ball, coal_shape
 
 __all__ = [
     "INTERSECTING",
@@ -149,12 +149,7 @@ class SelfCollision:
                       pair: tuple[str, str]) -> np.ndarray | None:  # fmt: skip
         """`pair_weights` of ``pair`` (``by_link``: the objects' indices by link)."""
         objects = (*by_link.get(pair[0], ()), *by_link.get(pair[1], ()))
-        balls = []  # each object's bounding ball in its joint's frame (its hull's: it holds the mesh)
-        for k in objects:
-            hull = self._hulls[k]
-            hull.computeLocalAABB()
-            centre = self._rotations[k] @ np.asarray(hull.aabb_center) + self._translations[k]
-            balls.append((centre, float(hull.aabb_radius)))
+        balls = [bounding_ball(self.objects[k]) for k in objects]  # the hull's: holds the mesh
         try:
             w = joint_weights(self.robot, [int(self._joints[k]) for k in objects], balls)
         except InvalidArgument:  # e.g. a spherical joint: no bound, every item measured
@@ -262,9 +257,6 @@ class Placements:
         positions [m]."""
         self._rot, self._pos = rot, pos
         self._placed: list[Any] = [None] * len(rot)
-
-    def __len__(self) -> int:
-        return len(self._placed)
 
     def __getitem__(self, k: int) -> Any:
         """Object ``k``'s placement (a ``coal.Transform3s``)."""
