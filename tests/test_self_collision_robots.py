@@ -559,3 +559,94 @@ def test_a_self_check_advances_along_the_path(monkeypatch: pytest.MonkeyPatch, s
     finite = [(i, k, b) for i, k, b in given if b > -math.inf]
     assert len(finite) > 100
     assert all(b <= truth[i][pairs[k]] + 1e-9 for i, k, b in finite)
+
+
+def _near_line(robot: object, referee: SelfCollisionReferee, seed: int) -> np.ndarray:
+    """A seeded 2-configuration line (2, n) [rad] of ``robot`` whose end has a self pair
+    0.5-1.5 mm apart on Pinocchio's distance: from a configuration where every pair is
+    apart to one where a pair intersects, bisected on that pair."""
+    rng = np.random.default_rng(seed)
+    while True:
+        q0 = robot.random_q(rng)  # type: ignore[attr-defined]
+        q1 = np.clip(q0 + rng.uniform(-0.6, 0.6, len(q0)), robot.q_min, robot.q_max)  # type: ignore[attr-defined]
+        d0, d1 = referee.distances(q0), referee.distances(q1)
+        hit = [pair for pair, d in d1.items() if d < 0.0]
+        if min(d0.values()) > 0.01 and hit:
+            break
+    lo, hi = 0.0, 1.0  # bisect the pair's distance along the line to ~1 mm
+    for _ in range(60):
+        t = 0.5 * (lo + hi)
+        d = referee.distances(q0 + t * (q1 - q0))[hit[0]]
+        if 0.5e-3 <= d <= 1.5e-3:
+            return np.array([q0, q0 + t * (q1 - q0)])
+        lo, hi = (t, hi) if d > 1e-3 else (lo, t)
+    raise AssertionError("no configuration 0.5-1.5 mm apart on the line")
+
+
+def test_a_self_check_measures_triangle_distances_only_where_they_are_near(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """UR5, every self pair of its file, a seeded line (5 mrad) to where a pair is ~1 mm
+    apart (bisected on Pinocchio's distance), every item below its sphere bound (the -1 m
+    stand-in), no refinement limit. Every `SelfCollision.placed_apart` answer agrees with
+    Pinocchio's distance against `SELF_APART` (the referee; 1e-9 m), with both answers
+    given; the triangles' distance is measured only at items Pinocchio puts within
+    `SELF_APART` (+1e-9 m), and the check's value equals Pinocchio's smallest distance
+    over the pairs and configurations (1e-9 m). Without the test (margin -inf) the same
+    value takes many more triangle distances."""
+    from geosyn.metrics.planning import self_collision
+
+    robot = load_robot("ur5")
+    pairs = file_spheres(robot).self_pairs
+    referee = SelfCollisionReferee(robot, pairs)
+    path, resolution = _near_line(robot, referee, seed=4), 0.005
+    Q = checked_configurations(path, resolution)
+    reference = min(min(referee.distances(q).values()) for q in Q)
+    assert 0.0 < reference < self_collision.SELF_APART  # the test means something
+    checker = SelfCollision(robot, pairs)
+    at: dict[int, np.ndarray] = {}  # id of a configuration's placements -> configuration
+    frames, place = checker.joint_frames, checker.placements
+    last: list[np.ndarray] = []
+
+    def framed(q: np.ndarray) -> object:
+        last[:] = [np.array(q)]
+        return frames(q)
+
+    def placed(*args: object) -> object:
+        out = place(*args)  # type: ignore[arg-type]
+        at[id(out)] = last[0]
+        return out
+
+    calls: list[tuple[str, np.ndarray, tuple[str, str], object]] = []
+    apart, clearance = checker.placed_apart, checker.placed_clearance
+
+    def tested(p: object, pair: tuple[str, str], margin: float) -> bool:
+        calls.append(("apart", at[id(p)], pair, out := apart(p, pair, margin)))  # type: ignore[arg-type]
+        return out
+
+    def measured(p: object, pair: tuple[str, str]) -> float:
+        calls.append(("distance", at[id(p)], pair, out := clearance(p, pair)))  # type: ignore[arg-type]
+        return out
+
+    monkeypatch.setattr(checker, "joint_frames", framed)
+    monkeypatch.setattr(checker, "placements", placed)
+    monkeypatch.setattr(checker, "placed_apart", tested)
+    monkeypatch.setattr(checker, "placed_clearance", measured)
+    monkeypatch.setattr(self_collision, "SELF_REFINE_TIME", math.inf)
+    counts = []
+    for margin in (self_collision.SELF_APART, -math.inf):
+        monkeypatch.setattr(self_collision, "SELF_APART", margin)
+        calls.clear()
+        value, _ = self_collision.path_self_contact(checker, _EveryItem(pairs, shuffle=1),
+                                                    path, resolution)  # fmt: skip
+        assert abs(value - reference) < 1e-9, (margin, value, reference)
+        counts.append(sum(kind == "distance" for kind, *_ in calls))
+        if margin > 0.0:
+            answers = [(referee.distances(q)[pair], out)
+                       for kind, q, pair, out in calls if kind == "apart"]  # fmt: skip
+            assert all((d > margin - 1e-9) if out else (d <= margin + 1e-9) for d, out in answers)
+            assert {out for _, out in answers} == {True, False}
+            near = [referee.distances(q)[pair] for kind, q, pair, _ in calls if kind == "distance"]
+            assert near and max(near) <= margin + 1e-9, near
+    print(f"triangle distances: {counts[0]} with the test, {counts[1]} without")
+    assert 5 * counts[0] < counts[1], counts
