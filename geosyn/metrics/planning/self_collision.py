@@ -47,6 +47,7 @@ import bisect
 import heapq
 import math
 import time
+from itertools import repeat
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -338,7 +339,7 @@ def path_self_contact(
     near = np.flatnonzero(bound.ravel() < SELF_NEAR)
     # (bound, stage, hint, item); stage 0: the spheres' bound, 1: the hulls', 2: the
     # triangles more than `SELF_APART` apart (hint: the hulls' bound, nearest first)
-    line = [(float(bound.flat[x]), 0, 0.0, int(x)) for x in near]
+    line = list(zip(bound.ravel()[near].tolist(), repeat(0), repeat(0.0), near.tolist()))
     if not line:  # every pair at least `SELF_NEAR` apart on the spheres
         return SELF_NEAR, None
     heapq.heapify(line)
