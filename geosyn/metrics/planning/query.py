@@ -48,7 +48,6 @@ from geosyn.metrics.planning.polish import sphere_polish
 from geosyn.metrics.planning.rrt import shortcut
 from geosyn.metrics.planning.sampled import (
     SAMPLED_CHECK_SHARE,
-    SELF_HUNT,
     SAMPLED_RELAX,
     SAMPLED_RELAX_MAX,
     SAMPLED_RETRIES,
@@ -241,13 +240,6 @@ class Query:
             self.sampled_path = self.first_path = np.array([self.q0, self.q1])  # polish seed
             return plan
         how = "the straight line" if len(path) == 2 else f"RRT-Connect's path ({grown} nodes)"
-        own, contact = self.p.self_contact(path, min(time.perf_counter() + SELF_HUNT,
-                                                     self.t0 + ANYTIME_SLACK * self.budget))  # fmt: skip
-        if contact is not None:  # not pulled taut: the next search learns from it (`retry`)
-            self.contact, self.self_collided = contact, True
-            self.attempts.append(f"sampled plan: {how} self-collides on the robot's own "
-                                 f"geometry ({own:.4f} m): not pulled taut")  # fmt: skip
-            return None
         left = max(self.left(), 0.0)  # the exact check needs its share of it
         budget = SAMPLED_CHECK_SHARE * left if small else min(
             SAMPLED_RELAX * self.budget, SAMPLED_RELAX_MAX, SAMPLED_CHECK_SHARE * left)  # fmt: skip

@@ -57,7 +57,6 @@ __all__ = [
     "SAMPLED_RELAX",
     "SAMPLED_RELAX_MAX",
     "SAMPLED_RETRIES",
-    "SELF_HUNT",
     "SAMPLED_SEARCH",
     "SAMPLED_SMALL",
     "SAMPLED_TRIES",
@@ -107,11 +106,6 @@ benchmark scenes, `benchmarks/RESULTS.md`)."""
 SAMPLED_SMALL = 0.8
 """Share of a budget too small for collocation (less than `MIN_COLLOCATION` would be
 left after `SAMPLED_SEARCH`) that RRT-Connect may take for the sampled plan."""
-
-SELF_HUNT = 0.03
-"""Most time [s] the exact self check looks for a self-contact on RRT-Connect's path
-before it is pulled taut (`Query.sampled`): one found, the path is dropped and the next
-search learns from it (`Sampling.learn_floor`) without the relaxation's cost."""
 
 SAMPLED_RETRIES = 8
 """Most further sampled first plans (other RRT-Connect seeds,
