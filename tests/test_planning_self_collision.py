@@ -1,4 +1,5 @@
-"""Self-clearance on a robot's own link pairs (`geosyn.metrics.planning.self_collision`).
+"""Self-clearance on a robot's own link pairs (`geosyn.metrics.planning.self_collision`,
+`geosyn.metrics.planning.self_path`).
 
 Reference: Pinocchio's own GeometryModel of the UR5 URDF (its meshes as coal BVHs, built
 by the test from the file) with ``pinocchio.computeDistance`` and
@@ -25,12 +26,8 @@ from geosyn.metrics import KineticEnergyMetric
 from geosyn.metrics.planning.errors import InCollision
 from geosyn.metrics.planning.exact_path import checked_configurations
 from geosyn.metrics.planning.planner import Planner
-from geosyn.metrics.planning.self_collision import (
-    INTERSECTING,
-    SELF_NEAR,
-    SelfCollision,
-    check_self_end,
-)
+from geosyn.metrics.planning.self_collision import INTERSECTING, SelfCollision, check_self_end
+from geosyn.metrics.planning.self_path import SELF_NEAR
 from geosyn.robots import load_robot
 from geosyn.robots.collision_geometry import CollisionObject
 
@@ -244,7 +241,7 @@ def test_the_self_check_with_joint_frames_from_c_is_pinocchios_minimum(
     with the joints placed in C for every checked configuration (the planner's default),
     is Pinocchio's smallest pair distance over those configurations (1e-6 m), and the
     same as without the C placements (Pinocchio's forward kinematics per item)."""
-    from geosyn.metrics.planning.self_collision import path_self_contact
+    from geosyn.metrics.planning.self_path import path_self_contact
 
     assert panda_planner.sampling.aids.kinematics is not None  # the C check is in use
     line = np.array([FOLD_START, FOLD_GOAL])
@@ -297,9 +294,9 @@ def test_a_decided_path_cut_short_reports_a_lower_bound_and_a_crossing_is_still_
     configurations (a lower bound, not NaN); the Panda's folding line, which Pinocchio
     finds self-colliding, is still found negative (the items that could intersect are
     refined first, whatever the time)."""
-    from geosyn.metrics.planning import self_collision
+    from geosyn.metrics.planning import self_path
 
-    monkeypatch.setattr(self_collision, "SELF_REFINE_TIME", 0.0)
+    monkeypatch.setattr(self_path, "SELF_REFINE_TIME", 0.0)
     robot = load_robot("ur5")
     planner = Planner(KineticEnergyMetric(robot))
     q0 = np.array([0.0, -1.2, 1.6, -1.9, -1.57, 0.0])

@@ -443,7 +443,7 @@ def test_a_self_check_begins_no_item_past_its_deadline(monkeypatch: pytest.Monke
     before every item but beginning any triangle item, it ended at 45 ms.) Without a deadline
     its value is Pinocchio's smallest distance over the pairs and configurations
     (1e-9 m)."""
-    from geosyn.metrics.planning import self_collision
+    from geosyn.metrics.planning import self_path
 
     robot = load_robot("so101")
     pairs = (
@@ -461,15 +461,15 @@ def test_a_self_check_begins_no_item_past_its_deadline(monkeypatch: pytest.Monke
     clock = _FakeClock(checker, hull=1e-3, triangles=10e-3)
     runs = {}
     with monkeypatch.context() as m:
-        m.setattr(self_collision, "time", clock)
-        m.setattr(self_collision, "SELF_REFINE_TIME", math.inf)  # the deadline alone
+        m.setattr(self_path, "time", clock)
+        m.setattr(self_path, "SELF_REFINE_TIME", math.inf)  # the deadline alone
         for deadline in (math.inf, 0.04):
             clock.now, clock.items = 0.0, []
-            value, _ = self_collision.path_self_contact(checker, _EveryItem(pairs), path,
+            value, _ = self_path.path_self_contact(checker, _EveryItem(pairs), path,
                                                         resolution, deadline)  # fmt: skip
             runs[deadline] = (value, clock.items)
     (full, every), (cut, items) = runs[math.inf], runs[0.04]
-    assert len(Q) == 5 and 0.0 < reference < self_collision.SELF_NEAR
+    assert len(Q) == 5 and 0.0 < reference < self_path.SELF_NEAR
     assert abs(full - reference) < 1e-9, (full, reference)
     triangles = [item for item in every if item[0] == "triangles"]
     print(f"{len(every)} items, {len(triangles)} triangles, to {every[-1][2] * 1e3:.0f} ms; "
@@ -524,7 +524,7 @@ def test_a_self_check_advances_along_the_path(monkeypatch: pytest.MonkeyPatch, s
     distance over the pairs and configurations (1e-9 m; 6.1 and 6.5 mm), as without
     advancement, measuring under a quarter of the items (measured: 162 of 1,155 and 147
     of 1,022)."""
-    from geosyn.metrics.planning import self_collision
+    from geosyn.metrics.planning import self_path
 
     robot = load_robot("ur5")
     pairs = file_spheres(robot).self_pairs
@@ -538,7 +538,7 @@ def test_a_self_check_advances_along_the_path(monkeypatch: pytest.MonkeyPatch, s
     reference = min(min(d.values()) for d in truth)
     checker = SelfCollision(robot, pairs)
     clock = _FakeClock(checker, hull=0.0, triangles=0.0)  # counts the items
-    given, bound = [], self_collision._Advance.bound
+    given, bound = [], self_path._Advance.bound
 
     def kept(advance: object, i: int, k: int) -> float:
         given.append((i, k, value := bound(advance, i, k)))  # type: ignore[arg-type]
@@ -546,15 +546,15 @@ def test_a_self_check_advances_along_the_path(monkeypatch: pytest.MonkeyPatch, s
 
     counts = []
     with monkeypatch.context() as m:
-        m.setattr(self_collision, "SELF_REFINE_TIME", math.inf)
+        m.setattr(self_path, "SELF_REFINE_TIME", math.inf)
         for advance in (True, False):
-            m.setattr(self_collision._Advance, "bound", kept if advance else lambda *_: -math.inf)
+            m.setattr(self_path._Advance, "bound", kept if advance else lambda *_: -math.inf)
             clock.items = []
             bounds = _EveryItem(pairs, shuffle=seed)  # the items in a random order
-            value, _ = self_collision.path_self_contact(checker, bounds, path, resolution)
+            value, _ = self_path.path_self_contact(checker, bounds, path, resolution)
             assert abs(value - reference) < 1e-9, (advance, value, reference)
             counts.append(len(clock.items))
-    assert 0.0 < reference < self_collision.SELF_NEAR
+    assert 0.0 < reference < self_path.SELF_NEAR
     assert counts[0] < 0.25 * counts[1], counts
     finite = [(i, k, b) for i, k, b in given if b > -math.inf]
     assert len(finite) > 100
@@ -594,7 +594,7 @@ def test_a_self_check_measures_triangle_distances_only_where_they_are_near(
     `SELF_APART` (+1e-9 m), and the check's value equals Pinocchio's smallest distance
     over the pairs and configurations (1e-9 m). Without the test (margin -inf) the same
     value takes many more triangle distances."""
-    from geosyn.metrics.planning import self_collision
+    from geosyn.metrics.planning import self_path
 
     robot = load_robot("ur5")
     pairs = file_spheres(robot).self_pairs
@@ -602,7 +602,7 @@ def test_a_self_check_measures_triangle_distances_only_where_they_are_near(
     path, resolution = _near_line(robot, referee, seed=4), 0.005
     Q = checked_configurations(path, resolution)
     reference = min(min(referee.distances(q).values()) for q in Q)
-    assert 0.0 < reference < self_collision.SELF_APART  # the test means something
+    assert 0.0 < reference < self_path.SELF_APART  # the test means something
     checker = SelfCollision(robot, pairs)
     at: dict[int, np.ndarray] = {}  # id of a configuration's placements -> configuration
     frames, place = checker.joint_frames, checker.placements
@@ -632,12 +632,12 @@ def test_a_self_check_measures_triangle_distances_only_where_they_are_near(
     monkeypatch.setattr(checker, "placements", placed)
     monkeypatch.setattr(checker, "placed_apart", tested)
     monkeypatch.setattr(checker, "placed_clearance", measured)
-    monkeypatch.setattr(self_collision, "SELF_REFINE_TIME", math.inf)
+    monkeypatch.setattr(self_path, "SELF_REFINE_TIME", math.inf)
     counts = []
-    for margin in (self_collision.SELF_APART, -math.inf):
-        monkeypatch.setattr(self_collision, "SELF_APART", margin)
+    for margin in (self_path.SELF_APART, -math.inf):
+        monkeypatch.setattr(self_path, "SELF_APART", margin)
         calls.clear()
-        value, _ = self_collision.path_self_contact(checker, _EveryItem(pairs, shuffle=1),
+        value, _ = self_path.path_self_contact(checker, _EveryItem(pairs, shuffle=1),
                                                     path, resolution)  # fmt: skip
         assert abs(value - reference) < 1e-9, (margin, value, reference)
         counts.append(sum(kind == "distance" for kind, *_ in calls))

@@ -49,7 +49,7 @@ class Plan(NamedTuple):
             of its obstacle slot count (its first query with that count; else 0) [s].
         self_clearance: smallest exact distance [m] between the file's self-collision
             link pairs along the path, at the configurations ``exact_resolution`` apart
-            (`geosyn.metrics.planning.self_collision.path_self_contact`: the sphere
+            (`geosyn.metrics.planning.self_path.path_self_contact`: the sphere
             bounds everywhere, coal where they are closest); never negative for a
             returned plan (a self-colliding path is refused); at most `SELF_NEAR`
             (0.02 m: "at least" that); a lower bound of it when its refinement was cut

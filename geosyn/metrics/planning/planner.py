@@ -37,7 +37,7 @@ One query, within a stated time budget:
    an obstacle is solved again with more constrained points (`REFINEMENTS`) and, after an
    exact failure, a sphere margin larger by the penetration plus `REPAIR_STEP`, until one
    passes, or refused; and for self-collision on the file's self pairs
-   (`geosyn.metrics.planning.self_collision.path_self_contact`, same resolution): a
+   (`geosyn.metrics.planning.self_path.path_self_contact`, same resolution): a
    self-colliding path is refused (the sampled plans avoid it: their validity includes
    the self pairs' sphere distances, a pair's floor raised for the rest of the query
    near where the exact check found its links touching), never returned. Every plan keeps
@@ -83,12 +83,8 @@ from geosyn.metrics.planning.query import (
     Query,
 )
 from geosyn.metrics.planning.sampling import Sampling
-from geosyn.metrics.planning.self_collision import (
-    SelfCollision,
-    SelfContact,
-    check_self_end,
-    path_self_contact,
-)
+from geosyn.metrics.planning.self_collision import SelfCollision, check_self_end
+from geosyn.metrics.planning.self_path import SelfContact, path_self_contact
 from geosyn.metrics.planning.smoothing import densify
 from geosyn.metrics.planning.thin import THIN_SHRINKS, ThinSearch
 from geosyn.metrics.planning.tighten import exact_movable

@@ -70,7 +70,7 @@ from geosyn.metrics.planning.verify import (
 
 if TYPE_CHECKING:
     from geosyn.metrics.planning.planner import Planner
-    from geosyn.metrics.planning.self_collision import SelfContact
+    from geosyn.metrics.planning.self_path import SelfContact
     from geosyn.world.exact_clearance import PathClearance
 
 __all__ = [

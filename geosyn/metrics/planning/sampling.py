@@ -52,7 +52,8 @@ from geosyn.core.errors import InvalidArgument
 from geosyn.core.validation import check_float
 from geosyn.metrics.planning.exact_path import PathAids
 from geosyn.metrics.planning.rrt import RRT_STEP, Near, rrt_connect
-from geosyn.metrics.planning.self_collision import SelfCollision, SelfContact
+from geosyn.metrics.planning.self_collision import SelfCollision
+from geosyn.metrics.planning.self_path import SelfContact
 from geosyn.metrics.planning.sphere_check import Raises, SphereCheck
 from geosyn.metrics.planning.sphere_native import NativeSphereCheck, sphere_check
 from geosyn.robots.robot import CollisionSphere, Robot
