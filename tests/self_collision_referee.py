@@ -17,7 +17,6 @@ class SelfCollisionReferee:
 
     def __init__(self, robot: Any, pairs: tuple[tuple[str, str], ...]) -> None:
         urdf = Path(str(robot.source_file))
-        self.nq = robot.nq
         self.full = pin.buildModelFromUrdf(str(urdf))
         share = [str(p) for p in urdf.parents if p.name == "share"]
         self.gm = pin.buildGeomFromUrdf(self.full, str(urdf), pin.GeometryType.COLLISION,
@@ -30,10 +29,23 @@ class SelfCollisionReferee:
                 for j in by_link.get(b, []):
                     self.gm.addCollisionPair(pin.CollisionPair(i, j))
         self.gd, self.data = self.gm.createData(), self.full.createData()
+        # (the robot's coordinate, the file model's first coordinate, its count) per joint
+        # by name: the file's continuous joints are (cos, sin) pairs there, one angle in
+        # the robot's model (bounded); joints the robot leaves out stay at neutral
+        model, self.joints = robot.model, []
+        for j in range(1, self.full.njoints):
+            name = self.full.names[j]
+            if model.existJointName(name):
+                ours = model.joints[model.getJointId(name)]
+                theirs = self.full.joints[j]
+                self.joints.append((ours.idx_q, theirs.idx_q, theirs.nq))
 
     def _place(self, q: np.ndarray) -> None:
         qf = pin.neutral(self.full)
-        qf[: self.nq] = q
+        for ours, theirs, nq in self.joints:
+            qf[theirs : theirs + nq] = (
+                (math.cos(q[ours]), math.sin(q[ours])) if nq == 2 else q[ours : ours + nq]
+            )
         pin.updateGeometryPlacements(self.full, self.data, self.gm, self.gd, qf)
 
     def collides(self, q: np.ndarray) -> bool:
