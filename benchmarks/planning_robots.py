@@ -7,8 +7,9 @@ skipped: `InCollision`). Each query is planned at each budget by
 queries, paths returned, wall time / budget (median, largest) and how many ran more
 than 10 % over; every returned path is checked against the referees:
 
-- the obstacles: coal on the robot's collision geometry
-  (`geosyn.world.exact_clearance.ExactClearance.path_clearance`, every 2 mrad);
+- the obstacles: coal on the URDF's collision geometry as Pinocchio builds it (the
+  triangle meshes, ``tests/self_collision_referee.MeshObstacleReferee``; geosyn's exact
+  check measures a mesh's convex hull, which contains it), every 2 mrad;
 - the joint limits;
 - self-collision: Pinocchio's collision model of the URDF on the planner's self pairs
   (``tests/self_collision_referee.py``), every 10 mrad.
@@ -32,7 +33,7 @@ import numpy as np
 import pinocchio as pin
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from self_collision_referee import SelfCollisionReferee  # noqa: E402
+from self_collision_referee import MeshObstacleReferee, SelfCollisionReferee  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
 from geosyn.metrics.planning import Planner, PlanningError  # noqa: E402
@@ -40,7 +41,7 @@ from geosyn.metrics.planning.errors import InCollision  # noqa: E402
 from geosyn.robots import load_robot  # noqa: E402
 from geosyn.robots.robot import Robot  # noqa: E402
 from geosyn.world import Box, Shape, Sphere  # noqa: E402
-from geosyn.world.exact_clearance import ExactClearance, checked_configurations  # noqa: E402
+from geosyn.world.exact_clearance import checked_configurations  # noqa: E402
 
 ROBOTS = "panda,ur5,ur10_robot,xarm7,kinova,z1,so101"
 """Default robots: fixed-base arms of the catalogue with collision meshes."""
@@ -75,13 +76,13 @@ def scenes(robot: Robot, count: int, seed: int) -> list[tuple[list[Shape], np.nd
     return out
 
 
-def faults(robot: Robot, exact: ExactClearance, referee: SelfCollisionReferee,
+def faults(robot: Robot, meshes: MeshObstacleReferee, referee: SelfCollisionReferee,
            path: np.ndarray, obstacles: list[Shape]) -> list[str]:  # fmt: skip
     """What the referees find wrong with ``path`` (T, n) [rad] among ``obstacles``."""
-    exact.set_obstacles(obstacles)
+    meshes.set_obstacles(obstacles)
     found = []
-    if (c := exact.path_clearance(path, 0.002).clearance) < 0.0:
-        found.append(f"enters an obstacle by {-c * 1e3:.2f} mm")
+    if meshes.path_clearance(checked_configurations(path, 0.002)) < 0.0:
+        found.append("enters an obstacle")
     if np.any(path < robot.q_min - 1e-9) or np.any(path > robot.q_max + 1e-9):
         found.append("leaves the joint limits")
     if any(referee.collides(q) for q in checked_configurations(path, 0.01)):
@@ -103,7 +104,7 @@ def main(argv: list[str] | None = None) -> None:
     for name in args.robots.split(","):
         robot = load_robot(name)
         planner = Planner(KineticEnergyMetric(robot))
-        exact = ExactClearance(robot)
+        meshes = MeshObstacleReferee(robot)
         referee = SelfCollisionReferee(robot, planner.sphere_check.self_pairs)
         cases = scenes(robot, args.scenes, args.seed)
         for T in budgets:
@@ -120,7 +121,7 @@ def main(argv: list[str] | None = None) -> None:
                 if plan is not None:
                     paths += 1
                     path = np.asarray(plan.q)
-                    wrong += [f"#{k}: {f}" for f in faults(robot, exact, referee, path, obstacles)]
+                    wrong += [f"#{k}: {f}" for f in faults(robot, meshes, referee, path, obstacles)]
             over = sum(r > 1.1 for r in ratios)
             med = statistics.median(ratios) if ratios else math.nan
             top = max(ratios, default=math.nan)

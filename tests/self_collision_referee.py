@@ -1,5 +1,9 @@
-"""Pinocchio's own collision model of a robot's URDF, the referee of the self-collision
-tests (`test_planning_self_collision.py`, `test_self_collision_robots.py`)."""
+"""Pinocchio's own collision model of a robot's URDF (coal on its triangle meshes), the
+referee of the self-collision tests (`test_planning_self_collision.py`,
+`test_self_collision_robots.py`) and, with obstacles (`MeshObstacleReferee`), of the
+benchmarks' clearance on the real meshes (`benchmarks/planning_robots.py`,
+`benchmarks/planning_anytime.py`): geosyn's exact check measures a mesh's convex hull,
+which contains it."""
 
 from __future__ import annotations
 
@@ -15,7 +19,10 @@ class SelfCollisionReferee:
     """Pinocchio's own collision model of a robot's URDF (coal on its collision
     geometry), with the self pairs of the robot's file, link by link."""
 
-    def __init__(self, robot: Any, pairs: tuple[tuple[str, str], ...]) -> None:
+    def __init__(self, robot: Any, pairs: tuple[tuple[str, str], ...],
+                 lock: dict[str, float] | None = None) -> None:  # fmt: skip
+        """``lock``: positions [rad or m] of the file's joints the robot's model left out
+        (locked there; others stay at neutral)."""
         urdf = Path(str(robot.source_file))
         self.full = pin.buildModelFromUrdf(str(urdf))
         share = [str(p) for p in urdf.parents if p.name == "share"]
@@ -31,8 +38,12 @@ class SelfCollisionReferee:
         self.gd, self.data = self.gm.createData(), self.full.createData()
         # (the robot's coordinate, the file model's first coordinate, its count) per joint
         # by name: the file's continuous joints are (cos, sin) pairs there, one angle in
-        # the robot's model (bounded); joints the robot leaves out stay at neutral
+        # the robot's model (bounded); joints the robot leaves out stay at neutral or ``lock``
         model, self.joints = robot.model, []
+        self.q_neutral = pin.neutral(self.full)
+        for name, value in (lock or {}).items():
+            j = self.full.getJointId(name)
+            self.q_neutral[self.full.joints[j].idx_q] = value
         for j in range(1, self.full.njoints):
             name = self.full.names[j]
             if model.existJointName(name):
@@ -41,7 +52,7 @@ class SelfCollisionReferee:
                 self.joints.append((ours.idx_q, theirs.idx_q, theirs.nq))
 
     def _place(self, q: np.ndarray) -> None:
-        qf = pin.neutral(self.full)
+        qf = self.q_neutral.copy()
         for ours, theirs, nq in self.joints:
             qf[theirs : theirs + nq] = (
                 (math.cos(q[ours]), math.sin(q[ours])) if nq == 2 else q[ours : ours + nq]
@@ -65,3 +76,110 @@ class SelfCollisionReferee:
             d = -math.inf if hit else self.gd.distanceResults[k].min_distance
             out[key] = min(out.get(key, math.inf), d)
         return out
+
+
+class MeshObstacleReferee(SelfCollisionReferee):
+    """The distance of a robot's URDF collision geometry (Pinocchio's: coal BVHs of the
+    triangle meshes, not their convex hulls) to box and sphere obstacles (coal shapes
+    made here), per configuration; pairs whose bounding balls are farther apart than
+    the nearest found so far on a path are not measured (a lower bound)."""
+
+    def __init__(self, robot: Any, lock: dict[str, float] | None = None) -> None:
+        super().__init__(robot, (), lock)
+        self._obstacles: list[tuple[Any, Any, Any]] = []
+        self._balls = []
+        for g in self.gm.geometryObjects:
+            g.geometry.computeLocalAABB()
+            self._balls.append((np.array(g.geometry.aabb_center), float(g.geometry.aabb_radius)))
+
+    def set_obstacles(self, obstacles: list[Any]) -> None:
+        """Boxes, spheres, capsules and half-spaces of `geosyn.world`."""
+        import coal
+
+        self._obstacles = []
+        for ob in obstacles:
+            name = type(ob).__name__
+            if name == "HalfSpace":  # measured on the vertices (`clearance`)
+                n = np.array(ob.normal, dtype=float)
+                self._obstacles.append((coal.Halfspace(n, float(ob.offset)), coal.Transform3s(),
+                                        (name, n, float(ob.offset))))  # fmt: skip
+                continue
+            if name == "Capsule":
+                p0, p1 = np.array(ob.p0, dtype=float), np.array(ob.p1, dtype=float)
+                axis, length = p1 - p0, float(np.linalg.norm(p1 - p0))
+                z = axis / length if length > 0.0 else np.array([0.0, 0.0, 1.0])
+                x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+                x /= np.linalg.norm(x)
+                R = np.column_stack([x, np.cross(z, x), z])
+                geom = coal.Capsule(float(ob.radius), length)
+                tf, shape = coal.Transform3s(R, 0.5 * (p0 + p1)), (name, p0, p1, float(ob.radius))
+            elif name == "Box":
+                R, c = np.array(ob.rotation, dtype=float), np.array(ob.center, dtype=float)
+                half = np.array(ob.half_extents, dtype=float)
+                geom, tf = coal.Box(*(2.0 * half)), coal.Transform3s(R, c)
+                shape = (name, c, R, half)
+            elif name == "Sphere":
+                c = np.array(ob.center, dtype=float)
+                geom = coal.Sphere(float(ob.radius))
+                tf, shape = coal.Transform3s(np.eye(3), c), (name, c, float(ob.radius))
+            else:
+                raise ValueError(f"MeshObstacleReferee: no {name}")
+            self._obstacles.append((geom, tf, shape))
+
+    @staticmethod
+    def _lower(centre: np.ndarray, radius: float, shape: tuple[Any, ...]) -> float:
+        """A lower bound [m] of the distance of a ball (``centre``, ``radius``) to an
+        obstacle."""
+        name = shape[0]
+        if name == "HalfSpace":
+            return float(shape[1] @ centre - shape[2] - radius)
+        if name == "Sphere":
+            return float(np.linalg.norm(centre - shape[1]) - shape[2] - radius)
+        if name == "Capsule":
+            p0, p1, r = shape[1], shape[2], shape[3]
+            seg = p1 - p0
+            t = float(np.clip((centre - p0) @ seg / max(seg @ seg, 1e-300), 0.0, 1.0))
+            return float(np.linalg.norm(centre - p0 - t * seg) - r - radius)
+        c, R, half = shape[1], shape[2], shape[3]
+        local = np.abs(R.T @ (centre - c)) - half
+        return float(np.linalg.norm(np.maximum(local, 0.0)) + min(local.max(), 0.0) - radius)
+
+    def clearance(self, q: np.ndarray, below: float = math.inf) -> float:
+        """Smallest distance [m] of the collision geometry to the obstacles at ``q``
+        (the robot's coordinates; -inf where they intersect); pairs whose balls are at
+        least ``below`` apart are left out (then at least ``below``). A mesh to a
+        half-space: its nearest vertex (exact for triangles)."""
+        import coal
+
+        self._place(q)
+        best = below
+        for k, obj in enumerate(self.gm.geometryObjects):
+            M = self.gd.oMg[k]
+            centre = M.rotation @ self._balls[k][0] + M.translation
+            tf = coal.Transform3s(M.rotation, M.translation)
+            for geom, tf_o, shape in self._obstacles:
+                if self._lower(centre, self._balls[k][1], shape) >= best:
+                    continue
+                g = obj.geometry
+                if shape[0] == "HalfSpace" and hasattr(g, "vertices"):
+                    world = np.asarray(g.vertices()) @ M.rotation.T + M.translation
+                    d = float((world @ shape[1]).min() - shape[2])
+                elif coal.collide(g, tf, geom, tf_o, coal.CollisionRequest(),
+                                  coal.CollisionResult()):  # fmt: skip
+                    return -math.inf
+                else:
+                    d = float(coal.distance(g, tf, geom, tf_o, coal.DistanceRequest(),
+                                            coal.DistanceResult()))  # fmt: skip
+                if d < 0.0:
+                    return -math.inf
+                best = min(best, d)
+        return best
+
+    def path_clearance(self, Q: np.ndarray) -> float:
+        """Smallest `clearance` [m] over the configurations ``Q`` (K, n)."""
+        best = math.inf
+        for q in Q:
+            best = min(best, self.clearance(q, best))
+            if best == -math.inf:
+                break
+        return best

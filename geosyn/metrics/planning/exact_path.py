@@ -72,7 +72,12 @@ of every joint by Pinocchio index (0: the universe), as ``data.oMi`` (e.g. in C:
 
 
 class PathAids(NamedTuple):
-    """What makes `path_clearance` faster, with the same result."""
+    """What makes `path_clearance` faster: the same result where a mesh's convex hull is
+    as near as the mesh. ``bounds`` from spheres that cover each mesh bound the mesh, not
+    its hull: a pair they leave out may have its hull nearer than the result, never its
+    mesh, so the result is then between the hulls' clearance and the meshes' (a UR10
+    plan: 7.25 mm reported, its upper arm's hull 0.27 mm into a box, the triangles
+    8.66 mm clear of it, measured)."""
 
     bounds: Bounds | None = None
     kinematics: Kinematics | None = None
@@ -241,7 +246,8 @@ def path_clearance(
     when ``time.perf_counter()`` passes ``deadline`` [s] first. ``aids``: the joints'
     placements computed elsewhere (e.g. in C), tighter lower bounds of the pairs'
     distances, used instead of the bounding balls wherever they give one (fewer pairs
-    to measure); the same result. ``cap`` [m]: the clearance at most this (pairs whose
+    to measure); the same result where a mesh's hull is as near as the mesh, else
+    between the hulls' clearance and the meshes' (`PathAids`). ``cap`` [m]: the clearance at most this (pairs whose
     bound is not below it are not measured: a caller that asks only whether the path
     keeps ``cap`` measures far fewer); the same value where it is below. O(K (n + L O)) array work plus coal's distance for
     the pairs whose bound is below the result, placed `CHUNK` at a time.

@@ -40,8 +40,11 @@ class Plan(NamedTuple):
         exact_clearance: smallest signed distance [m] between the robot's own collision
             geometry (its file's meshes and primitives, `geosyn.world.exact_clearance`)
             and the obstacles along the path, linear between samples, checked at most
-            ``exact_resolution`` apart (joint max-norm); never negative for a returned
-            plan; NaN when the robot has no file geometry (``attempts`` says so).
+            ``exact_resolution`` apart (joint max-norm); a mesh is measured on its convex
+            hull, which contains it, or bounded by the fitted spheres that cover it
+            (`geosyn.metrics.planning.exact_path.PathAids`): at most the meshes' own
+            clearance. Never negative for a returned plan; NaN when the robot has no file
+            geometry (``attempts`` says so).
         exact_resolution: that joint-space resolution [rad].
         first_feasible_time: when the query's first plan passing every check was found,
             from the query's start [s].
