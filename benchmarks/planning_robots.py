@@ -9,7 +9,8 @@ than 10 % over; every returned path is checked against the referees:
 
 - the obstacles: coal on the URDF's collision geometry as Pinocchio builds it (the
   triangle meshes, ``tests/self_collision_referee.MeshObstacleReferee``; geosyn's exact
-  check measures a mesh's convex hull, which contains it), every 2 mrad;
+  check measures a mesh's convex hull, which contains it), every 2 mrad (on the SO-101's
+  fine meshes ~4 min a budget);
 - the joint limits;
 - self-collision: Pinocchio's collision model of the URDF on the planner's self pairs
   (``tests/self_collision_referee.py``), every 10 mrad.
