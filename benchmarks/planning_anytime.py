@@ -12,7 +12,12 @@ obstacle count are built before the first budget (`Planner.prepare`, timed and p
 the curve is the query's, not the first build's. Every returned path is then scored the
 same way, as in ``planning.py``: metric length under geosyn's Panda (armature 0), coal's
 exact distance to the URDF collision meshes and geodex's checker, on the path resampled
-every ``--check-step`` rad.
+every ``--check-step`` rad. The meshes' distance: on their convex hulls
+(`geosyn.world.exact_clearance.ExactClearance`, ``mesh_clearance``) and, where a hull is
+entered, on the triangles as Pinocchio builds them from the URDF
+(``tests/self_collision_referee.MeshObstacleReferee``, ``triangle_clearance``; where the
+hulls are clear it is at least their value, which is stored): "touches the meshes" and
+"clear of the URDF meshes" below are the triangles'.
 
 Printed per budget: paths returned (geosyn: how many of them are its sampled plan, not
 collocated: ``Plan.seed == "sampled"``), median and largest wall time to the returned
@@ -59,10 +64,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import planning_scenes as ps  # noqa: E402
 from planning import ROOT, metric_length  # noqa: E402
 from planning_geodex import geodex_run, geodex_sphere_model  # noqa: E402
 from planning_geosyn import CAPACITY, GRIPPERS, benchmark_robot, to_geosyn  # noqa: E402
+from self_collision_referee import MeshObstacleReferee  # noqa: E402
 
 from geosyn.metrics import KineticEnergyMetric  # noqa: E402
 from geosyn.metrics.planning import Planner, PlanningError, certified_clearance  # noqa: E402
@@ -151,8 +158,8 @@ def _summary(T: float, r: dict, g: dict[str, dict], s: dict[str, dict]) -> None:
         f"{_median([s[n]['first_feasible_time'] for n in s_ok]):7.3f} | "
         f"{_median(ratios):7.3f} [{min(ratios, default=math.nan):.3f}, "
         f"{max(ratios, default=math.nan):.3f}] {sum(x <= 1.0 for x in ratios):4d}/{len(both):<3d} "
-        f"{sum(x > 1.0 and g[n]['mesh_clearance'] >= 0 for n, x in zip(both, ratios, strict=True)):9d} | "
-        f"{sum(g[n]['mesh_clearance'] < 0 for n in g_ok):6d}/{sum(s[n]['mesh_clearance'] < 0 for n in s_ok):<7d} "
+        f"{sum(x > 1.0 and g[n]['triangle_clearance'] >= 0 for n, x in zip(both, ratios, strict=True)):9d} | "
+        f"{sum(g[n]['triangle_clearance'] < 0 for n in g_ok):6d}/{sum(s[n]['triangle_clearance'] < 0 for n in s_ok):<7d} "
         f"{sum(not s[n]['geodex_free'] for n in s_ok):10d} "
         f"{sum(s[n]['certified_clearance'] >= 0 for n in s_ok):5d}/{len(s_ok):<3d} | "
         f"{sum(g[n]['outside_limits'] for n in g_ok):6d}/{sum(s[n]['outside_limits'] for n in s_ok):<6d}"
@@ -210,6 +217,7 @@ def main(argv: list[str] | None = None) -> None:
     prepare = time.perf_counter() - t0
     print(f"geosyn: Planner() {build:.2f} s, NLPs of every obstacle count {prepare:.2f} s")
     mesh = ExactClearance(robot)
+    triangles = MeshObstacleReferee(robot, GRIPPERS[args.gripper])
     runs: dict[float, dict[str, dict]] = {}
     for T in budgets:
         geodex_run("plan", "--out", str(work / f"gdx_{T}.json"), "--time", str(T),
@@ -236,15 +244,21 @@ def main(argv: list[str] | None = None) -> None:
     for key, path in dense.items():
         name, who, T = key.split("/")
         row = runs[float(T)][who][name]
-        mesh.set_obstacles([to_geosyn(ob) for ob in ps.scene_by_name(name).obstacles])
+        obstacles = [to_geosyn(ob) for ob in ps.scene_by_name(name).obstacles]
+        mesh.set_obstacles(obstacles)
         row["length"] = metric_length(metric, path)
-        row["mesh_clearance"] = mesh.path_clearance(path, args.check_step).clearance
+        row["mesh_clearance"] = hull = mesh.path_clearance(path, args.check_step).clearance
+        if hull < 0.0:  # the hulls contain the triangles: measured only where one is entered
+            triangles.set_obstacles(obstacles)
+            hull = triangles.path_clearance(path)
+        row["triangle_clearance"] = hull
         row["certified_clearance"] = certified_clearance(mesh, path, args.check_step).bound
         row["geodex_free"] = bool(gcheck[key]["collision_free"])
         row["outside_limits"] = bool(outside_limits(robot, path))  # the URDF's position limits
         row.pop("path", None)
     print(f"\nmetric length [sqrt(kg) m] under geosyn's panda (armature 0); mesh = coal's "
-          f"distance to the URDF collision meshes; paths resampled every {args.check_step:g} rad")  # fmt: skip
+          f"distance to the URDF collision meshes' triangles (Pinocchio's model of the URDF); "
+          f"paths resampled every {args.check_step:g} rad")  # fmt: skip
     print(f"{'T [s]':>6s} {'load':>5s} | {'gdx ok':>6s} {'gdx wall med/max':>16s} | "
           f"{'gsy ok':>6s} {'smp':>3s} {'gsy wall med/max':>16s} {'cpu med':>7s} {'1st med':>7s} | "
           f"{'len ratio med [min, max]':>25s} {'gsy<=gdx':>8s} {'>gdx free':>9s} | {'mesh<0 gdx/gsy':>14s} {'gdxchk gsy':>10s} {'cert gsy':>9s} | "
