@@ -248,10 +248,10 @@ def main(argv: list[str] | None = None) -> None:
         mesh.set_obstacles(obstacles)
         row["length"] = metric_length(metric, path)
         row["mesh_clearance"] = hull = mesh.path_clearance(path, args.check_step).clearance
-        if hull < 0.0:  # the hulls contain the triangles: measured only where one is entered
+        row["triangle_clearance"] = hull  # the hulls contain the triangles: at least this
+        if hull < 0.0:  # measured on the triangles only where a hull is entered
             triangles.set_obstacles(obstacles)
-            hull = triangles.path_clearance(path)
-        row["triangle_clearance"] = hull
+            row["triangle_clearance"] = triangles.path_clearance(path)
         row["certified_clearance"] = certified_clearance(mesh, path, args.check_step).bound
         row["geodex_free"] = bool(gcheck[key]["collision_free"])
         row["outside_limits"] = bool(outside_limits(robot, path))  # the URDF's position limits

@@ -80,17 +80,20 @@ class SelfCollisionReferee:
 
 class MeshObstacleReferee(SelfCollisionReferee):
     """The distance of a robot's URDF collision geometry (Pinocchio's: coal BVHs of the
-    triangle meshes, not their convex hulls) to box and sphere obstacles (coal shapes
-    made here), per configuration; pairs whose bounding balls are farther apart than
-    the nearest found so far on a path are not measured (a lower bound)."""
+    triangle meshes, not their convex hulls) to obstacles (coal shapes made here), per
+    configuration; an object whose bounding ball (a coal sphere) is farther from an
+    obstacle than the nearest found so far on a path is not measured against it."""
 
     def __init__(self, robot: Any, lock: dict[str, float] | None = None) -> None:
+        import coal
+
         super().__init__(robot, (), lock)
-        self._obstacles: list[tuple[Any, Any, Any]] = []
-        self._balls = []
+        self._obstacles: list[tuple[Any, Any, np.ndarray | None, float]] = []
+        self._balls = []  # (coal sphere, centre in the object's frame) per object
         for g in self.gm.geometryObjects:
             g.geometry.computeLocalAABB()
-            self._balls.append((np.array(g.geometry.aabb_center), float(g.geometry.aabb_radius)))
+            ball = coal.Sphere(float(g.geometry.aabb_radius))
+            self._balls.append((ball, np.array(g.geometry.aabb_center)))
 
     def set_obstacles(self, obstacles: list[Any]) -> None:
         """Boxes, spheres, capsules and half-spaces of `geosyn.world`."""
@@ -98,51 +101,28 @@ class MeshObstacleReferee(SelfCollisionReferee):
 
         self._obstacles = []
         for ob in obstacles:
-            name = type(ob).__name__
-            if name == "HalfSpace":  # measured on the vertices (`clearance`)
-                n = np.array(ob.normal, dtype=float)
-                self._obstacles.append((coal.Halfspace(n, float(ob.offset)), coal.Transform3s(),
-                                        (name, n, float(ob.offset))))  # fmt: skip
-                continue
-            if name == "Capsule":
+            name, normal, offset = type(ob).__name__, None, 0.0
+            if name == "HalfSpace":  # a mesh measured on its vertices (`clearance`)
+                normal, offset = np.array(ob.normal, dtype=float), float(ob.offset)
+                geom, tf = coal.Halfspace(normal, offset), coal.Transform3s()
+            elif name == "Capsule":
                 p0, p1 = np.array(ob.p0, dtype=float), np.array(ob.p1, dtype=float)
                 axis, length = p1 - p0, float(np.linalg.norm(p1 - p0))
                 z = axis / length if length > 0.0 else np.array([0.0, 0.0, 1.0])
                 x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
                 x /= np.linalg.norm(x)
-                R = np.column_stack([x, np.cross(z, x), z])
                 geom = coal.Capsule(float(ob.radius), length)
-                tf, shape = coal.Transform3s(R, 0.5 * (p0 + p1)), (name, p0, p1, float(ob.radius))
+                tf = coal.Transform3s(np.column_stack([x, np.cross(z, x), z]), 0.5 * (p0 + p1))
             elif name == "Box":
-                R, c = np.array(ob.rotation, dtype=float), np.array(ob.center, dtype=float)
-                half = np.array(ob.half_extents, dtype=float)
-                geom, tf = coal.Box(*(2.0 * half)), coal.Transform3s(R, c)
-                shape = (name, c, R, half)
+                geom = coal.Box(*(2.0 * np.array(ob.half_extents, dtype=float)))
+                tf = coal.Transform3s(np.array(ob.rotation, dtype=float),
+                                      np.array(ob.center, dtype=float))  # fmt: skip
             elif name == "Sphere":
-                c = np.array(ob.center, dtype=float)
                 geom = coal.Sphere(float(ob.radius))
-                tf, shape = coal.Transform3s(np.eye(3), c), (name, c, float(ob.radius))
+                tf = coal.Transform3s(np.eye(3), np.array(ob.center, dtype=float))
             else:
                 raise ValueError(f"MeshObstacleReferee: no {name}")
-            self._obstacles.append((geom, tf, shape))
-
-    @staticmethod
-    def _lower(centre: np.ndarray, radius: float, shape: tuple[Any, ...]) -> float:
-        """A lower bound [m] of the distance of a ball (``centre``, ``radius``) to an
-        obstacle."""
-        name = shape[0]
-        if name == "HalfSpace":
-            return float(shape[1] @ centre - shape[2] - radius)
-        if name == "Sphere":
-            return float(np.linalg.norm(centre - shape[1]) - shape[2] - radius)
-        if name == "Capsule":
-            p0, p1, r = shape[1], shape[2], shape[3]
-            seg = p1 - p0
-            t = float(np.clip((centre - p0) @ seg / max(seg @ seg, 1e-300), 0.0, 1.0))
-            return float(np.linalg.norm(centre - p0 - t * seg) - r - radius)
-        c, R, half = shape[1], shape[2], shape[3]
-        local = np.abs(R.T @ (centre - c)) - half
-        return float(np.linalg.norm(np.maximum(local, 0.0)) + min(local.max(), 0.0) - radius)
+            self._obstacles.append((geom, tf, normal, offset))
 
     def clearance(self, q: np.ndarray, below: float = math.inf) -> float:
         """Smallest distance [m] of the collision geometry to the obstacles at ``q``
@@ -154,16 +134,17 @@ class MeshObstacleReferee(SelfCollisionReferee):
         self._place(q)
         best = below
         for k, obj in enumerate(self.gm.geometryObjects):
-            M = self.gd.oMg[k]
-            centre = M.rotation @ self._balls[k][0] + M.translation
+            M, (ball, centre) = self.gd.oMg[k], self._balls[k]
             tf = coal.Transform3s(M.rotation, M.translation)
-            for geom, tf_o, shape in self._obstacles:
-                if self._lower(centre, self._balls[k][1], shape) >= best:
+            tf_ball = coal.Transform3s(M.rotation, M.rotation @ centre + M.translation)
+            for geom, tf_o, normal, offset in self._obstacles:
+                if coal.distance(ball, tf_ball, geom, tf_o, coal.DistanceRequest(),
+                                 coal.DistanceResult()) >= best:  # fmt: skip
                     continue
                 g = obj.geometry
-                if shape[0] == "HalfSpace" and hasattr(g, "vertices"):
+                if normal is not None and hasattr(g, "vertices"):
                     world = np.asarray(g.vertices()) @ M.rotation.T + M.translation
-                    d = float((world @ shape[1]).min() - shape[2])
+                    d = float((world @ normal).min() - offset)
                 elif coal.collide(g, tf, geom, tf_o, coal.CollisionRequest(),
                                   coal.CollisionResult()):  # fmt: skip
                     return -math.inf

@@ -595,13 +595,15 @@ def _near_line(robot: object, referee: SelfCollisionReferee, seed: int) -> np.nd
     0.5-1.5 mm apart on Pinocchio's distance: from a configuration where every pair is
     apart to one where a pair intersects, bisected on that pair."""
     rng = np.random.default_rng(seed)
-    while True:
+    for _ in range(1000):  # seeded: the same line every run
         q0 = robot.random_q(rng)  # type: ignore[attr-defined]
         q1 = np.clip(q0 + rng.uniform(-0.6, 0.6, len(q0)), robot.q_min, robot.q_max)  # type: ignore[attr-defined]
         d0, d1 = referee.distances(q0), referee.distances(q1)
         hit = [pair for pair, d in d1.items() if d < 0.0]
         if min(d0.values()) > 0.01 and hit:
             break
+    else:
+        raise AssertionError("no line from clear to intersecting in 1,000 draws")
     lo, hi = 0.0, 1.0  # bisect the pair's distance along the line to ~1 mm
     for _ in range(60):
         t = 0.5 * (lo + hi)

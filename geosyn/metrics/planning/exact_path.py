@@ -247,10 +247,11 @@ def path_clearance(
     placements computed elsewhere (e.g. in C), tighter lower bounds of the pairs'
     distances, used instead of the bounding balls wherever they give one (fewer pairs
     to measure); the same result where a mesh's hull is as near as the mesh, else
-    between the hulls' clearance and the meshes' (`PathAids`). ``cap`` [m]: the clearance at most this (pairs whose
-    bound is not below it are not measured: a caller that asks only whether the path
-    keeps ``cap`` measures far fewer); the same value where it is below. O(K (n + L O)) array work plus coal's distance for
-    the pairs whose bound is below the result, placed `CHUNK` at a time.
+    between the hulls' clearance and the meshes' (`PathAids`). ``cap`` [m]: the
+    clearance at most this (pairs whose bound is not below it are not measured: a caller
+    that asks only whether the path keeps ``cap`` measures far fewer); the same value
+    where it is below. O(K (n + L O)) array work plus coal's distance for the pairs whose
+    bound is below the result, placed `CHUNK` at a time.
     """
     import coal
 
